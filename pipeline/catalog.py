@@ -1,0 +1,84 @@
+"""Named datasets: where each stage reads and writes (Kedro's idea, without its weight).
+
+A *dataset* is one collection of runs (``virtual`` for the built-in tank, ``hsva`` for the measured
+KVLCC2 zigzags, or any name a user gives their own folder).  Everything a stage makes for it lives
+under ``data/processed/<dataset>/<stage>/``.
+
+The contracts between stages (what each file holds; JSON written with :func:`pipeline.io.write_json`,
+Parquet with :func:`pipeline.io.write_frame`, both atomic):
+
+``runs/<run_id>.parquet``  processed run, SPEC section 2 (``pipeline.io.Run``).
+``runs/index.json``        ``{"dataset", "provenance": "virtual"|"measured"|"mixed", "runs": [entry...]}``,
+                           entry = ``{"run_id", "file"}`` + the run's metadata (source_file, source_sha256,
+                           source_format, provenance, test_name, kind, rudder_deg, heading_deg, first_side,
+                           dt, original_dt, scale_factor, duration, samples, ship, lpp, ...).
+``identify/<alg>/estimates.json``  SPEC section 5, plus ``run_id``, ``dataset``, ``provenance``.
+``identify/<alg>/trace.parquet``   per step: time, delta, v, r, psi (measured); v_pred, r_pred, psi_pred
+                           (one-step prediction made before the sample); v_est, r_est, psi_est (posterior);
+                           a11..b21 and a11_std..b21_std; f (forgetting factor); innov_v, innov_r, innov_psi;
+                           nis (normalised innovation squared).
+``validate/metrics.json``  ``{"dataset", "provenance", "ident_run", "rows": [{"algorithm", "run_id",
+                           "segment": "identification-rest"|"held-out", "mode": "one-step"|"free-run",
+                           "mse_v", "mse_r", "mae_psi", "samples"}], "paper": {...}}``.
+``validate/predictions.parquet``   long format: algorithm, run_id, mode, time, delta, v, r, psi, v_pred,
+                           r_pred, psi_pred.
+``indices/indices.json``   ``{"dataset", "provenance", "identified": {alg: {"K": {"value", "std"}, "T1": ...}},
+                           "graphical": [{"run_id", "method": "standard"|"integral", "K", "T", ...}],
+                           "control_model": {"source", "K", "T1", "T2", "T3", "T"},
+                           "graphical_model": {"source", "K", "T"}, "paper": {...}}``.
+``indices/zigzag.json``    per run: ITTC zigzag or turning metrics and the IMO check.
+``control/metrics.json``   design (gains, margins, bandwidth, sensitivity peak) and per (plant, design)
+                           statistics over wave seeds (mean, std, worst), with the paper's figures.
+``control/timeseries.parquet``     plant, design, seed, time, psi_ref, psi, r, delta_cmd, delta, wave, wind.
+``diagnose/diagnosis.json``        SPEC section 7; ``diagnose/series.parquet`` measured/baseline/extended
+                           free-run series per validation run; PNG plots beside them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class Catalog:
+    root: Path = Path("data/processed")
+    dataset: str = "virtual"
+
+    @property
+    def base(self) -> Path:
+        return Path(self.root) / self.dataset
+
+    # ingest
+    @property
+    def runs_dir(self) -> Path:
+        return self.base / "runs"                       # <run_id>.parquet, one per run
+
+    @property
+    def runs_index(self) -> Path:
+        return self.runs_dir / "index.json"             # list of runs with their metadata
+
+    # identify
+    def identify_dir(self, algorithm: str) -> Path:
+        return self.base / "identify" / algorithm       # estimates.json, trace.parquet
+
+    # validate
+    @property
+    def validate_dir(self) -> Path:
+        return self.base / "validate"                   # metrics.json, predictions_*.parquet
+
+    @property
+    def indices_dir(self) -> Path:
+        return self.base / "indices"                    # indices.json, zigzag.json, table7.csv
+
+    @property
+    def control_dir(self) -> Path:
+        return self.base / "control"                    # metrics.json, timeseries.parquet
+
+    @property
+    def diagnose_dir(self) -> Path:
+        return self.base / "diagnose"                   # diagnosis.json, plots
+
+    @property
+    def raw_dir_default(self) -> Path:
+        return Path("data/raw") / self.dataset

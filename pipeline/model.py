@@ -1,0 +1,109 @@
+"""The sway-yaw identification model of SPEC section 5 and its Nomoto indices (paper Eq. 6).
+
+Units (the paper's and SPEC's, in which Table 4 is given): v m/s, r deg/s, psi deg, delta deg,
+step h s.  Parameters theta = (a11, a12, a21, a22, b11, b21):
+
+    v(k+1)   = v(k) + h (a11 v(k) + a12 r(k) + b11 delta(k))
+    r(k+1)   = r(k) + h (a21 v(k) + a22 r(k) + b21 delta(k))
+    psi(k+1) = psi(k) + h r(k)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pipeline.errors import ModelError
+
+PARAM_NAMES = ("a11", "a12", "a21", "a22", "b11", "b21")
+STATE_NAMES = ("v", "r", "psi")
+INDEX_NAMES = ("K", "T1", "T2", "T3", "T")
+
+#: Paper, Table 4 (identified on the KCS 20/20 zigzag).
+PAPER_TABLE4 = {"a11": -1.882, "a12": -0.1232, "a21": -7.422, "a22": -0.8129, "b11": 0.0099, "b21": 0.1657}
+#: Paper, Table 7 (indices from Table 4) and the graphical method.
+PAPER_TABLE7 = {"K": 0.3867, "T1": 3.9688, "T2": 0.4094, "T3": 0.6960, "T": 3.6822}
+PAPER_GRAPHICAL = {"K": 0.576, "T": 4.816}
+
+
+def as_theta(params) -> np.ndarray:
+    """Parameters as an array in PARAM_NAMES order (accepts a mapping or a sequence of 6)."""
+    if isinstance(params, dict):
+        missing = [n for n in PARAM_NAMES if n not in params]
+        if missing:
+            raise ModelError(f"parameters missing: {', '.join(missing)}")
+        return np.array([float(params[n]) for n in PARAM_NAMES])
+    theta = np.asarray(params, dtype=float).reshape(-1)
+    if theta.size != 6:
+        raise ModelError(f"expected 6 parameters (a11 a12 a21 a22 b11 b21), got {theta.size}")
+    return theta
+
+
+def step(x, delta, theta, h: float):
+    """One step of the model.  ``x`` (..., 3) = (v m/s, r deg/s, psi deg); ``delta`` deg; ``h`` s."""
+    a11, a12, a21, a22, b11, b21 = as_theta(theta)
+    x = np.asarray(x, dtype=float)
+    v, r, psi = x[..., 0], x[..., 1], x[..., 2]
+    out = np.empty_like(x)
+    out[..., 0] = v + h * (a11 * v + a12 * r + b11 * delta)
+    out[..., 1] = r + h * (a21 * v + a22 * r + b21 * delta)
+    out[..., 2] = psi + h * r
+    return out
+
+
+def simulate(theta, x0, delta, h: float) -> np.ndarray:
+    """Free-run simulation driven by the rudder alone.
+
+    Parameters
+    ----------
+    theta : the six parameters (mapping or sequence).
+    x0 : initial (v m/s, r deg/s, psi deg).
+    delta : rudder angle sequence, deg, length N.
+    h : step, s.
+
+    Returns
+    -------
+    (N, 3) array of (v, r, psi); row 0 is ``x0``, row k+1 follows from row k and delta[k].
+    """
+    a11, a12, a21, a22, b11, b21 = as_theta(theta)
+    d = np.asarray(delta, dtype=float)
+    n = d.size
+    out = np.empty((n, 3))
+    v, r, psi = (float(c) for c in x0)
+    for k in range(n):
+        out[k] = (v, r, psi)
+        v, r, psi = (v + h * (a11 * v + a12 * r + b11 * d[k]),
+                     r + h * (a21 * v + a22 * r + b21 * d[k]),
+                     psi + h * r)
+    return out
+
+
+def nomoto_indices(params) -> dict[str, float]:
+    """Second-order Nomoto indices from the six parameters (paper Eq. 6).
+
+    With D = a11 a22 - a12 a21: K = (a21 b11 - a11 b21)/D, T1 T2 = 1/D,
+    T1 + T2 = -(a11 + a22)/D, K T3 = b21/D, T = T1 + T2 - T3.  T1 >= T2.
+
+    Units: with the model in SPEC units, K is in 1/s (deg/s of yaw rate per deg of rudder),
+    T1, T2, T3, T in s.  Raises :class:`ModelError` when the time constants are not real and
+    positive (D <= 0, complex roots) or K = 0.
+    """
+    a11, a12, a21, a22, b11, b21 = as_theta(params)
+    det = a11 * a22 - a12 * a21
+    if not det > 0:
+        raise ModelError(f"a11 a22 - a12 a21 = {det:.4g} <= 0: the model has no two positive time constants")
+    s = -(a11 + a22) / det          # T1 + T2
+    p = 1.0 / det                   # T1 T2
+    disc = s * s - 4.0 * p
+    if not s > 0:
+        raise ModelError(f"T1 + T2 = {s:.4g} <= 0: the model is unstable")
+    if disc < 0:
+        raise ModelError("the time constants are complex (oscillatory yaw mode): no real T1, T2")
+    root = math.sqrt(disc)
+    t1, t2 = (s + root) / 2.0, (s - root) / 2.0
+    k = (a21 * b11 - a11 * b21) / det
+    if k == 0:
+        raise ModelError("K = 0: the rudder has no steady effect on yaw rate")
+    t3 = b21 / det / k
+    return {"K": float(k), "T1": float(t1), "T2": float(t2), "T3": float(t3), "T": float(t1 + t2 - t3)}

@@ -1,0 +1,72 @@
+"""What a run is: parse test names, choose identification and validation runs.
+
+Test names come from file headers in many spellings: ``zigzag 20/20 starboard`` (virtual tank),
+``Zig-zag manoeuvring for KVLCC2 : 20 / -20`` (MARIN), ``Z20°/10° starting to port`` (HSVA),
+``turning circle 35 port``.  :func:`parse_test_name` turns them into a small dict.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+_ZIGZAG = re.compile(
+    r"(?:zig[\s-]*zag|^\s*z)(?:.*?[^\w.])??(?P<rud>\d+(?:\.\d+)?)\s*(?:°|deg|m-0)?\s*/\s*-?\s*(?P<head>\d+(?:\.\d+)?)",
+    re.IGNORECASE,
+)
+_TURN = re.compile(r"turn(?:ing)?(?:\s*circle)?\D*?(?P<rud>\d+(?:\.\d+)?)", re.IGNORECASE)
+
+
+def _side(text: str) -> str | None:
+    t = text.lower()
+    if re.search(r"\b(port|ps|p)\b", t) or t.rstrip().endswith("_p"):
+        return "port"
+    if re.search(r"\b(starboard|stbd|sb|s)\b", t) or t.rstrip().endswith("_s"):
+        return "starboard"
+    return None
+
+
+def parse_test_name(text: str) -> dict[str, Any]:
+    """Parse a test description.
+
+    Returns ``{"kind": "zigzag"|"turning"|"other", "rudder_deg": float|None,
+    "heading_deg": float|None, "first_side": "port"|"starboard"|None}``.
+    """
+    text = text or ""
+    m = _ZIGZAG.search(text)
+    if m:
+        return {"kind": "zigzag", "rudder_deg": float(m["rud"]), "heading_deg": float(m["head"]),
+                "first_side": _side(text)}
+    m = _TURN.search(text)
+    if m:
+        return {"kind": "turning", "rudder_deg": float(m["rud"]), "heading_deg": None,
+                "first_side": _side(text)}
+    return {"kind": "other", "rudder_deg": None, "heading_deg": None, "first_side": _side(text)}
+
+
+def choose_runs(runs: list[dict[str, Any]], identification: str | None = None) -> tuple[str, list[str]]:
+    """Pick the identification run and the validation runs from a runs index.
+
+    ``runs`` are the entries of ``runs/index.json`` (each with ``run_id``, ``kind``,
+    ``rudder_deg``, ``heading_deg``, ``first_side``).  ``identification`` names a run_id to use.
+    Default rule (the paper's): the 20/20 zigzag starting to starboard; failing that, the zigzag
+    with rudder closest to 20 deg and the largest heading trigger (starboard first, then name).
+    Validation: every other zigzag.  Raises ``ValueError`` when there is no zigzag.
+    """
+    zig = [r for r in runs if r.get("kind") == "zigzag"]
+    if identification is not None:
+        ids = [r["run_id"] for r in runs]
+        if identification not in ids:
+            raise ValueError(f"identification run {identification!r} is not among the runs {ids}")
+        ident = identification
+    else:
+        if not zig:
+            raise ValueError("no zigzag run to identify from")
+
+        def key(r):
+            return (abs((r.get("rudder_deg") or 0) - 20.0), -(r.get("heading_deg") or 0),
+                    0 if r.get("first_side") == "starboard" else 1, r["run_id"])
+
+        ident = sorted(zig, key=key)[0]["run_id"]
+    val = [r["run_id"] for r in zig if r["run_id"] != ident]
+    return ident, val

@@ -1,0 +1,68 @@
+"""Unit conversions and Froude scaling: the one place where they happen.
+
+Canonical units (SPEC section 2): s, m, m/s, deg, deg/s, 1/min.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+DEG = np.pi / 180.0
+"""One degree in radians."""
+
+
+def deg2rad(x):
+    """Degrees (or deg/s) to radians (or rad/s)."""
+    return np.asarray(x, dtype=float) * DEG if np.ndim(x) else float(x) * DEG
+
+
+def rad2deg(x):
+    """Radians (or rad/s) to degrees (or deg/s)."""
+    return np.asarray(x, dtype=float) / DEG if np.ndim(x) else float(x) / DEG
+
+
+# Froude scaling with geometric scale factor lam = L_full / L_model.
+# Quantity      full -> model
+# length        / lam
+# time          / sqrt(lam)
+# velocity      / sqrt(lam)
+# angle         unchanged
+# angular rate  * sqrt(lam)
+# rev rate      * sqrt(lam)
+FROUDE_EXPONENT = {
+    "length": -1.0,
+    "time": -0.5,
+    "velocity": -0.5,
+    "angle": 0.0,
+    "rate": 0.5,
+    "frequency": 0.5,
+    "force": -3.0,
+    "moment": -4.0,
+}
+
+
+def froude_to_model(value, kind: str, scale: float):
+    """Bring a full-scale quantity to model scale by Froude similarity.
+
+    Parameters
+    ----------
+    value : full-scale value(s).
+    kind : one of ``FROUDE_EXPONENT`` ('length', 'time', 'velocity', 'angle', 'rate',
+        'frequency', 'force', 'moment').
+    scale : geometric scale factor lambda = L_full / L_model (> 0), e.g. 37.89.
+    """
+    if kind not in FROUDE_EXPONENT:
+        raise ValueError(f"unknown Froude quantity kind {kind!r}")
+    if not scale > 0:
+        raise ValueError(f"scale factor must be positive, got {scale}")
+    return np.asarray(value, dtype=float) * scale ** FROUDE_EXPONENT[kind]
+
+
+def body_velocities(dx0, dy0, psi_deg):
+    """Earth-fixed velocities (m/s) and heading (deg) to body-fixed u, v (m/s), v to starboard."""
+    p = np.asarray(psi_deg, dtype=float) * DEG
+    dx0 = np.asarray(dx0, dtype=float)
+    dy0 = np.asarray(dy0, dtype=float)
+    u = dx0 * np.cos(p) + dy0 * np.sin(p)
+    v = -dx0 * np.sin(p) + dy0 * np.cos(p)
+    return u, v
