@@ -25,6 +25,8 @@ import pyarrow.parquet as pq
 from pipeline.errors import InputError
 
 RUN_META_KEY = b"tanktest.run"
+_UMASK = os.umask(0o022)
+os.umask(_UMASK)
 REQUIRED_COLUMNS = ("time", "psi", "r", "delta")
 CANONICAL_COLUMNS = ("time", "x0", "y0", "psi", "u", "v", "r", "delta", "rpm")
 COLUMN_UNITS = {
@@ -76,6 +78,7 @@ def atomic_path(dest: str | Path, suffix: str | None = None) -> Iterator[Path]:
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        os.chmod(tmp_path, 0o666 & ~_UMASK)      # mkstemp makes 0600; give the usual mode
         os.replace(tmp_path, dest)
     finally:
         if tmp_path.exists():

@@ -1,0 +1,112 @@
+"""Manoeuvre definitions for the virtual tank: zigzags and turning circles (ITTC 7.5-04-02-01).
+
+The first execute is at t = 0 from a steady straight approach (the identification window of the
+paper, the first 585 samples of the 20/20 zigzag, then starts at the execute).  Angles in degrees,
+times in seconds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from pipeline.errors import InputError
+
+SIDES = ("starboard", "port")
+
+#: Default zigzag length: the 20/20 and 10/10 periods of this ship are about 33 s at model scale, so
+#: 150 s holds 4.5 periods: the 46.8 s identification window (585 samples at 0.08 s), then about
+#: three periods for validation.
+ZIGZAG_DURATION = 150.0
+#: Default turning-circle length: enough for more than 400 deg of heading at 35 deg rudder.
+TURNING_DURATION = 90.0
+
+
+def _num(x: float) -> str:
+    return f"{x:g}"
+
+
+@dataclass(frozen=True)
+class Manoeuvre:
+    """One free-running test: ``kind`` 'zigzag', 'turning' or 'straight'.
+
+    rudder_deg : rudder amplitude (> 0), deg.  heading_deg : zigzag heading trigger (> 0), deg
+    (None for turning).  side : first execute side, 'starboard' (rudder positive, psi increasing)
+    or 'port'.  duration : record length, s.
+    """
+
+    kind: str
+    rudder_deg: float
+    heading_deg: float | None
+    side: str
+    duration: float
+
+    @property
+    def sign(self) -> float:
+        """+1 for a first execute to starboard (positive rudder), -1 to port."""
+        return 1.0 if self.side == "starboard" else -1.0
+
+    @property
+    def test_name(self) -> str:
+        """E.g. 'zigzag 20/20 starboard', 'turning circle 35 port' (pipeline.runinfo parses these)."""
+        if self.kind == "zigzag":
+            return f"zigzag {_num(self.rudder_deg)}/{_num(self.heading_deg)} {self.side}"
+        if self.kind == "straight":
+            return "straight run"
+        return f"turning circle {_num(self.rudder_deg)} {self.side}"
+
+    @property
+    def file_stem(self) -> str:
+        """E.g. 'kcs_zigzag_20_20_S', 'kcs_turning_35_P' (non-integer angles as 12p5)."""
+        s = "S" if self.side == "starboard" else "P"
+
+        def tok(x):
+            return _num(x).replace(".", "p")
+
+        if self.kind == "zigzag":
+            return f"kcs_zigzag_{tok(self.rudder_deg)}_{tok(self.heading_deg)}_{s}"
+        if self.kind == "straight":
+            return "kcs_straight"
+        return f"kcs_turning_{tok(self.rudder_deg)}_{s}"
+
+
+def _check(rudder_deg, side, duration, what):
+    if not (isinstance(rudder_deg, (int, float)) and math.isfinite(rudder_deg) and rudder_deg > 0):
+        raise InputError(f"{what}: rudder angle must be a positive number of degrees, got {rudder_deg!r}")
+    if side not in SIDES:
+        raise InputError(f"{what}: side must be 'starboard' or 'port', got {side!r}")
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise InputError(f"{what}: duration must be a positive number of seconds, got {duration!r}")
+
+
+def zigzag(rudder_deg: float, heading_deg: float, first_side: str = "starboard",
+           duration: float | None = None) -> Manoeuvre:
+    """A rudder_deg/heading_deg zigzag, first execute to ``first_side`` (default length 150 s)."""
+    _check(rudder_deg, first_side, duration, "zigzag")
+    if not (isinstance(heading_deg, (int, float)) and math.isfinite(heading_deg) and heading_deg > 0):
+        raise InputError(f"zigzag: heading trigger must be a positive number of degrees, got {heading_deg!r}")
+    return Manoeuvre("zigzag", float(rudder_deg), float(heading_deg), first_side,
+                     float(duration) if duration is not None else ZIGZAG_DURATION)
+
+
+def turning_circle(rudder_deg: float = 35.0, side: str = "starboard",
+                   duration: float | None = None) -> Manoeuvre:
+    """A turning circle at constant rudder to ``side`` (default length 90 s, > 400 deg of heading)."""
+    _check(rudder_deg, side, duration, "turning circle")
+    return Manoeuvre("turning", float(rudder_deg), None, side,
+                     float(duration) if duration is not None else TURNING_DURATION)
+
+
+def straight(duration: float = 60.0) -> Manoeuvre:
+    """A straight run with the rudder amidships (not in the default set; for checks)."""
+    _check(1.0, "starboard", duration, "straight run")
+    return Manoeuvre("straight", 0.0, None, "starboard", float(duration))
+
+
+def default_set() -> list[Manoeuvre]:
+    """Zigzags 20/20 and 10/10 to both sides, 35 deg turning circles to both sides."""
+    return [
+        zigzag(20, 20, "starboard"), zigzag(20, 20, "port"),
+        zigzag(10, 10, "starboard"), zigzag(10, 10, "port"),
+        turning_circle(35, "starboard"), turning_circle(35, "port"),
+    ]
