@@ -45,6 +45,9 @@ class IngestConfig:
     min_samples: int = 50                # fewest samples (after resampling) a run may have
     max_abs_rudder: float = 90.0         # deg, beyond this the units cannot be right
     max_abs_rate: float = 90.0           # deg/s, same for yaw rate at model scale
+    approach_window: float = 2.0         # s, approach_speed = mean u over the first this-many seconds
+    filter_order: int = 8                # Butterworth order of the anti-alias low-pass (run both ways)
+    cutoff_ratio: float = 0.8            # low-pass corner as a fraction of the new Nyquist frequency 0.5/dt
 
 
 @dataclass(frozen=True)
@@ -54,6 +57,7 @@ class FuzzyConfig:
     e_domain: tuple[float, float] = (-0.5, 0.5)
     de_domain: tuple[float, float] = (-0.5, 0.5)
     f_range: tuple[float, float] = (0.95, 1.0)
+    channel: str = "r"                   # innovation feeding e: 'r' (deg/s, default), 'v' or 'psi'
 
 
 @dataclass(frozen=True)
@@ -76,6 +80,8 @@ class FilterConfig:
     theta0_std: tuple[float, ...] = (1.0, 1.0, 5.0, 1.0, 0.05, 0.2)     # initial one-sigma of parameters
     fuzzy: FuzzyConfig = field(default_factory=FuzzyConfig)
     use_fuzzy: bool = True               # False: forgetting factor fixed at 1
+    v0_std: float = 0.1                  # m/s, initial one-sigma of v when the run has no v column
+    fast: bool = True                    # numba kernel for the SR-UKF (False: numpy reference path)
 
 
 @dataclass(frozen=True)
@@ -94,6 +100,16 @@ class ControlConfig:
     seeds: int = 20                      # number of wave seeds for statistics
     seed: int = 7                        # base seed
     settle_band: float = 0.05            # rise time band: 5 % of the step (see control module)
+    # Added by the control stage (pipeline/control):
+    wave: bool = True                    # add the wave disturbance (G(s) driven by unit white noise)
+    wind_model: str = "constant"         # 'constant' (wind_rudder deg) or 'eq14' (paper Eq. 14 form)
+    wind_kw: float = 0.75                # Eq. 14 coefficient Kw, in [0.5, 1]
+    wind_speed_ratio: float = 0.76       # Eq. 14 Vw / U: Beaufort 5 (9.4 m/s) over KCS full-scale 12.35 m/s
+    wind_angle: float = 90.0             # deg, Eq. 14 windward angle (relative wind from the bow)
+    filter_tau: float = 0.3              # s, filter pole making the second-order CGSA proper
+    steady_start: float = 100.0          # s, the steady course-keeping window is [steady_start, duration]
+    reversal_threshold: float = 0.1      # deg, least rudder swing counted as a direction reversal
+    bode_points: int = 200               # frequencies in the Bode data written to metrics.json
 
 
 @dataclass(frozen=True)
@@ -102,6 +118,10 @@ class DiagnoseConfig:
 
     min_gain: float = 0.10               # least relative reduction of free-run MAE psi to call an effect real
     seed: int = 11
+    min_z: float = 3.0                   # least |estimate| / std (autocorrelation-inflated) to call it non-zero
+    structured_r2: float = 0.2           # residuals "stay structured" when effect signatures explain this share
+    max_nfev: int = 400                  # function evaluations per output-error fit
+    other_side: bool = True              # catalog mode: also train on one zigzag of the other side
 
 
 @dataclass(frozen=True)

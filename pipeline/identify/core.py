@@ -1,0 +1,373 @@
+"""Online identification of the sway-yaw model (SPEC section 5): pure functions on arrays and runs.
+
+Conventions
+-----------
+* Data units of SPEC section 2 throughout (v m/s, r deg/s, psi deg, delta deg, time s); the
+  parameters are those of pipeline.model in the same units (paper Table 4).
+* Sample 0 initialises the filter: x0 = (v0, r0, psi0 measured; theta0 from FilterConfig), P0 =
+  diag(r_std^2 for the measured states, theta0_std^2).  Every later sample k is one time update
+  with the rudder delta[k-1] and one measurement update with (v, r, psi)[k].
+* A run without a usable sway-velocity column is identified from r and psi alone (measurement
+  (r, psi), v starts at 0 with one-sigma FilterConfig.v0_std).  v is then a hidden state and the six
+  parameters are not unique (a similarity transform of (v, r) leaves r and psi unchanged); b11 is
+  pinned at 0 and a21 at its initial value (see :func:`initial_state`), the other four are
+  identified, and the Nomoto indices, which fix the rudder-to-yaw transfer function, are unique.
+* Trace row 0 holds the initial state; its prediction, innovation and NIS are NaN.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from pipeline.config import FilterConfig
+from pipeline.errors import FilterError, InputError, ModelError
+from pipeline.identify import fast
+from pipeline.identify.baseline import make_filter, run_ffm_ukf
+from pipeline.identify.fuzzy import CHANNELS, RULES, forgetting_factor
+from pipeline.identify.srukf import srukf_run_reference, ut_weights
+from pipeline.io import Run
+from pipeline.model import PARAM_NAMES, STATE_NAMES, nomoto_indices
+
+ALGORITHMS = ("srukf-ffm", "ffm-ukf")
+PIN_STD = 1e-9          # one-sigma of a parameter held fixed (hidden-v case)
+STATE9 = STATE_NAMES + PARAM_NAMES
+
+_FAIL_WHAT = {1: "time update (point 0 downdate)", 2: "innovation factor (point 0 downdate)",
+              3: "measurement update downdate"}
+
+
+@dataclass
+class FilterOutput:
+    """Per-step results of a filter run over N samples (innov has 3 columns, NaN when unmeasured)."""
+
+    x_prior: np.ndarray
+    x: np.ndarray
+    std: np.ndarray
+    innov: np.ndarray
+    nis: np.ndarray
+    f: np.ndarray
+    x_final: np.ndarray
+    P_final: np.ndarray
+    seconds: float
+    chol_failures: np.ndarray | None = None
+
+
+def measured_indices(v: np.ndarray | None) -> np.ndarray:
+    """Indices of the measured states: (0, 1, 2), or (1, 2) when v is absent or not finite."""
+    if v is None or not np.all(np.isfinite(v)):
+        return np.array([1, 2], dtype=np.int64)
+    return np.array([0, 1, 2], dtype=np.int64)
+
+
+def fuzzy_channel(cfg: FilterConfig, meas_idx) -> int:
+    """Position in ``meas_idx`` of the innovation that feeds the fuzzy factor (-1: none)."""
+    ch = cfg.fuzzy.channel
+    if ch not in CHANNELS:
+        raise InputError(f"fuzzy channel must be one of {CHANNELS}, got {ch!r}")
+    if not cfg.use_fuzzy:
+        return -1
+    state = CHANNELS.index(ch)
+    idx = list(np.asarray(meas_idx))
+    return idx.index(state) if state in idx else -1
+
+
+def initial_state(y0: np.ndarray, meas_idx, cfg: FilterConfig) -> tuple[np.ndarray, np.ndarray]:
+    """x0 and P0 from the first measured sample ``y0`` = (v, r, psi) (v may be NaN)."""
+    x0 = np.zeros(9)
+    std = np.zeros(9)
+    for i in range(3):
+        if i in list(meas_idx):
+            x0[i] = y0[i]
+            std[i] = cfg.r_std[i]
+        else:
+            x0[i] = 0.0
+            std[i] = cfg.v0_std
+    x0[3:] = cfg.theta0
+    std[3:] = cfg.theta0_std
+    if 0 not in list(meas_idx):
+        # v hidden: (v, r) -> (c v + d r, r) leaves r and psi unchanged, so two parameters are
+        # unobservable and a free filter drifts along them until its covariance breaks down.  Pin
+        # them: b11 = 0 and a21 = theta0's a21 (one-sigma PIN_STD, no process noise).  Every
+        # rudder-to-yaw transfer function K (1 + T3 s) / ((1 + T1 s)(1 + T2 s)) stays reachable.
+        x0[3 + 4] = 0.0
+        std[3 + 4] = PIN_STD
+        std[3 + 2] = PIN_STD
+    return x0, np.diag(std ** 2)
+
+
+def _check_cfg(cfg: FilterConfig) -> None:
+    if len(cfg.q_std) != 9 or len(cfg.r_std) != 3 or len(cfg.theta0) != 6 or len(cfg.theta0_std) != 6:
+        raise InputError("filter configuration: q_std needs 9 values, r_std 3, theta0 and theta0_std 6")
+    if min(cfg.r_std) <= 0 or min(cfg.theta0_std) <= 0:
+        raise InputError("filter configuration: r_std and theta0_std must be positive")
+
+
+def run_filter(algorithm: str, x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, h: float,
+               cfg: FilterConfig, meas_idx) -> FilterOutput:
+    """Run one algorithm from posterior (x0, P0) over Y3 (N, 3) (columns v, r, psi; only
+    ``meas_idx`` are used) with rudder ``delta_prev`` (N,), deg, step h s.  Times the loop alone."""
+    _check_cfg(cfg)
+    meas_idx = np.asarray(meas_idx, dtype=np.int64)
+    Y = np.ascontiguousarray(Y3[:, meas_idx], dtype=float)
+    dp = np.ascontiguousarray(delta_prev, dtype=float)
+    n, m = Y.shape
+    chan = fuzzy_channel(cfg, meas_idx)
+    r_m = np.asarray(cfg.r_std, float)[meas_idx]
+    innov3 = np.full((n, 3), np.nan)
+    if algorithm == "ffm-ukf":
+        ukf, chol = make_filter(x0, P0, h, cfg.q_std, r_m, meas_idx, cfg.alpha, cfg.beta, cfg.kappa)
+        t0 = _time.perf_counter()
+        out, xf, Pf = run_ffm_ukf(ukf, chol, Y, dp, cfg.fuzzy if chan >= 0 else None, chan)
+        secs = _time.perf_counter() - t0
+        innov3[:, meas_idx] = out["innov"]
+        return FilterOutput(out["x_prior"], out["x"], out["std"], innov3, out["nis"], out["f"], xf, Pf,
+                            secs, out["chol_failures"])
+    if algorithm != "srukf-ffm":
+        raise InputError(f"unknown algorithm {algorithm!r} (choose {' or '.join(ALGORITHMS)})")
+    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
+    sq_q = np.diag(np.asarray(cfg.q_std, float))
+    sq_r = np.diag(r_m)
+    try:
+        S0 = np.linalg.cholesky(np.asarray(P0, float))
+    except np.linalg.LinAlgError:
+        raise FilterError("initial covariance is not positive definite") from None
+    if cfg.fast:
+        fz = np.array([*cfg.fuzzy.e_domain, *cfg.fuzzy.de_domain, *cfg.fuzzy.f_range], dtype=float)
+        args = (sq_q, sq_r, meas_idx, w.wm, w.wc, w.gamma, chan >= 0, chan, fz, RULES)
+        outs = (np.empty((n, 9)), np.empty((n, 9)), np.empty((n, 9)), np.empty((n, m)), np.empty(n),
+                np.empty(n))
+        warm = tuple(np.empty((1,) + a.shape[1:]) for a in outs)
+        fast.srukf_kernel(np.asarray(x0, float), S0, Y[:1], dp[:1], h, *args, *warm)   # compile/warm up
+        t0 = _time.perf_counter()
+        status, k, xf, Sf = fast.srukf_kernel(np.asarray(x0, float), S0, Y, dp, h, *args, *outs)
+        secs = _time.perf_counter() - t0
+        if status != 0:
+            raise FilterError(f"SR-UKF {_FAIL_WHAT[status]} failed at step {k}: covariance lost positive "
+                              "definiteness")
+        x_prior, x, std, innov, nis, f = outs
+    else:
+        def f_of(innov, prev):
+            e = float(innov[chan])
+            return forgetting_factor(e, e - prev, cfg.fuzzy), e
+
+        t0 = _time.perf_counter()
+        ref = srukf_run_reference(x0, S0, Y, dp, h, sq_q, sq_r, meas_idx, w, f_of if chan >= 0 else None)
+        secs = _time.perf_counter() - t0
+        x_prior, x, innov, nis, f = ref["x_prior"], ref["x"], ref["innov"], ref["nis"], ref["f"]
+        std = np.sqrt(np.einsum("kij,kij->ki", ref["S"], ref["S"]))
+        xf, Sf = ref["x"][-1] if n else np.asarray(x0, float), ref["S"][-1] if n else S0
+    innov3[:, meas_idx] = innov
+    return FilterOutput(x_prior, x, std, innov3, nis, f, np.array(xf), Sf @ Sf.T, secs)
+
+
+@dataclass
+class Identification:
+    """Result of identifying one run with one algorithm."""
+
+    algorithm: str
+    samples: int
+    dt: float
+    parameters: dict[str, float]
+    covariance: np.ndarray
+    indices: dict[str, float] | None
+    indices_error: str | None
+    timing: dict[str, float]
+    trace: pd.DataFrame
+    x_final: np.ndarray
+    P_final: np.ndarray
+    measured: list[str]
+    consistency: dict[str, Any] = field(default_factory=dict)
+    filterpy_failures: int | None = None
+
+
+def _arrays(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t = run.col("time")
+    d = run.col("delta")
+    v = run.frame["v"].to_numpy(dtype=float) if "v" in run.frame.columns else np.full(t.size, np.nan)
+    Y3 = np.column_stack([v, run.col("r"), run.col("psi")])
+    for j, name in enumerate(STATE_NAMES):
+        if j > 0 and not np.all(np.isfinite(Y3[:, j])):
+            row = int(np.flatnonzero(~np.isfinite(Y3[:, j]))[0])
+            raise InputError("NaN or infinite value in the run", file=run.name, row=row + 1, column=name)
+    if not np.all(np.isfinite(d)):
+        row = int(np.flatnonzero(~np.isfinite(d))[0])
+        raise InputError("NaN or infinite value in the run", file=run.name, row=row + 1, column="delta")
+    return t, d, Y3
+
+
+def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: FilterConfig,
+                    algorithm: str | None = None, samples: int | None = None,
+                    name: str = "run") -> Identification:
+    """Identify the six parameters from the first ``samples`` samples.
+
+    time (N,) s uniform; delta (N,) deg; Y3 (N, 3) measured v m/s (NaN column when absent), r deg/s,
+    psi deg.  Returns an :class:`Identification` (parameters, 6x6 covariance, Nomoto indices, trace).
+    """
+    algorithm = algorithm or cfg.algorithm
+    n_req = int(samples if samples is not None else cfg.samples)
+    if n_req < 3:
+        raise InputError(f"--samples must be at least 3, got {n_req}")
+    n = min(n_req, len(time))
+    if n < 10:
+        raise InputError(f"too few samples to identify from ({len(time)})", file=name)
+    time, delta, Y3 = time[:n], delta[:n], Y3[:n]
+    h = float(time[1] - time[0])
+    if not h > 0:
+        raise InputError("time step is not positive", file=name, column="time")
+    meas_idx = measured_indices(Y3[:, 0])
+    x0, P0 = initial_state(Y3[0], meas_idx, cfg)
+    out = run_filter(algorithm, x0, P0, Y3[1:], delta[:-1], h, cfg, meas_idx)
+    cov = out.P_final[3:, 3:]
+    theta = out.x_final[3:]
+    try:
+        idx, idx_err = nomoto_indices(theta), None
+    except ModelError as exc:
+        idx, idx_err = None, str(exc)
+    steps = n - 1
+    trace = make_trace(time, delta, Y3, x0, np.sqrt(np.diag(P0)), out)
+    nis = out.nis[np.isfinite(out.nis)]
+    m = len(meas_idx)
+    consistency = {
+        "nis_mean": float(np.mean(nis)), "nis_expected": float(m),
+        "nis_95_band": _nis_band(m, len(nis)),
+        "nis_fraction_above_chi2_95": float(np.mean(nis > _chi2_95(m))),
+        "innovation_rms": {STATE_NAMES[i]: float(np.sqrt(np.mean(out.innov[:, i] ** 2))) for i in meas_idx},
+        "f_mean": float(np.mean(out.f)), "f_min": float(np.min(out.f)),
+    }
+    fails = int(out.chol_failures[-1]) if out.chol_failures is not None and steps else None
+    return Identification(
+        algorithm=algorithm, samples=n, dt=h,
+        parameters=dict(zip(PARAM_NAMES, map(float, theta), strict=True)),
+        covariance=cov, indices=idx, indices_error=idx_err,
+        timing={"seconds_total": out.seconds, "seconds_per_step": out.seconds / max(steps, 1)},
+        trace=trace, x_final=out.x_final, P_final=out.P_final,
+        measured=[STATE_NAMES[i] for i in meas_idx], consistency=consistency, filterpy_failures=fails)
+
+
+def _chi2_95(m: int) -> float:
+    from scipy.stats import chi2
+    return float(chi2.ppf(0.95, m))
+
+
+def _nis_band(m: int, n: int) -> list[float]:
+    """Two-sided 95 % band of the mean NIS over n independent steps (chi-square, m n dof, / n)."""
+    from scipy.stats import chi2
+    return [float(chi2.ppf(0.025, m * n) / n), float(chi2.ppf(0.975, m * n) / n)]
+
+
+def make_trace(time, delta, Y3, x0, std0, out: FilterOutput) -> pd.DataFrame:
+    """The per-step trace of catalog.py (row 0 = initial state)."""
+    n = len(time)
+    cols: dict[str, Any] = {"time": time, "delta": delta, "v": Y3[:, 0], "r": Y3[:, 1], "psi": Y3[:, 2]}
+    x_prior = np.vstack([np.full(9, np.nan), out.x_prior])
+    x = np.vstack([x0, out.x])
+    std = np.vstack([std0, out.std])
+    for i, s in enumerate(STATE_NAMES):
+        cols[f"{s}_pred"] = x_prior[:, i]
+    for i, s in enumerate(STATE_NAMES):
+        cols[f"{s}_est"] = x[:, i]
+    for i, p in enumerate(PARAM_NAMES):
+        cols[p] = x[:, 3 + i]
+    for i, p in enumerate(PARAM_NAMES):
+        cols[f"{p}_std"] = std[:, 3 + i]
+    cols["f"] = np.concatenate([[1.0], out.f])
+    innov = np.vstack([np.full(3, np.nan), out.innov])
+    for i, s in enumerate(STATE_NAMES):
+        cols[f"innov_{s}"] = innov[:, i]
+    cols["nis"] = np.concatenate([[np.nan], out.nis])
+    if out.chol_failures is not None:
+        cols["chol_failures"] = np.concatenate([[0], out.chol_failures]).astype(np.int64)
+    assert all(len(c) == n for c in cols.values())
+    return pd.DataFrame(cols)
+
+
+def identify_run(run: Run, cfg: FilterConfig | None = None, algorithm: str | None = None,
+                 samples: int | None = None) -> Identification:
+    """Identify a processed run (SPEC section 2 columns) from its first ``samples`` samples."""
+    cfg = cfg or FilterConfig()
+    t, d, Y3 = _arrays(run)
+    return identify_arrays(t, d, Y3, cfg, algorithm, samples, name=run.name)
+
+
+def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfig,
+                   dataset: str | None = None) -> dict[str, Any]:
+    """estimates.json content: SPEC section 5 plus run_id, dataset, provenance, settings, consistency."""
+    std = np.sqrt(np.maximum(np.diag(ident.covariance), 0.0))
+    doc: dict[str, Any] = {
+        "algorithm": ident.algorithm,
+        "samples": ident.samples,
+        "parameters": ident.parameters,
+        "covariance": ident.covariance.tolist(),
+        "indices": ident.indices,
+        "timing": ident.timing,
+        "run_id": meta.get("run_id"),
+        "dataset": dataset,
+        "provenance": meta.get("provenance", "measured"),
+        "source_file": meta.get("source_file"),
+        "test_name": meta.get("test_name"),
+        "parameters_std": dict(zip(PARAM_NAMES, map(float, std), strict=True)),
+        "measured": ident.measured,
+        "dt": ident.dt,
+        "consistency": ident.consistency,
+        "filter_state": {"names": list(STATE9), "x": ident.x_final.tolist(), "P": ident.P_final.tolist()},
+        "settings": {
+            "q_std": list(cfg.q_std), "r_std": list(cfg.r_std), "alpha": cfg.alpha, "beta": cfg.beta,
+            "kappa": cfg.kappa, "theta0": list(cfg.theta0), "theta0_std": list(cfg.theta0_std),
+            "use_fuzzy": cfg.use_fuzzy, "fuzzy": {"e_domain": list(cfg.fuzzy.e_domain),
+                                                  "de_domain": list(cfg.fuzzy.de_domain),
+                                                  "f_range": list(cfg.fuzzy.f_range),
+                                                  "channel": cfg.fuzzy.channel},
+            "fast_path": bool(cfg.fast) if ident.algorithm == "srukf-ffm" else False,
+        },
+    }
+    if ident.indices_error:
+        doc["indices_error"] = ident.indices_error
+    if ident.filterpy_failures is not None:
+        doc["filterpy_failures"] = ident.filterpy_failures
+    if "v" not in ident.measured:
+        doc["note"] = ("run has no sway-velocity column: identified from r and psi only; the six "
+                       "parameters are not unique, the Nomoto indices are")
+    if meta.get("provenance") == "virtual":
+        doc["virtual_tank"] = "made from virtual-tank (simulated KCS) data, not from measurements"
+    return doc
+
+
+def identify_batch(Y3: np.ndarray, delta: np.ndarray, h: float, cfg: FilterConfig | None = None):
+    """SR-UKF-FFM (numba kernel) on R runs of equal length at once.
+
+    Y3 (R, N, 3) measured v, r, psi (all three measured); delta (R, N) deg.  Returns
+    (theta (R, 6), P_theta (R, 6, 6), status (R,) 0 = ok, seconds for the loop alone).
+    """
+    cfg = cfg or FilterConfig()
+    _check_cfg(cfg)
+    Y3 = np.ascontiguousarray(Y3, dtype=float)
+    delta = np.ascontiguousarray(delta, dtype=float)
+    nr, n, _ = Y3.shape
+    meas_idx = np.array([0, 1, 2], dtype=np.int64)
+    x0s = np.empty((nr, 9))
+    P0 = None
+    for r in range(nr):
+        x0s[r], P0 = initial_state(Y3[r, 0], meas_idx, cfg)
+    S0 = np.linalg.cholesky(P0)
+    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
+    chan = fuzzy_channel(cfg, meas_idx)
+    fz = np.array([*cfg.fuzzy.e_domain, *cfg.fuzzy.de_domain, *cfg.fuzzy.f_range], dtype=float)
+    args = (np.diag(np.asarray(cfg.q_std, float)), np.diag(np.asarray(cfg.r_std, float)), meas_idx,
+            w.wm, w.wc, w.gamma, chan >= 0, chan, fz, RULES)
+    xf = np.empty((nr, 9))
+    Sf = np.empty((nr, 9, 9))
+    st = np.zeros(nr, dtype=np.int64)
+    fast.srukf_batch_kernel(x0s[:1], S0, Y3[:1, 1:3], delta[:1, :2], h, *args, xf[:1], Sf[:1], st[:1])
+    t0 = _time.perf_counter()
+    fast.srukf_batch_kernel(x0s, S0, np.ascontiguousarray(Y3[:, 1:]), np.ascontiguousarray(delta[:, :-1]),
+                            h, *args, xf, Sf, st)
+    secs = _time.perf_counter() - t0
+    P = np.einsum("rij,rkj->rik", Sf, Sf)
+    return xf[:, 3:], P[:, 3:, 3:], st, secs
+
+

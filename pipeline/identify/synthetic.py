@@ -1,0 +1,55 @@
+"""Synthetic zigzag runs simulated from the identification model itself (for tests and benchmarks).
+
+The truth is :func:`pipeline.model.step` with given parameters; the rudder follows the zigzag logic
+(execute to +rudder, counter-rudder when the heading passes +-heading) with a rate limit; Gaussian
+noise of the given one-sigma is added to the logged v, r, psi (seeded).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from pipeline.io import Run
+from pipeline.model import PAPER_TABLE4, as_theta
+
+
+def zigzag(theta=None, *, rudder: float = 20.0, heading: float = 20.0, n: int = 1200, h: float = 0.08,
+           rate: float = 14.28, noise=(0.02, 0.02, 0.01), seed: int = 0, first: int = 1):
+    """Simulate a zigzag.  Returns (time s, delta deg, clean (n, 3), noisy (n, 3)) of v m/s, r deg/s,
+    psi deg.  ``first`` = +1 starts with positive rudder (positive delta makes r positive)."""
+    th = as_theta(PAPER_TABLE4 if theta is None else theta)
+    a11, a12, a21, a22, b11, b21 = th
+    rng = np.random.default_rng(seed)
+    x = np.zeros(3)
+    target = first * rudder
+    d = 0.0
+    delta = np.empty(n)
+    clean = np.empty((n, 3))
+    for k in range(n):
+        if target > 0 and x[2] >= heading:
+            target = -rudder
+        elif target < 0 and x[2] <= -heading:
+            target = rudder
+        d += float(np.clip(target - d, -rate * h, rate * h))
+        delta[k] = d
+        clean[k] = x
+        v, r, psi = x
+        x = np.array([v + h * (a11 * v + a12 * r + b11 * d), r + h * (a21 * v + a22 * r + b21 * d),
+                      psi + h * r])
+    noisy = clean + rng.standard_normal((n, 3)) * np.asarray(noise, float)
+    return np.arange(n) * h, delta, clean, noisy
+
+
+def zigzag_run(run_id: str, theta=None, *, rudder: float = 20.0, heading: float = 20.0, n: int = 1200,
+               h: float = 0.08, seed: int = 0, noise=(0.02, 0.02, 0.01), with_v: bool = True) -> Run:
+    """A processed :class:`~pipeline.io.Run` of a simulated zigzag (provenance 'virtual')."""
+    t, d, _, y = zigzag(theta, rudder=rudder, heading=heading, n=n, h=h, seed=seed, noise=noise)
+    frame = pd.DataFrame({"time": t, "psi": y[:, 2], "u": np.full(n, 1.0), "r": y[:, 1], "delta": d})
+    if with_v:
+        frame.insert(3, "v", y[:, 0])
+    name = f"zigzag {rudder:g}/{heading:g} starboard"
+    meta = {"run_id": run_id, "test_name": name, "provenance": "virtual", "kind": "zigzag",
+            "rudder_deg": rudder, "heading_deg": heading, "first_side": "starboard", "dt": h,
+            "source_file": f"synthetic:{run_id}", "samples": n}
+    return Run(frame=frame, meta=meta)

@@ -1,0 +1,147 @@
+"""Validation of identified models on held-out data (SPEC section 6): one-step and free-run.
+
+Data: the rest of the identification run after the identification window (segment
+'identification-rest', the paper's Table 5) and every other zigzag run chosen by
+:func:`pipeline.runinfo.choose_runs` (segment 'held-out'; the 10/10 one is the paper's Table 6).
+
+Definitions (units of SPEC section 2: v m/s, r deg/s, psi deg):
+
+* **one-step** (online, what the paper's Tables 5 and 6 report): the identifying filter (the same
+  algorithm, settings and fuzzy forgetting) keeps running over the validation samples, parameters
+  still adapting, and the prior prediction of each sample (time update from the posterior at the
+  previous sample with the previous rudder) is compared with the measurement.  On the
+  identification run it continues from the final posterior (state and covariance) of the window.
+  On a held-out run it starts at the run's first sample: v, r, psi from that sample (v = 0 when
+  the run has no v) with one-sigma r_std (v0_std for an unmeasured v), the parameters and their
+  covariance from the identification, cross-covariance zero.  Scored on every sample after the start.
+* **free-run** (simulation, the honest test): pipeline.model.simulate with the identified
+  parameters from the measured state at the start of the segment, driven by the measured rudder
+  alone; scored on every sample after the start.  On the identification run the start is the first
+  sample after the window (its v is the filter's estimate there when the run has no v); on held-out
+  runs the first sample (v = 0 when absent: the runs start from a straight approach).
+
+Metrics: MSE of v (null when the run has no v), MSE of r, MAE of psi, number of samples.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from pipeline.config import FilterConfig
+from pipeline.errors import InputError
+from pipeline.identify.core import _arrays, measured_indices, run_filter
+from pipeline.io import Run
+from pipeline.model import PARAM_NAMES, simulate
+
+#: SPEC section 6, the paper's Tables 5 and 6 (one-step online prediction).
+PAPER_TABLES = {
+    "table5": {"validation": "rest of the 20/20 zigzag after 585 samples", "rows": {
+        "ffm-ukf": {"mse_v": 0.0152, "mse_r": 1.28, "mae_psi": 4.43},
+        "srukf-ffm": {"mse_v": 0.0037, "mse_r": 0.71, "mae_psi": 3.55}}},
+    "table6": {"validation": "10/10 zigzag", "rows": {
+        "ffm-ukf": {"mse_v": 0.0046, "mse_r": 0.83, "mae_psi": 3.69},
+        "srukf-ffm": {"mse_v": 0.0016, "mse_r": 0.49, "mae_psi": 1.95}}},
+}
+
+
+def scores(meas: np.ndarray, pred: np.ndarray) -> dict[str, Any]:
+    """MSE v (m/s)^2, MSE r (deg/s)^2, MAE psi deg over the rows of (n, 3) arrays (v NaN -> null)."""
+    err = pred - meas
+    v_ok = np.all(np.isfinite(err[:, 0])) and len(err) > 0
+    return {"mse_v": float(np.mean(err[:, 0] ** 2)) if v_ok else None,
+            "mse_r": float(np.mean(err[:, 1] ** 2)),
+            "mae_psi": float(np.mean(np.abs(err[:, 2]))),
+            "samples": int(len(err))}
+
+
+def _theta(est: dict[str, Any]) -> np.ndarray:
+    try:
+        return np.array([float(est["parameters"][p]) for p in PARAM_NAMES])
+    except (KeyError, TypeError) as exc:
+        raise InputError(f"estimates have no parameter {exc}") from None
+
+
+def one_step(est: dict[str, Any], run: Run, cfg: FilterConfig, start: int = 0,
+             continue_state: bool = False) -> np.ndarray:
+    """One-step (online) predictions of v, r, psi for samples start+1 .. end (see module docstring).
+
+    ``continue_state``: start from the estimates' final filter posterior (identification run, with
+    ``start`` = last window sample); otherwise restart the states from sample ``start``.
+    """
+    _, d, Y3 = _arrays(run)
+    h = run.dt
+    alg = est["algorithm"]
+    meas_idx = measured_indices(Y3[:, 0])
+    fs = est.get("filter_state") or {}
+    if "x" not in fs or "P" not in fs:
+        raise InputError("estimates have no filter_state (re-run identify)")
+    x0 = np.array(fs["x"], float)
+    P_full = np.array(fs["P"], float)
+    if not continue_state:
+        P0 = np.zeros((9, 9))
+        P0[3:, 3:] = P_full[3:, 3:]
+        for i in range(3):
+            if i in list(meas_idx):
+                x0[i], P0[i, i] = Y3[start, i], cfg.r_std[i] ** 2
+            else:
+                x0[i], P0[i, i] = 0.0, cfg.v0_std ** 2
+    else:
+        P0 = P_full
+    out = run_filter(alg, x0, P0, Y3[start + 1:], d[start:-1], h, cfg, meas_idx)
+    return out.x_prior[:, :3]
+
+
+def free_run(est: dict[str, Any], run: Run, start: int = 0, v_start: float | None = None) -> np.ndarray:
+    """Free-run simulation from the measured state at ``start``; returns rows start+1 .. end."""
+    _, d, Y3 = _arrays(run)
+    x0 = Y3[start].copy()
+    if not np.isfinite(x0[0]):
+        x0[0] = 0.0 if v_start is None else v_start
+    sim = simulate(_theta(est), x0, d[start:], run.dt)
+    return sim[1:]
+
+
+def validate(estimates: dict[str, dict[str, Any]], ident_run: Run, held_out: list[Run],
+             cfg: FilterConfig | None = None) -> tuple[list[dict[str, Any]], pd.DataFrame]:
+    """Score every algorithm's estimates on the identification rest and the held-out runs.
+
+    ``estimates`` maps algorithm -> estimates.json content.  Returns (metric rows, predictions in
+    the long format of catalog.py).
+    """
+    cfg = cfg or FilterConfig()
+    rows: list[dict[str, Any]] = []
+    frames: list[pd.DataFrame] = []
+    for alg, est in estimates.items():
+        n_id = int(est["samples"])
+        segments = []
+        if len(ident_run.frame) > n_id + 1:
+            segments.append(("identification-rest", ident_run, n_id - 1, True))
+        segments += [("held-out", run, 0, False) for run in held_out]
+        for segment, run, start, cont in segments:
+            t, d, Y3 = _arrays(run)
+            meas = Y3[start + 1:]
+            v_start = float(est["filter_state"]["x"][0]) if cont else None
+            osa = one_step(est, run, cfg, start, continue_state=cont)       # rows start+1 ..
+            if cont:
+                # free-run starts at the first validation sample (start+1): that row is the
+                # initial state itself, shown in the predictions but not scored
+                fr = free_run(est, run, start + 1, v_start)
+                first = Y3[start + 1].copy()
+                first[0] = first[0] if np.isfinite(first[0]) else v_start
+                fr_rows = np.vstack([first, fr])
+                fr_score = scores(meas[1:], fr)
+            else:
+                fr_rows = free_run(est, run, 0)
+                fr_score = scores(meas, fr_rows)
+            for mode, pred, s in (("one-step", osa, scores(meas, osa)), ("free-run", fr_rows, fr_score)):
+                rows.append({"algorithm": alg, "run_id": run.name, "segment": segment, "mode": mode,
+                             "test_name": run.meta.get("test_name"), **s})
+                frames.append(pd.DataFrame({
+                    "algorithm": alg, "run_id": run.name, "segment": segment, "mode": mode,
+                    "time": t[start + 1:], "delta": d[start + 1:], "v": meas[:, 0], "r": meas[:, 1],
+                    "psi": meas[:, 2], "v_pred": pred[:, 0], "r_pred": pred[:, 1], "psi_pred": pred[:, 2]}))
+    pred_frame = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    return rows, pred_frame

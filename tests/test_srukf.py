@@ -1,0 +1,137 @@
+"""SR-UKF-FFM numerics: equivalence with a full-covariance UKF, negative Wc0, failed downdates."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from pipeline.config import FilterConfig
+from pipeline.errors import FilterError
+from pipeline.identify import fast, initial_state, run_filter, synthetic
+from pipeline.identify.core import fuzzy_channel
+from pipeline.identify.fuzzy import forgetting_factor
+from pipeline.identify.srukf import (
+    cholupdate,
+    srukf_run_reference,
+    tria,
+    ukf_run_reference,
+    ut_weights,
+)
+
+H = 0.08
+IDX = np.array([0, 1, 2])
+
+
+@pytest.fixture(scope="module")
+def data():
+    t, d, _, y = synthetic.zigzag(n=501, seed=5)
+    return d, y
+
+
+def _random_lower(rng, n):
+    A = rng.standard_normal((n, n))
+    return np.linalg.cholesky(A @ A.T + n * np.eye(n))
+
+
+def test_cholupdate_update_and_downdate_match_dense():
+    rng = np.random.default_rng(0)
+    L = _random_lower(rng, 9)
+    x = rng.standard_normal(9)
+    up = cholupdate(L, x, +1)
+    assert np.allclose(up @ up.T, L @ L.T + np.outer(x, x), atol=1e-12)
+    down = cholupdate(up, x, -1)
+    assert np.allclose(down @ down.T, L @ L.T, atol=1e-10)
+    assert np.allclose(np.triu(down, 1), 0) and np.all(np.diag(down) > 0)
+    # numba kernel version gives the same factor
+    Lk, xk = up.copy(), x.copy()
+    assert fast._cholupdate(Lk, xk, -1.0)
+    assert np.allclose(Lk, down, atol=1e-12)
+
+
+def test_failed_downdate_raises_filter_error_not_nan():
+    L = np.eye(3)
+    with pytest.raises(FilterError, match="downdate failed"):
+        cholupdate(L, np.array([0.5, 2.0, 0.0]), -1)
+    Lk = np.eye(3)
+    assert not fast._cholupdate(Lk, np.array([0.5, 2.0, 0.0]), -1.0)
+
+
+def test_tria_positive_diagonal_and_product():
+    rng = np.random.default_rng(1)
+    A = rng.standard_normal((9, 27))
+    S = tria(A)
+    assert np.allclose(np.triu(S, 1), 0) and np.all(np.diag(S) > 0)
+    assert np.allclose(S @ S.T, A @ A.T, atol=1e-12)
+    out = np.empty((9, 9))
+    fast._tria(np.ascontiguousarray(A.T), 9, out)
+    assert np.allclose(out, S, atol=1e-12)       # same unique factor from the hand-written Householder
+
+
+@pytest.mark.parametrize("alpha,use_fuzzy", [(1.0, False), (1e-3, False), (1.0, True), (0.5, True)])
+@pytest.mark.parametrize("fast_path", [True, False])
+def test_sr_equals_full_covariance_ukf(data, alpha, use_fuzzy, fast_path):
+    d, y = data
+    cfg = dataclasses.replace(FilterConfig(), alpha=alpha, use_fuzzy=use_fuzzy, fast=fast_path)
+    x0, P0 = initial_state(y[0], IDX, cfg)
+    out = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], H, cfg, IDX)
+    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
+    chan = fuzzy_channel(cfg, IDX)
+
+    def f_of(innov, prev):
+        e = float(innov[chan])
+        return forgetting_factor(e, e - prev, cfg.fuzzy), e
+
+    ref = ukf_run_reference(x0, P0, y[1:], d[:-1], H, np.diag(np.square(cfg.q_std)),
+                            np.diag(np.square(cfg.r_std)), IDX, w, f_of if use_fuzzy else None)
+    assert len(out.x) == 500
+    # round-off only: tolerance scales with the weights (|Wm0| ~ 1e6 when alpha = 1e-3)
+    tol = 1e-9 if alpha >= 0.5 else 1e-5
+    scale_x = np.abs(ref["x"]).max(axis=0)
+    assert np.max(np.abs(out.x - ref["x"]) / scale_x) < tol
+    Pscale = np.abs(ref["P"][-1]).max()
+    assert np.max(np.abs(out.P_final - ref["P"][-1])) / Pscale < tol
+    std_ref = np.sqrt(np.einsum("kii->ki", ref["P"]))
+    assert np.max(np.abs(out.std - std_ref) / std_ref) < tol
+    assert np.allclose(out.f, ref["f"], atol=tol)
+    if use_fuzzy:
+        assert out.f.min() < 1.0                 # forgetting actually happened
+
+
+def test_reference_path_equals_fast_path(data):
+    d, y = data
+    cfg = FilterConfig()
+    x0, P0 = initial_state(y[0], IDX, cfg)
+    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
+    a = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], H, cfg, IDX)
+    ref = srukf_run_reference(x0, np.linalg.cholesky(P0), y[1:], d[:-1], H, np.diag(cfg.q_std),
+                              np.diag(cfg.r_std), IDX, w,
+                              lambda i, p: (forgetting_factor(i[1], i[1] - p, cfg.fuzzy), i[1]))
+    assert np.allclose(a.x, ref["x"], rtol=1e-10, atol=1e-12)
+    assert np.allclose(a.x_prior, ref["x_prior"], rtol=1e-10, atol=1e-12)
+    assert np.allclose(a.nis, ref["nis"], rtol=1e-8)
+
+
+def test_negative_wc0_stays_finite_and_positive_definite_100k_steps():
+    w = ut_weights(9, 1e-3, 2.0, 0.0)
+    assert w.wc[0] < -1e5                        # the stress case: strongly negative Wc0
+    t, d, _, y = synthetic.zigzag(n=100_001, seed=8)
+    cfg = dataclasses.replace(FilterConfig(), alpha=1e-3)
+    x0, P0 = initial_state(y[0], IDX, cfg)
+    out = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], H, cfg, IDX)
+    assert np.all(np.isfinite(out.x)) and np.all(np.isfinite(out.std))
+    assert np.all(out.std > 0)
+    assert np.linalg.eigvalsh(out.P_final).min() > 0
+    assert np.all((out.f >= 0.95) & (out.f <= 1.0))
+
+
+def test_filter_raises_filter_error_when_downdate_fails(data):
+    # a measurement noise far below round-off makes the measurement downdate remove more than S holds
+    d, y = data
+    cfg = dataclasses.replace(FilterConfig(), r_std=(1e-30, 1e-30, 1e-30), q_std=(0,) * 9,
+                              theta0_std=(1e-12,) * 6)
+    x0, P0 = initial_state(y[0], IDX, cfg)
+    for fast_path in (True, False):
+        with pytest.raises(FilterError):
+            run_filter("srukf-ffm", x0, P0, y[1:50], d[:49], H, dataclasses.replace(cfg, fast=fast_path), IDX)
