@@ -1,0 +1,281 @@
+"""Ingest: canonical CSV round trip, MARIN conversion from a known truth, anti-aliased resampling."""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.cli import main
+from pipeline.config import IngestConfig
+from pipeline.errors import InputError
+from pipeline.ingest import detect_format, ingest_file, parse_raw, read_raw, resample
+from pipeline.io import Run, read_json, read_run, write_run
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from make_fixtures import MARIN_FILE, MARIN_SCALE, marin_truth  # noqa: E402
+
+TANK_HEADER = """# ship: KCS
+# provenance: virtual
+# test: zigzag 20/20 starboard
+# lpp: 6.0702
+# scale: 37.89
+# dt: 0.08
+# seed: 123456
+# note: virtual tank (MMG model of the KCS, SIMMAN 2020 model scale); not measured data
+"""
+
+
+def _synthetic(n=400, dt=0.08, seed=3):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt
+    psi = 25.0 * np.sin(0.2 * t) + 0.01 * rng.standard_normal(n)
+    r = 5.0 * np.cos(0.2 * t)
+    delta = 20.0 * np.sign(np.cos(0.2 * t + 0.4))
+    u = 2.0 - 0.2 * (1 - np.exp(-t / 10))
+    v = -0.05 * r / 5.0
+    x0 = np.cumsum(u * dt)
+    y0 = np.cumsum(0.1 * dt * np.ones(n))
+    rpm = np.full(n, 720.0)
+    return pd.DataFrame({"time": t, "x0": x0, "y0": y0, "psi": psi, "u": u, "v": v, "r": r,
+                         "delta": delta, "rpm": rpm})
+
+
+def _write_csv(path: Path, frame: pd.DataFrame, header: str = TANK_HEADER) -> Path:
+    body = frame.to_csv(index=False, float_format="%.6f", lineterminator="\n")
+    path.write_text(header + body)
+    return path
+
+
+# ------------------------------------------------------------------ canonical CSV
+def test_canonical_csv_round_trip(tmp_path):
+    frame = _synthetic()
+    path = _write_csv(tmp_path / "kcs_zigzag_20_20_S.csv", frame)
+    run = ingest_file(path)
+    out = run.frame
+    assert list(out.columns) == list(frame.columns)
+    assert len(out) == len(frame)
+    for c in frame.columns:
+        np.testing.assert_allclose(out[c].to_numpy(), frame[c].to_numpy(), atol=1e-6, err_msg=c)
+    m = run.meta
+    assert m["source_file"] == path.name
+    assert m["source_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert m["source_format"] == "csv"
+    assert m["provenance"] == "virtual" and m["ship"] == "KCS"
+    assert m["lpp"] == pytest.approx(6.0702) and m["model_scale"] == pytest.approx(37.89)
+    assert m["seed"] == 123456 and m["scale_factor"] == 1.0
+    assert m["test_name"] == "zigzag 20/20 starboard"
+    assert (m["kind"], m["rudder_deg"], m["heading_deg"]) == ("zigzag", 20.0, 20.0)
+    assert m["first_side"] == "starboard"
+    assert m["dt"] == 0.08 and m["original_dt"] == pytest.approx(0.08)
+    assert m["samples"] == len(frame) and m["duration"] == pytest.approx(frame["time"].iloc[-1])
+    sel = frame["time"] <= IngestConfig().approach_window
+    assert m["approach_speed"] == pytest.approx(frame.loc[sel, "u"].mean(), abs=1e-6)
+    # and through Parquet
+    write_run(tmp_path / "x.parquet", run)
+    back = read_run(tmp_path / "x.parquet")
+    pd.testing.assert_frame_equal(back.frame, out)
+    assert back.meta["source_sha256"] == m["source_sha256"]
+
+
+def test_csv_minimal_columns_default_provenance_and_extra_column(tmp_path):
+    frame = _synthetic()[["delta", "time", "r", "psi"]].copy()
+    frame["phi"] = 0.5
+    text = "# a free-text note\n" + frame.to_csv(index=False, lineterminator="\n")
+    run = parse_raw(text, name="mine.csv")
+    assert run.meta["provenance"] == "measured"
+    assert run.meta["comments"] == ["a free-text note"]
+    assert run.meta["approach_speed"] is None
+    assert set(run.frame.columns) == {"time", "delta", "r", "psi", "phi"}
+    np.testing.assert_allclose(run.frame["phi"], 0.5)
+
+
+def test_side_from_rudder_when_name_lacks_it(tmp_path):
+    frame = _synthetic()
+    frame["delta"] = -frame["delta"]
+    frame["r"] = -frame["r"]
+    frame["psi"] = -frame["psi"]
+    path = _write_csv(tmp_path / "z.csv", frame, "# test: zigzag 20/20\n")
+    m = read_raw(path).meta
+    assert m["first_side"] == "port" and m["first_side_from"] == "rudder"
+
+
+def test_heading_is_unwrapped(tmp_path):
+    frame = _synthetic()
+    frame["psi"] = 3.0 * frame["time"]                 # steady turn, 3 deg/s
+    frame["r"] = 3.0
+    wrapped = frame.copy()
+    wrapped["psi"] = (frame["psi"] + 180.0) % 360.0 - 180.0
+    run = read_raw(_write_csv(tmp_path / "turn.csv", wrapped))
+    np.testing.assert_allclose(run.frame["psi"], frame["psi"], atol=1e-5)
+
+
+def test_detect_format():
+    assert detect_format(TANK_HEADER.splitlines() + ["time,psi,r,delta", "0,0,0,0"]) == "csv"
+    assert detect_format(MARIN_FILE.read_text().splitlines()) == "marin"
+    hsva = [" HSVA, experimental data CPMC", " KVLCC2", " Z20/10", " Time series",
+            " ".join(["1.0"] * 12)]
+    assert detect_format(hsva) == "hsva"
+    with pytest.raises(InputError, match="unknown format"):
+        detect_format(["hello", "1 2 3"], file="x.dat")
+
+
+# ------------------------------------------------------------------ MARIN
+def _quantum(full_values):
+    """Half a unit in the 3rd significant digit of the largest full-scale value."""
+    m = np.max(np.abs(full_values))
+    return 0.5 * 10.0 ** (np.floor(np.log10(m)) - 2) if m > 0 else 0.0
+
+
+def test_marin_fixture_matches_its_truth():
+    truth = marin_truth()
+    run = ingest_file(MARIN_FILE, scale=MARIN_SCALE)
+    m = run.meta
+    s = np.sqrt(MARIN_SCALE)
+    # step rebuilt from the rounded time column: full-scale 0.5 s -> model 0.5/sqrt(45.7)
+    assert m["original_dt"] == pytest.approx(0.5 / s, rel=1e-4)
+    assert m["scale_factor"] == MARIN_SCALE and m["source_format"] == "marin"
+    assert m["ship"] == "KVLCC2" and m["lpp"] == pytest.approx(320.0 / MARIN_SCALE)
+    assert (m["kind"], m["rudder_deg"], m["heading_deg"]) == ("zigzag", 20.0, 20.0)
+    assert m["first_side"] == "starboard"                 # canonical: the truth's first rudder is +20
+    assert m["duration"] == pytest.approx(truth["time"][-1], abs=0.08)
+    f = run.frame
+    # reference: the truth through the same resampling, so that only the file's conversion is checked
+    cols = ["time", "x0", "y0", "psi", "u", "v", "r", "delta", "rpm", "phi", "p"]
+    ref_run = resample(Run(frame=pd.DataFrame({c: truth[c] for c in cols}), meta={}), 0.08)
+    assert len(ref_run.frame) == len(f)
+    # tolerance per column: the file's 3-digit rounding, brought to model scale
+    full_factor = {"x0": MARIN_SCALE, "y0": MARIN_SCALE, "psi": 1, "phi": 1, "delta": 1,
+                   "r": 1 / s, "p": 1 / s, "rpm": 1 / s, "u": s, "v": s}
+    for c, fac in full_factor.items():
+        ref = ref_run.frame[c].to_numpy()
+        if c in ("u", "v"):      # rotated from dx0, dy0: rounding of both, plus psi rounding
+            tol = 2 * max(_quantum(truth["dx0"] * s), _quantum(truth["dy0"] * s)) / s \
+                + np.max(np.abs(truth["u"])) * np.deg2rad(_quantum(truth["psi"]))
+        else:
+            tol = _quantum(truth[c] * fac) / fac
+        tol = 2.2 * tol      # rounding errors pass the anti-alias filter (impulse-response l1 norm 2.18)
+        err = np.max(np.abs(f[c].to_numpy() - ref))
+        assert err <= tol, f"{c}: error {err:.4g} > {tol:.4g}"
+    # the sign flip really happened: r follows +delta (canonical), not -delta
+    k = int(np.argmax(np.abs(f["delta"]) > 10))
+    assert f["delta"].iloc[k] > 0 and f["r"].iloc[k + 20] > 0
+
+
+def test_marin_time_step_rebuilt_exactly_from_rounded_column():
+    truth = marin_truth()
+    raw = read_raw(MARIN_FILE, scale=MARIN_SCALE)
+    np.testing.assert_allclose(raw.frame["time"], truth["time"], atol=1e-9)
+    text = MARIN_FILE.read_text().splitlines()
+    times = [float(s.split()[0]) for s in text[3:] if s.strip()]
+    assert len(set(times)) < len(times)                    # the file really repeats time values
+
+
+@pytest.mark.slow
+def test_bench_rows():
+    from pipeline.bench.ingest import run as bench_run
+
+    rows = bench_run(quick=True)
+    assert rows[0]["unit"] == "s" and 0 < rows[0]["value"] < 20
+    assert rows[1]["value"] == pytest.approx(360_000 / rows[0]["value"])
+
+
+def test_marin_without_scale_is_taken_as_model_scale():
+    run = read_raw(MARIN_FILE, config=IngestConfig(max_abs_rate=90.0))
+    assert run.meta["scale_factor"] == 1.0
+    assert run.meta["original_dt"] == pytest.approx(0.5, rel=1e-4)
+    assert "lpp" not in run.meta
+
+
+# ------------------------------------------------------------------ resampling
+def _tone_run(dt_in, duration, freqs_amps, jitter=0.0, seed=0):
+    t = np.arange(int(round(duration / dt_in)) + 1) * dt_in
+    if jitter:
+        t = t + np.random.default_rng(seed).uniform(-jitter, jitter, t.size) * dt_in
+        t[0] = 0.0
+    sig = sum(a * np.sin(2 * np.pi * f * t) for f, a in freqs_amps)
+    slow = np.sin(2 * np.pi * 0.1 * t)
+    r = 2 * np.pi * 0.1 * 10 * np.cos(2 * np.pi * 0.1 * t)
+    frame = pd.DataFrame({"time": t, "psi": 10 * slow, "r": r, "delta": slow + sig})
+    return Run(frame=frame, meta={"source_file": "tone"}), t
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.2])
+def test_resampling_suppresses_tone_above_new_nyquist(jitter):
+    # 100 Hz log, new step 0.08 s (Nyquist 6.25 Hz); a 9 Hz tone would alias to 3.5 Hz
+    run, _ = _tone_run(0.01, 60.0, [(9.0, 1.0)], jitter=jitter)
+    out = resample(run, 0.08)
+    t = out.frame["time"].to_numpy()
+    slow = np.sin(2 * np.pi * 0.1 * t)
+    err = out.frame["delta"].to_numpy() - slow
+    inner = (t > 0.5) & (t < t[-1] - 0.5)                   # the end samples are pinned to the data
+    assert np.max(np.abs(err[inner])) < 0.01                # tone gone, slow part kept
+    # naive decimation (no low-pass) keeps a full-amplitude alias: the test can fail
+    naive = np.interp(t, run.frame["time"], run.frame["delta"]) - slow
+    assert np.max(np.abs(naive)) > 0.5
+    assert out.meta["dt"] == 0.08 and out.meta["original_dt"] == pytest.approx(0.01, rel=1e-3 + jitter)
+
+
+def test_resampling_keeps_slow_content_and_passband():
+    run, _ = _tone_run(0.05, 60.0, [(1.0, 0.5)])
+    out = resample(run, 0.08)
+    t = out.frame["time"].to_numpy()
+    ref = np.sin(2 * np.pi * 0.1 * t) + 0.5 * np.sin(2 * np.pi * 1.0 * t)
+    assert np.max(np.abs(out.frame["delta"].to_numpy() - ref)) < 0.01
+    assert np.max(np.abs(out.frame["psi"].to_numpy() - 10 * np.sin(2 * np.pi * 0.1 * t))) < 1e-3
+
+
+def test_resampling_grid_and_upsampling():
+    run, t_in = _tone_run(0.1, 20.05, [])
+    out = resample(run, 0.08)
+    t = out.frame["time"].to_numpy()
+    assert t[0] == 0.0 and t[-1] <= t_in[-1] + 1e-12 and np.allclose(np.diff(t), 0.08)
+    # finer step: linear interpolation only, samples at common instants unchanged
+    common = np.isclose((t / 0.4) % 1.0, 0.0) | np.isclose((t / 0.4) % 1.0, 1.0)
+    ref = np.interp(t[common], t_in, run.frame["delta"])
+    np.testing.assert_allclose(out.frame["delta"].to_numpy()[common], ref, atol=1e-9)
+    assert out.meta["antialias"] == "none"
+
+
+def test_resampling_refuses_too_few_samples():
+    run, _ = _tone_run(0.05, 3.0, [])
+    with pytest.raises(InputError, match="too few samples"):
+        resample(run, 0.08)
+
+
+# ------------------------------------------------------------------ CLI
+def test_cli_writes_runs_and_index(tmp_path, capsys):
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    _write_csv(raw / "kcs_zigzag_20_20_S.csv", _synthetic())
+    _write_csv(raw / "kcs_zigzag_10_10_P.csv", _synthetic(seed=4),
+               TANK_HEADER.replace("20/20 starboard", "10/10 port"))
+    (raw / "README.md").write_text("notes")
+    out = tmp_path / "processed" / "virtual" / "runs"
+    rc = main(["ingest", *sorted(str(p) for p in raw.iterdir()), "--out", str(out)])
+    assert rc == 0
+    index = read_json(out / "index.json")
+    assert index["dataset"] == "virtual" and index["provenance"] == "virtual"
+    ids = [e["run_id"] for e in index["runs"]]
+    assert ids == ["kcs_zigzag_10_10_P", "kcs_zigzag_20_20_S"]
+    for e in index["runs"]:
+        run = read_run(out / e["file"])
+        assert run.meta["source_sha256"] == e["source_sha256"]
+        assert e["samples"] == len(run.frame)
+    assert index["runs"][0]["first_side"] == "port" and index["runs"][0]["heading_deg"] == 10.0
+    assert sorted(p.name for p in out.iterdir()) == ["index.json", "kcs_zigzag_10_10_P.parquet",
+                                                     "kcs_zigzag_20_20_S.parquet"]
+    assert "skipped" in capsys.readouterr().err
+
+
+def test_cli_dt_option(tmp_path):
+    path = _write_csv(tmp_path / "a.csv", _synthetic())
+    out = tmp_path / "o" / "runs"
+    assert main(["ingest", str(path), "--out", str(out), "--dt", "0.16", "--dataset", "mine"]) == 0
+    run = read_run(out / "a.parquet")
+    assert np.allclose(np.diff(run.frame["time"]), 0.16)
+    assert read_json(out / "index.json")["dataset"] == "mine"

@@ -1,0 +1,118 @@
+"""Bad input (SPEC section 8): one clear line, non-zero exit, nothing written, earlier outputs intact."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from pipeline.cli import main
+from pipeline.errors import PipelineError
+from pipeline.ingest import FORMATS, parse_raw
+from pipeline.io import Run
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from make_fixtures import BAD, MARIN_FILE  # noqa: E402
+
+BAD_DIR = Path(__file__).resolve().parent / "data" / "bad"
+GOOD = """# test: zigzag 10/10 starboard
+time,psi,r,delta
+""" + "\n".join(f"{k * 0.08:.2f},{k * 0.08:.4f},1.0,5.0" for k in range(80)) + "\n"
+
+
+def test_corpus_is_complete():
+    assert sorted(p.name for p in BAD_DIR.iterdir()) == sorted(BAD)
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+def test_bad_file_refused_with_one_line(name, tmp_path, capsys):
+    text, row = BAD[name]
+    out = tmp_path / "runs"
+    rc = main(["ingest", str(BAD_DIR / name), "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc != 0
+    assert "\n" not in err and err.startswith("error: ")
+    assert name in err and text in err, err
+    if row is not None:
+        assert f"row {row}" in err, err
+    assert not out.exists() or not any(out.iterdir())
+    assert [p.name for p in tmp_path.iterdir() if p.name != "runs"] == []     # no temporary left
+
+
+def test_bad_file_leaves_earlier_outputs_untouched(tmp_path, capsys):
+    good1, good2 = tmp_path / "good1.csv", tmp_path / "good2.csv"
+    good1.write_text(GOOD)
+    good2.write_text(GOOD)
+    out = tmp_path / "proc" / "runs"
+    assert main(["ingest", str(good1), "--out", str(out)]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert set(before) == {"good1.parquet", "index.json"}
+    rc = main(["ingest", str(good2), str(good1), str(BAD_DIR / "time_gap.csv"), "--out", str(out)])
+    assert rc != 0
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert sorted(p.name for p in out.parent.iterdir()) == ["runs"]
+    assert "time_gap.csv" in capsys.readouterr().err
+
+
+def test_missing_file_and_bad_format_option(tmp_path, capsys):
+    assert main(["ingest", str(tmp_path / "nope.csv"), "--out", str(tmp_path / "o")]) == 2
+    assert "nope.csv" in capsys.readouterr().err
+    good = tmp_path / "g.csv"
+    good.write_text(GOOD)
+    assert main(["ingest", str(good), "--format", "hsva", "--out", str(tmp_path / "o")]) == 2
+    assert "g.csv" in capsys.readouterr().err
+    assert main(["ingest", str(good), "--scale", "-3", "--out", str(tmp_path / "o")]) == 2
+    assert not (tmp_path / "o").exists()
+
+
+def test_marin_text_with_a_broken_value_names_row_and_column():
+    lines = MARIN_FILE.read_text().splitlines()
+    lines[10] = lines[10].replace("E", "X", 1)
+    with pytest.raises(PipelineError) as exc:
+        parse_raw("\n".join(lines), name="m.dat")
+    assert "row 11" in str(exc.value) and "column 'time'" in str(exc.value)
+
+
+# ---------------------------------------------------------------- property: never another exception
+_token = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True).map(lambda x: f"{x:.3g}"),
+    st.integers(-1000, 1000).map(str),
+    st.sampled_from(["", "nan", "inf", "abc", "1e999", "-", "1.2.3", "time", "psi", "r", "delta", "#", "°",
+                     "\t", '"', "0x1f", "1_0", "NaN", "E+02"]),
+    st.text(max_size=6),
+)
+_line = st.lists(_token, max_size=13).flatmap(
+    lambda toks: st.sampled_from([",", "\t", " ", "  "]).map(lambda sep: sep.join(toks)))
+_headers = st.sampled_from(["", "# test: zigzag 20/20\ntime,psi,r,delta\n",
+                            "time,x0,y0,psi,u,v,r,delta,rpm\n",
+                            "MARIN\nZig-zag manoeuvring for KVLCC2 : 20 / -20\n\n",
+                            " HSVA, experimental data CPMC\n KVLCC2\n Z20°/10° starting to port\n Title\n"])
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(header=_headers, lines=st.lists(_line, max_size=30), fmt=st.sampled_from([None, *FORMATS]),
+       as_bytes=st.booleans())
+def test_malformed_text_gives_run_or_pipeline_error(header, lines, fmt, as_bytes):
+    text = header + "\n".join(lines)
+    data = text.encode("latin-1", errors="replace") if as_bytes else text
+    try:
+        run = parse_raw(data, name="fuzz.txt", fmt=fmt)
+    except PipelineError as exc:
+        assert "\n" not in str(exc)
+        return
+    assert isinstance(run, Run) and {"time", "psi", "r", "delta"} <= set(run.frame.columns)
+
+
+@settings(max_examples=60, deadline=None)
+@given(cut=st.integers(0, 4000), junk=st.binary(max_size=40), fmt=st.sampled_from([None, *FORMATS]))
+def test_damaged_real_layouts_give_run_or_pipeline_error(cut, junk, fmt):
+    data = MARIN_FILE.read_bytes()
+    data = data[:cut] + junk + data[cut + len(junk):]
+    try:
+        run = parse_raw(data, name="fuzz.dat", fmt=fmt)
+    except PipelineError:
+        return
+    assert isinstance(run, Run)
