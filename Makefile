@@ -10,12 +10,13 @@ STAMP  := $(VENV)/.installed
 SHARED ?= ../shared
 HSVA   := $(SHARED)/data/kvlcc2_hsva
 PROC   := data/processed
-SRC    := $(shell find pipeline -name '*.py' 2>/dev/null) pyproject.toml
 
 # Datasets: the built-in virtual tank always; the measured HSVA KVLCC2 zigzags when ../shared is there;
-# and any folder a user drops into data/raw/<name>/ (raw files of any supported format).
+# any folder a user makes in data/raw/<name>/, and files dropped straight into data/raw/ (dataset
+# "local"), raw files of any supported format.
 USER_DATASETS := $(filter-out virtual,$(notdir $(patsubst %/,%,$(wildcard data/raw/*/))))
-DATASETS ?= virtual $(if $(wildcard $(HSVA)/*.dat),hsva) $(USER_DATASETS)
+LOCAL_FILES   := $(filter-out %.md %.gitkeep,$(wildcard data/raw/*.*))
+DATASETS ?= virtual $(if $(wildcard $(HSVA)/*.dat),hsva) $(USER_DATASETS) $(if $(LOCAL_FILES),local)
 
 .PHONY: pipeline test bench reports venv clean dataset help lint
 
@@ -42,7 +43,9 @@ D ?= virtual
 P := $(PROC)/$(D)
 RAW_virtual := data/raw/virtual
 RAW_hsva    := $(HSVA)
+RAW_local   := data/raw
 RAW := $(or $(RAW_$(D)),data/raw/$(D))
+RAW_FILES = $(shell find $(RAW)/ -maxdepth 1 -type f ! -name '.*' ! -name '*.md' ! -name '*.stamp' | sort)
 
 dataset: $(P)/.done
 
@@ -50,10 +53,10 @@ data/raw/virtual/.stamp: $(STAMP) $(wildcard pipeline/tank/*.py) pipeline/config
 	$(PY) -m pipeline tank --out data/raw/virtual
 	@touch $@
 
-RAW_DEPS := $(if $(filter virtual,$(D)),data/raw/virtual/.stamp,$(wildcard $(RAW)/*))
+RAW_DEPS = $(if $(filter virtual,$(D)),data/raw/virtual/.stamp,$(RAW_FILES))
 
 $(P)/runs/index.json: $(RAW_DEPS) $(wildcard pipeline/ingest/*.py)
-	$(PY) -m pipeline ingest $(filter-out %.stamp %.md %.gitkeep,$(wildcard $(RAW)/*)) --out $(P)/runs --dataset $(D)
+	$(PY) -m pipeline ingest $(RAW_FILES) --out $(P)/runs --dataset $(D)
 
 $(P)/identify/.done: $(P)/runs/index.json $(wildcard pipeline/identify/*.py)
 	$(PY) -m pipeline identify --dataset $(D) --algorithm srukf-ffm

@@ -1,0 +1,214 @@
+"""CGSA (closed-loop gain shaping) course-keeping autopilot: design and loop analysis.
+
+Units at the edges: K in 1/s (deg/s of yaw rate per deg of rudder, so psi/delta in deg/deg), time
+constants in s, heading psi and rudder delta in deg, frequencies in rad/s.  The transfer functions are
+unit-consistent in deg (psi/delta is deg/deg), so no degree/radian conversion is needed here.
+
+Design rule (ALGORITHMS.md "CGSA"): shape the complementary sensitivity directly, T(s) = 1/(Tw s + 1).
+
+* First order, plant G1 = K / (s (T s + 1)):  Kc = (T s + 1)/(K Tw), a PD controller with
+  Kp = 1/(K Tw) (deg/deg), Kd = T/(K Tw) (deg per deg/s).  Then L = Kc G1 = 1/(Tw s) exactly.
+* Second order, plant G2 = K (1 + T3 s) / (s (1 + T1 s)(1 + T2 s)):
+  Kc = (1 + T1 s)(1 + T2 s) / (K Tw (1 + T3 s)) is improper (two zeros, one pole).  It is made proper
+  (biproper) with one filter pole: Kc_f = Kc / (1 + Tf s), Tf = ``ControlConfig.filter_tau``; then
+  L = 1/(Tw s (1 + Tf s)), which tends to 1/(Tw s) as Tf -> 0.
+
+Implementation ("derivative on the measured yaw rate", no kick on a set-point step): the control law
+is  delta = Kp (psi_ref - psi) - H(s) r,  with H = Kd for the first order and, for the second order,
+H(s) = (Kc_f(s) - Kp)/s, which is strictly proper because Kc_f(0) = Kp.  Since r = s psi, the feedback
+path is exactly Kc(s) psi: the loop L, margins, sensitivity and disturbance rejection are those of
+the CGSA design.  Only the set-point path differs: the response to a course step is
+Kp G / (1 + L) = T(s) Kp / Kc(s), e.g. 1/((T s + 1)(Tw s + 1)) for the first order on its own
+model, instead of 1/(Tw s + 1) (which is what a derivative on the error would give, at the price of an
+impulse of rudder at the step).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import control as ct
+import numpy as np
+
+from pipeline.errors import ModelError
+
+HALF_POWER_DB = 20.0 * np.log10(np.sqrt(0.5))
+"""-3.0103 dB: the bandwidth is the half-power frequency (1/Tw exactly for 1/(Tw s + 1))."""
+
+
+def _positive(name: str, value) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{name} = {value!r} is not a number") from None
+    if not np.isfinite(x) or not x > 0:
+        raise ModelError(f"{name} = {value!r} must be finite and > 0 (units: K 1/s, time constants s)")
+    return x
+
+
+def nomoto_tf(K: float, T: float | None = None, *, T1: float | None = None, T2: float | None = None,
+              T3: float | None = None) -> ct.TransferFunction:
+    """Nomoto plant psi/delta (deg/deg).
+
+    First order ``nomoto_tf(K, T)``: K / (s (T s + 1)).  Second order ``nomoto_tf(K, T1=, T2=, T3=)``:
+    K (1 + T3 s) / (s (1 + T1 s)(1 + T2 s)).  K in 1/s, time constants in s; K, T, T1 must be > 0,
+    T2 >= 0 (ModelError otherwise); T3 may be any finite number (negative: non-minimum-phase).
+    T2 = T3 = 0 is the first-order model with T = T1.
+    """
+    K = _positive("K", K)
+    if T1 is None:
+        T = _positive("T", T)
+        return ct.tf([K], [T, 1.0, 0.0])
+    T1 = _positive("T1", T1)
+    T2 = float(T2 or 0.0)
+    T3 = float(T3 or 0.0)
+    if not np.isfinite(T2) or T2 < 0:
+        raise ModelError(f"T2 = {T2!r} must be finite and >= 0 s")
+    if not np.isfinite(T3):
+        raise ModelError(f"T3 = {T3!r} must be finite (s)")
+    if T2 == 0 and T3 != 0:
+        raise ModelError("T3 needs T2 > 0 (first-order model: T2 = T3 = 0)")
+    den = np.polymul([T1, 1.0], [T2, 1.0])
+    return ct.tf([K * T3, K], np.polymul(den, [1.0, 0.0]))
+
+
+@dataclass
+class CGSADesign:
+    """A CGSA autopilot.  Gains: Kp deg/deg, Kd deg/(deg/s); time constants s.
+
+    ``controller`` is Kc(s) (psi error -> rudder), ``rate_filter`` is H(s) (measured yaw rate ->
+    rudder, deg per deg/s) used by the no-kick implementation, ``model`` the plant model designed for.
+    """
+
+    name: str
+    order: int
+    K: float
+    T: float
+    Tw: float
+    Kp: float
+    Kd: float
+    T1: float | None = None
+    T2: float | None = None
+    T3: float | None = None
+    filter_tau: float | None = None
+    controller: ct.TransferFunction = field(repr=False, default=None)
+    rate_filter: ct.TransferFunction = field(repr=False, default=None)
+    model: ct.TransferFunction = field(repr=False, default=None)
+
+    def summary(self) -> dict:
+        out = {"name": self.name, "order": self.order, "K": self.K, "T": self.T, "Tw": self.Tw,
+               "Kp": self.Kp, "Kd": self.Kd}
+        if self.order == 2:
+            out.update({"T1": self.T1, "T2": self.T2, "T3": self.T3, "filter_tau": self.filter_tau})
+        return out
+
+
+def design_first_order(K: float, T: float, Tw: float, name: str = "cgsa1") -> CGSADesign:
+    """First-order CGSA: Kp = 1/(K Tw), Kd = T/(K Tw).  K 1/s, T s, Tw s (all > 0, else ModelError)."""
+    K = _positive("K", K)
+    T = _positive("T", T)
+    Tw = _positive("Tw", Tw)
+    kp = 1.0 / (K * Tw)
+    kd = T / (K * Tw)
+    return CGSADesign(name=name, order=1, K=K, T=T, Tw=Tw, Kp=kp, Kd=kd,
+                      controller=ct.tf([kd, kp], [1.0]), rate_filter=ct.tf([kd], [1.0]),
+                      model=nomoto_tf(K, T))
+
+
+def design_second_order(K: float, T1: float, T2: float, T3: float, Tw: float, filter_tau: float,
+                        name: str = "cgsa2") -> CGSADesign:
+    """Second-order CGSA made proper by a filter pole.
+
+    Kc_f(s) = (1 + T1 s)(1 + T2 s) / (K Tw (1 + T3 s)(1 + Tf s)), Tf = ``filter_tau`` s (> 0).
+    Kp = Kc_f(0) = 1/(K Tw); Kd = the derivative gain of the unfiltered Kc at low frequency,
+    (T1 + T2 - T3)/(K Tw).  H(s) = (Kc_f(s) - Kp)/s is strictly proper.
+    """
+    K = _positive("K", K)
+    T1 = _positive("T1", T1)
+    T2 = _positive("T2", T2)
+    T3 = _positive("T3", T3)
+    Tw = _positive("Tw", Tw)
+    tf_ = _positive("filter_tau", filter_tau)
+    kp = 1.0 / (K * Tw)
+    num = kp * np.polymul([T1, 1.0], [T2, 1.0])                 # degree 2
+    den = np.polymul([T3, 1.0], [tf_, 1.0])                     # degree 2
+    # Kc_f - Kp = (num - kp den)/den; the numerator vanishes at s = 0, divide it by s.
+    diff = np.polysub(num, kp * den)
+    if abs(diff[-1]) > 1e-12 * max(1.0, np.max(np.abs(diff))):
+        raise ModelError("internal: Kc_f(0) != Kp")             # cannot happen for valid inputs
+    h_num = diff[:-1]
+    return CGSADesign(name=name, order=2, K=K, T=T1 + T2 - T3, Tw=Tw, Kp=kp,
+                      Kd=(T1 + T2 - T3) / (K * Tw), T1=T1, T2=T2, T3=T3, filter_tau=tf_,
+                      controller=ct.tf(num, den), rate_filter=ct.tf(h_num, den),
+                      model=nomoto_tf(K, T1=T1, T2=T2, T3=T3))
+
+
+def is_proper(sys: ct.TransferFunction) -> bool:
+    """True when the degree of the numerator does not exceed that of the denominator."""
+    num = np.trim_zeros(np.atleast_1d(np.asarray(sys.num[0][0], dtype=float)), "f")
+    den = np.trim_zeros(np.atleast_1d(np.asarray(sys.den[0][0], dtype=float)), "f")
+    return len(num) <= len(den)
+
+
+def loop_analysis(loop: ct.TransferFunction, omega: np.ndarray | None = None) -> dict:
+    """Margins and closed-loop figures of an open loop L(s) (unity feedback).
+
+    Returns gain_margin (absolute, inf when the phase never crosses -180 deg) and gain_margin_db,
+    phase_margin_deg, phase_crossover and gain_crossover (rad/s), bandwidth (rad/s, -3 dB of the
+    complementary sensitivity L/(1+L)), Ms = max |1/(1+L)| on a dense grid (and its frequency), and
+    stable (closed loop).
+    """
+    gm, pm, _sm, wpc, wgc, _wms = ct.stability_margins(loop)
+    tcl = ct.feedback(loop, 1)
+    scl = ct.feedback(1, loop)
+    if omega is None:
+        omega = np.logspace(-4, 3, 4000)
+    resp = ct.frequency_response(scl, omega)
+    mag = np.abs(np.asarray(resp.complex).reshape(-1))
+    i = int(np.argmax(mag))
+    poles = ct.poles(tcl)
+    try:
+        bw = float(ct.bandwidth(tcl, dbdrop=HALF_POWER_DB))
+    except Exception:  # noqa: BLE001 - python-control raises various types for odd systems
+        bw = float("nan")
+    gm = float(gm)
+    return {
+        "gain_margin": gm if np.isfinite(gm) else float("inf"),
+        "gain_margin_db": float(20 * np.log10(gm)) if np.isfinite(gm) and gm > 0 else float("inf"),
+        "phase_margin_deg": float(pm),
+        "phase_crossover": float(wpc) if np.isfinite(wpc) else float("nan"),
+        "gain_crossover": float(wgc),
+        "bandwidth": bw,
+        "Ms": float(mag[i]),
+        "Ms_omega": float(omega[i]),
+        "stable": bool(np.all(np.real(poles) < 0)),
+    }
+
+
+def open_loop(design: CGSADesign, plant: ct.TransferFunction | None = None) -> ct.TransferFunction:
+    """L = Kc G with G the design's own model (default) or another plant."""
+    return ct.minreal(design.controller * (design.model if plant is None else plant), verbose=False)
+
+
+def setpoint_response_tf(design: CGSADesign, plant: ct.TransferFunction | None = None,
+                         derivative_on: str = "measurement") -> ct.TransferFunction:
+    """Course set-point -> heading transfer function.
+
+    ``derivative_on='error'``: the CGSA target L/(1+L) (= 1/(Tw s + 1) on the design model).
+    ``'measurement'`` (what the simulator does): Kp G/(1 + Kc G).
+    """
+    g = design.model if plant is None else plant
+    loop = design.controller * g
+    if derivative_on == "error":
+        return ct.minreal(ct.feedback(loop, 1), verbose=False)
+    if derivative_on == "measurement":
+        return ct.minreal(ct.feedback(design.Kp * g, design.controller / design.Kp), verbose=False)
+    raise ValueError(f"derivative_on must be 'error' or 'measurement', not {derivative_on!r}")
+
+
+def bode_data(loop: ct.TransferFunction, n: int = 200, wmin: float = 1e-3, wmax: float = 1e2) -> dict:
+    """Bode data of L: omega rad/s, magnitude dB, phase deg (unwrapped)."""
+    omega = np.logspace(np.log10(wmin), np.log10(wmax), int(n))
+    h = np.asarray(ct.frequency_response(loop, omega).complex).reshape(-1)
+    return {"omega": omega, "mag_db": 20 * np.log10(np.abs(h)),
+            "phase_deg": np.degrees(np.unwrap(np.angle(h)))}

@@ -1,0 +1,185 @@
+"""Closed-loop course-keeping simulation: CGSA autopilot, rudder servo limits, wind and waves.
+
+Plants share one stepping interface (that of :class:`pipeline.tank.KCSShip`): ``reset()`` and
+``step(delta_cmd_deg, dt, disturbance_deg=0.0) -> dict(time s, psi deg, r deg/s, delta deg)``, where
+``delta`` is the actual rudder after the servo's angle and rate limits and ``disturbance_deg`` is an
+equivalent rudder angle added to the actual rudder (wind + waves).
+
+* :class:`NomotoShip`: the linear Nomoto model (first or second order), discretised exactly for a
+  rudder held over each step (zero-order hold; the servo moves the rudder at the start of the step
+  by at most rate * dt toward the command, clipped at +-rudder_max).
+* The nonlinear virtual-tank KCS (pipeline.tank.KCSShip), when that package is present.
+
+Sampling: at t_k the autopilot reads psi_k and r_k (noise-free), commands
+delta_cmd_k = sat(Kp (psi_ref - psi_k) - H r_k), and the plant is advanced to t_{k+1}.  The rate path H
+is static (first-order design) or its exact ZOH discretisation (second-order design).
+"""
+
+from __future__ import annotations
+
+import control as ct
+import numpy as np
+import pandas as pd
+from scipy.linalg import expm
+
+from pipeline.control.design import CGSADesign
+from pipeline.errors import ModelError
+
+
+class NomotoShip:
+    """Linear Nomoto ship psi/delta = K (1 + T3 s)/(s (1 + T1 s)(1 + T2 s)) (T2 = T3 = 0: first order).
+
+    Units: K 1/s, time constants s, psi deg, r deg/s, delta deg.  T3 may be negative.  ``rudder_max`` deg and
+    ``rudder_rate`` deg/s limit the servo (None: no limit).
+    """
+
+    def __init__(self, K: float, T1: float, T2: float = 0.0, T3: float = 0.0, *,
+                 rudder_max: float | None = 35.0, rudder_rate: float | None = 14.28):
+        if not (np.isfinite(K) and K > 0):
+            raise ModelError(f"K = {K} must be > 0 (1/s)")
+        if not (np.isfinite(T1) and T1 > 0) or not (np.isfinite(T2) and T2 >= 0) or not np.isfinite(T3):
+            raise ModelError(f"time constants T1 = {T1}, T2 = {T2}, T3 = {T3} s: need T1 > 0, T2 >= 0, "
+                             "T3 finite")
+        if T2 == 0 and T3 != 0:
+            raise ModelError("T3 needs T2 > 0 (first-order plant: T2 = T3 = 0)")
+        den = np.polymul([T1, 1.0], [T2, 1.0]) if T2 > 0 else np.array([T1, 1.0])
+        rsys = ct.ss(ct.tf([K * T3, K] if T3 != 0 else [K], den))     # delta -> r, strictly proper
+        ar, br, cr = (np.asarray(m, dtype=float) for m in (rsys.A, rsys.B, rsys.C))
+        n = ar.shape[0]
+        # Augmented state z = (x_r, psi): psi' = C_r x_r.
+        self._a = np.zeros((n + 1, n + 1))
+        self._a[:n, :n] = ar
+        self._a[n, :n] = cr[0]
+        self._b = np.zeros(n + 1)
+        self._b[:n] = br[:, 0]
+        self._cr = np.append(cr[0], 0.0)
+        self.K, self.T1, self.T2, self.T3 = float(K), float(T1), float(T2), float(T3)
+        self.rudder_max = rudder_max
+        self.rudder_rate = rudder_rate
+        self._cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self.reset()
+
+    def _disc(self, dt: float):
+        if dt not in self._cache:
+            n = self._a.shape[0]
+            m = np.zeros((n + 1, n + 1))
+            m[:n, :n] = self._a * dt
+            m[:n, n] = self._b * dt
+            e = expm(m)
+            self._cache[dt] = (e[:n, :n], e[:n, n])
+        return self._cache[dt]
+
+    def reset(self) -> dict:
+        self._z = np.zeros(self._a.shape[0])
+        self.time = 0.0
+        self.delta = 0.0
+        return self._out()
+
+    def _out(self) -> dict:
+        return {"time": self.time, "psi": float(self._z[-1]), "r": float(self._cr @ self._z),
+                "delta": self.delta}
+
+    def step(self, delta_cmd_deg: float, dt: float, disturbance_deg: float = 0.0) -> dict:
+        """Move the servo toward the command, then hold the rudder (plus disturbance) over dt s."""
+        cmd = float(delta_cmd_deg)
+        if self.rudder_max is not None:
+            cmd = float(np.clip(cmd, -self.rudder_max, self.rudder_max))
+        if self.rudder_rate is not None:
+            cmd = self.delta + float(np.clip(cmd - self.delta, -self.rudder_rate * dt, self.rudder_rate * dt))
+        self.delta = cmd
+        ad, bd = self._disc(float(dt))
+        self._z = ad @ self._z + bd * (self.delta + float(disturbance_deg))
+        self.time += dt
+        out = self._out()
+        out["delta"] = self.delta
+        return out
+
+
+def _kcs_class():
+    """pipeline.tank.KCSShip (or pipeline.tank.kcs.KCSShip while the package has no re-export)."""
+    try:
+        from pipeline.tank import KCSShip
+    except ImportError:
+        from pipeline.tank.kcs import KCSShip
+    return KCSShip
+
+
+def kcs_available() -> bool:
+    """True when the virtual-tank package with its stepping KCS simulator can be imported."""
+    try:
+        _kcs_class()
+    except Exception:  # noqa: BLE001 - any import failure means: not available
+        return False
+    return True
+
+
+def make_kcs_ship(rudder_max: float, rudder_rate: float):
+    """The virtual-tank KCS, noise-free, with the autopilot's servo limits (deg, deg/s)."""
+    from dataclasses import replace
+
+    from pipeline.config import TankConfig
+
+    cfg = replace(TankConfig(), rudder_max=rudder_max, rudder_rate=rudder_rate, noise=False)
+    return _kcs_class()(cfg=cfg)
+
+
+class _RateFilter:
+    """H(s) acting on the sampled yaw rate: static gain or exact ZOH discretisation."""
+
+    def __init__(self, design: CGSADesign, dt: float):
+        h = design.rate_filter
+        den = np.trim_zeros(np.asarray(h.den[0][0], dtype=float), "f")
+        if den.size <= 1:
+            self.gain = float(np.asarray(h.num[0][0], dtype=float)[-1] / den[0])
+            self.sys = None
+        else:
+            d = ct.c2d(ct.ss(h), dt, method="zoh")
+            self.a, self.b, self.c, self.d = (np.asarray(m, dtype=float) for m in (d.A, d.B, d.C, d.D))
+            self.x = np.zeros(self.a.shape[0])
+            self.sys = d
+
+    def __call__(self, r: float) -> float:
+        if self.sys is None:
+            return self.gain * r
+        y = float(self.c[0] @ self.x + self.d[0, 0] * r)
+        self.x = self.a @ self.x + self.b[:, 0] * r
+        return y
+
+
+def simulate_course(design: CGSADesign, ship, *, setpoint: float, duration: float, dt: float,
+                    rudder_max: float | None = 35.0, wind: float = 0.0,
+                    wave: np.ndarray | None = None) -> pd.DataFrame:
+    """Course change 0 -> ``setpoint`` deg at t = 0, then course keeping, for ``duration`` s.
+
+    Parameters
+    ----------
+    design : the autopilot.
+    ship : a plant with ``reset()`` and ``step(delta_cmd_deg, dt, disturbance_deg)`` (see module doc).
+    setpoint : deg.  duration, dt : s.
+    rudder_max : deg, saturation of the command (None: none; the plant's servo may limit too).
+    wind : deg, constant equivalent rudder.  wave : deg, equivalent rudder per step (length >= n).
+
+    Returns
+    -------
+    Frame with n = round(duration/dt) + 1 rows: time s, psi_ref deg, psi deg, r deg/s (at t_k),
+    delta_cmd deg, delta deg (actual rudder over [t_k, t_k+1]), wave deg, wind deg.
+    """
+    if not dt > 0 or not duration > 0:
+        raise ModelError(f"duration = {duration} s and dt = {dt} s must be > 0")
+    n = int(round(duration / dt)) + 1
+    wave = np.zeros(n) if wave is None else np.asarray(wave, dtype=float)
+    if wave.size < n:
+        raise ModelError(f"wave sequence has {wave.size} samples, {n} needed")
+    state = ship.reset()
+    hfilt = _RateFilter(design, dt)
+    out = np.empty((n, 8))
+    psi, r = float(state["psi"]), float(state["r"])
+    for k in range(n):
+        cmd = design.Kp * (setpoint - psi) - hfilt(r)
+        if rudder_max is not None:
+            cmd = min(max(cmd, -rudder_max), rudder_max)
+        dist = wind + wave[k]
+        st = ship.step(cmd, dt, disturbance_deg=dist)
+        out[k] = (k * dt, setpoint, psi, r, cmd, float(st["delta"]), wave[k], wind)
+        psi, r = float(st["psi"]), float(st["r"])
+    return pd.DataFrame(out, columns=["time", "psi_ref", "psi", "r", "delta_cmd", "delta", "wave", "wind"])

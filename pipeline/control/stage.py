@@ -1,0 +1,235 @@
+"""The control stage: designs from the indices, closed-loop runs over wave seeds, statistics.
+
+Pure function :func:`run_control` takes the parsed ``indices/indices.json`` document (schema in
+:mod:`pipeline.catalog`) and a :class:`pipeline.config.ControlConfig`, and returns the metrics document
+and the time series frame that the command writes to ``control/metrics.json`` and
+``control/timeseries.parquet``.
+
+Designs (all with Tw = ``cfg.tw``):
+* ``identified``: first-order CGSA from the identified K and T = T1 + T2 - T3 (the paper's choice);
+* ``identified-2nd``: second-order CGSA from K, T1, T2, T3, made proper by the filter pole
+  ``cfg.filter_tau``;
+* ``graphical``: first-order CGSA from the graphical-method K and T (when the indices give it).
+Plants: ``nomoto`` (the identified second-order Nomoto model, always) and ``kcs`` (the nonlinear
+virtual-tank KCS, only when the dataset's provenance is "virtual" and :mod:`pipeline.tank` is present).
+Every (plant, design) pair is run on the same wave seeds (common random numbers), so the
+identified-minus-graphical differences are paired.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from pipeline.config import ControlConfig
+from pipeline.control.design import (
+    CGSADesign,
+    bode_data,
+    design_first_order,
+    design_second_order,
+    loop_analysis,
+    nomoto_tf,
+    open_loop,
+    setpoint_response_tf,
+)
+from pipeline.control.disturbance import wave_sequence, wave_variance_theory, wind_from_config
+from pipeline.control.metrics import WORST, course_metrics, seed_statistics
+from pipeline.control.simulate import NomotoShip, kcs_available, make_kcs_ship, simulate_course
+from pipeline.errors import InputError
+
+PAPER_CONTROL = {
+    "rise_time": 24.0, "max_deviation": 1.46, "steady_mae": 0.86, "max_rudder_below": 25.0,
+    "steady_rudder_min": -3.78, "steady_rudder_max": -1.09, "mean_rudder": -1.70,
+    "note": "Meng et al. (2024): Table 7 indices, Tw = 3 s, wind 2 deg, wave G(s); set course 0 -> 60 deg",
+}
+
+
+def _model(doc: dict, key: str, names: tuple[str, ...], source: str) -> dict:
+    block = doc.get(key)
+    if not isinstance(block, dict):
+        raise InputError(f"'{key}' is missing or not an object", file=source, column=key)
+    out = {"source": block.get("source")}
+    for n in names:
+        try:
+            out[n] = float(block[n])
+        except (KeyError, TypeError, ValueError):
+            raise InputError(f"'{key}.{n}' is missing or not a number", file=source,
+                             column=f"{key}.{n}") from None
+        if not np.isfinite(out[n]):
+            raise InputError(f"'{key}.{n}' is not finite", file=source, column=f"{key}.{n}")
+    return out
+
+
+def wave_seeds(cfg: ControlConfig) -> list[int]:
+    """The wave seeds, drawn deterministically from ``cfg.seed`` (``cfg.seeds`` of them)."""
+    if cfg.seeds < 1:
+        raise InputError(f"ControlConfig.seeds = {cfg.seeds} must be >= 1")
+    return [int(s) for s in np.random.SeedSequence(cfg.seed).generate_state(cfg.seeds)]
+
+
+def build_designs(control_model: dict, graphical_model: dict | None,
+                  cfg: ControlConfig) -> dict[str, CGSADesign]:
+    """First-order identified (always), second-order identified (when T3 > 0, else the controller
+    would be unstable: skipped), graphical (when given)."""
+    cm = control_model
+    designs = {"identified": design_first_order(cm["K"], cm["T"], cfg.tw, name="identified")}
+    if cm["T3"] > 0:
+        designs["identified-2nd"] = design_second_order(cm["K"], cm["T1"], cm["T2"], cm["T3"], cfg.tw,
+                                                        cfg.filter_tau, name="identified-2nd")
+    if graphical_model is not None:
+        designs["graphical"] = design_first_order(graphical_model["K"], graphical_model["T"], cfg.tw,
+                                                  name="graphical")
+    return designs
+
+
+def design_table(designs: dict[str, CGSADesign], control_model: dict, cfg: ControlConfig) -> dict:
+    """Gains and loop figures of each design, on its own model and on the identified Nomoto plant."""
+    cm = control_model
+    plant = nomoto_tf(cm["K"], T1=cm["T1"], T2=cm["T2"], T3=cm["T3"])
+    out = {}
+    for name, d in designs.items():
+        loop_plant = open_loop(d, plant)
+        step_tf = setpoint_response_tf(d, plant, "measurement")
+        out[name] = {
+            **d.summary(),
+            "loop_design_model": loop_analysis(open_loop(d)),
+            "loop_nomoto_plant": loop_analysis(loop_plant),
+            "setpoint_dc_gain_nomoto": float(np.real(step_tf(0.0))) if np.isfinite(step_tf(1e-9)) else None,
+            "bode_nomoto_plant": bode_data(loop_plant, n=cfg.bode_points),
+        }
+    return out
+
+
+def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str = "indices.json",
+                plants: tuple[str, ...] | None = None, progress: bool = True) -> tuple[dict, pd.DataFrame]:
+    """Designs, simulations over seeds and statistics for one dataset.
+
+    Parameters
+    ----------
+    indices : the parsed indices document (needs "control_model" K, T1, T2, T3, T; "graphical_model"
+        K, T is optional; "provenance").
+    cfg : control settings.  source : file name used in error messages.
+    plants : which plants to run (default: 'nomoto', plus 'kcs' for virtual data when available).
+    progress : show a tqdm bar over the runs.
+
+    Returns
+    -------
+    (metrics document, time series frame with plant, design, seed, time, psi_ref, psi, r, delta_cmd,
+    delta, wave, wind).
+    """
+    cfg = ControlConfig() if cfg is None else cfg
+    if not isinstance(indices, dict):
+        raise InputError("indices document is not a JSON object", file=source)
+    control_model = _model(indices, "control_model", ("K", "T1", "T2", "T3", "T"), source)
+    graphical_model = (_model(indices, "graphical_model", ("K", "T"), source)
+                       if indices.get("graphical_model") is not None else None)
+    provenance = indices.get("provenance", "unknown")
+    designs = build_designs(control_model, graphical_model, cfg)
+    table = design_table(designs, control_model, cfg)
+
+    notes = []
+    if "identified-2nd" not in designs:
+        why = ("the control model is first order (T2 = T3 = 0)" if control_model["T2"] == 0
+               else "its controller would be unstable")
+        notes.append(f"T3 = {control_model['T3']:.4g} s <= 0: second-order CGSA skipped ({why})")
+    if plants is None:
+        plants = ("nomoto",)
+        if provenance == "virtual":
+            if kcs_available():
+                plants = ("nomoto", "kcs")
+            else:
+                notes.append("virtual dataset, but pipeline.tank.KCSShip is not available: KCS plant skipped")
+    elif "kcs" in plants and not kcs_available():
+        raise InputError("the KCS plant was requested but pipeline.tank.KCSShip is not available")
+
+    seeds = wave_seeds(cfg)
+    wind = wind_from_config(cfg)
+    n = int(round(cfg.duration / cfg.dt)) + 1
+    waves = {s: (wave_sequence(n, cfg.dt, s, cfg.wave_num, cfg.wave_den) if cfg.wave else np.zeros(n))
+             for s in seeds}
+
+    frames, per = [], {}
+    jobs = [(p, d, s) for p in plants for d in designs for s in seeds]
+    for plant, dname, seed in tqdm(jobs, desc="control", unit="run", disable=not progress):
+        if plant == "nomoto":
+            cm = control_model
+            ship = NomotoShip(cm["K"], cm["T1"], cm["T2"], cm["T3"],
+                              rudder_max=cfg.rudder_max, rudder_rate=cfg.rudder_rate)
+        else:
+            ship = make_kcs_ship(cfg.rudder_max, cfg.rudder_rate)
+        fr = simulate_course(designs[dname], ship, setpoint=cfg.setpoint, duration=cfg.duration, dt=cfg.dt,
+                             rudder_max=cfg.rudder_max, wind=wind, wave=waves[seed])
+        m = course_metrics(fr["time"], fr["psi"], fr["delta"], cfg.setpoint, band=cfg.settle_band,
+                           steady_start=cfg.steady_start, reversal_threshold=cfg.reversal_threshold)
+        m["max_rate"] = float(np.max(np.abs(np.diff(fr["delta"].to_numpy(), prepend=0.0))) / cfg.dt)
+        per.setdefault((plant, dname), []).append({"seed": seed, **m})
+        fr.insert(0, "seed", seed)
+        fr.insert(0, "design", dname)
+        fr.insert(0, "plant", plant)
+        frames.append(fr)
+
+    results = []
+    for (plant, dname), rows in per.items():
+        stats = seed_statistics([{k: v for k, v in r.items() if k != "seed"} for r in rows])
+        results.append({"plant": plant, "design": dname, "seeds": len(rows), "stats": stats,
+                        "per_seed": rows})
+
+    value = {}
+    if graphical_model is not None:
+        for plant in plants:
+            a = {r["seed"]: r for r in per[(plant, "identified")]}
+            b = {r["seed"]: r for r in per[(plant, "graphical")]}
+            diff = {}
+            for name in WORST:
+                d = np.array([a[s][name] - b[s][name] for s in seeds], dtype=float)
+                d = d[np.isfinite(d)]
+                diff[name] = {"mean": float(np.mean(d)) if d.size else float("nan"),
+                              "std": float(np.std(d, ddof=1)) if d.size > 1 else 0.0}
+            value[plant] = {"difference": "identified minus graphical, paired over seeds", "metrics": diff}
+
+    doc = {
+        "dataset": indices.get("dataset"),
+        "provenance": provenance,
+        "virtual": provenance == "virtual",
+        "plants": {
+            "nomoto": {"used": "nomoto" in plants,
+                       "description": "identified second-order Nomoto model (control_model), linear, "
+                                      "servo rate and angle limits"},
+            "kcs": {"used": "kcs" in plants,
+                    "description": "nonlinear 3-DOF MMG KCS of the virtual tank (pipeline.tank.KCSShip); "
+                                   "used only for virtual-tank data"},
+        },
+        "notes": notes,
+        "config": asdict(cfg),
+        "wind_rudder_deg": wind,
+        "wave_variance_theory_deg2": wave_variance_theory(cfg.wave_num, cfg.wave_den),
+        "seeds": seeds,
+        "models": {"control_model": control_model, "graphical_model": graphical_model},
+        "definitions": {
+            "rise_time": f"first time |psi - set| <= {cfg.settle_band:g} x step (s)",
+            "rise_time_10_90": "10 % to 90 % of the step (s)",
+            "reach_time": "first time psi reaches the set course (s)",
+            "max_deviation": "max |psi - set| after the set course is first reached (from the rise time "
+                             "when never reached) (deg)",
+            "steady_mae": f"mean |psi - set| for t >= {cfg.steady_start:g} s (deg)",
+            "max_rudder": "max |delta| over the run (deg)",
+            "steady_rudder_min/max, mean_rudder": f"actual rudder for t >= {cfg.steady_start:g} s (deg)",
+            "rudder_energy": "integral of delta^2 dt in the steady window (deg^2 s)",
+            "rudder_reversals": ("direction reversals in the steady window, swings >= "
+                                 f"{cfg.reversal_threshold:g} deg"),
+            "max_rate": "largest rudder rate over the run (deg/s)",
+            "worst": WORST,
+            "gain_margin": "absolute; null in JSON means infinite (the phase never reaches -180 deg)",
+            "bandwidth": "half-power (-3.01 dB) frequency of the complementary sensitivity (rad/s)",
+            "Ms": "max |1/(1 + L(j w))| on 1e-4..1e3 rad/s",
+        },
+        "designs": table,
+        "results": results,
+        "identification_value": value,
+        "paper": PAPER_CONTROL,
+    }
+    ts = pd.concat(frames, ignore_index=True)
+    return doc, ts
