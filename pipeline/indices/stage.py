@@ -1,0 +1,224 @@
+"""The indices stage as pure functions: runs + estimates in, the three output documents out.
+
+Files (pipeline/catalog.py): ``indices/indices.json``, ``indices/zigzag.json``, ``indices/table7.csv``.
+Documented choices:
+
+* a run whose analysis fails (e.g. a zigzag too short for two extrema) is kept in zigzag.json with
+  an ``"error"`` line instead of stopping the stage; only the identification run must be analysable
+  (its standard-method K and T are the ``graphical_model``);
+* ``identified`` holds Eq. 6 at the estimate with one-sigma bounds (``uncertainty_method`` says
+  how); ``uncertainty_check`` adds a seeded Monte Carlo of N(estimate, covariance): the fraction of
+  draws with no real positive time constants and the 16/50/84 % percentiles of each index.  When
+  that fraction is not small the Gaussian bounds are local only (the indices are ratios of
+  parameters and become heavy-tailed), and the percentiles are the honest spread;
+* ``control_model`` is the SR-UKF-FFM identified model; if its parameters have no real positive time
+  constants (ModelError) it falls back to FFM-UKF, then to the first-order graphical model
+  (T1 = T, T2 = T3 = 0); ``source`` always says which.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from pipeline.errors import InputError, PipelineError
+from pipeline.indices.config import IndicesConfig
+from pipeline.indices.imo import imo_check
+from pipeline.indices.nomoto_kt import graphical_kt, integral_kt
+from pipeline.indices.turning import turning_metrics
+from pipeline.indices.uncertainty import monte_carlo, propagate
+from pipeline.indices.zigzag import zigzag_metrics
+from pipeline.io import Run
+from pipeline.model import INDEX_NAMES, PAPER_GRAPHICAL, PAPER_TABLE4, PAPER_TABLE7
+from pipeline.runinfo import choose_runs, parse_test_name
+
+PAPER = {"table4": PAPER_TABLE4, "table7": PAPER_TABLE7, "graphical": PAPER_GRAPHICAL,
+         "reference": "Meng et al., Ocean Engineering 294 (2024) 116853, Tables 4 and 7",
+         "units": "K 1/s (deg/s per deg), T1 T2 T3 T s"}
+
+
+def run_kind(run: Run) -> str:
+    kind = run.meta.get("kind")
+    if kind:
+        return str(kind)
+    return parse_test_name(str(run.meta.get("test_name", "")))["kind"]
+
+
+def analyse_run(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]:
+    """Zigzag or turning metrics, the IMO check and (zigzags) K, T by both methods for one run.
+
+    Returns {"run_id", "test_name", "kind", "metrics", "imo", "kt": {"standard", "integral"},
+    "errors": [...]} (errors list what could not be computed and why).
+    """
+    cfg = config or IndicesConfig()
+    kind = run_kind(run)
+    out: dict[str, Any] = {"run_id": run.name, "test_name": run.meta.get("test_name"), "kind": kind,
+                           "metrics": None, "imo": None, "kt": {}, "errors": [],
+                           "nominal_rudder_deg": run.meta.get("rudder_deg"),
+                           "nominal_heading_deg": run.meta.get("heading_deg")}
+    try:
+        if kind == "zigzag":
+            out["metrics"] = zigzag_metrics(run, cfg)
+        elif kind == "turning":
+            out["metrics"] = turning_metrics(run, cfg)
+        else:
+            out["errors"].append(f"kind {kind!r}: neither zigzag nor turning circle, not analysed")
+            return out
+    except PipelineError as exc:
+        out["errors"].append(f"{kind} analysis: {exc}")
+        return out
+    meta = dict(run.meta)
+    out["imo"] = imo_check(kind, out["metrics"], meta, cfg)
+    if kind == "zigzag":
+        for name, fn in (("standard", lambda: graphical_kt(run, cfg, zigzag=out["metrics"])),
+                         ("integral", lambda: integral_kt(run))):
+            try:
+                out["kt"][name] = fn()
+            except PipelineError as exc:
+                out["errors"].append(f"{name} K-T method: {exc}")
+    return out
+
+
+def identified(estimates: dict[str, Any], config: IndicesConfig | None = None) -> dict[str, Any]:
+    """Indices with uncertainty from one estimates.json document (SPEC section 5)."""
+    cfg = config or IndicesConfig()
+    if "parameters" not in estimates:
+        raise InputError("estimates have no 'parameters'")
+    cov = estimates.get("covariance")
+    vals, used = propagate(estimates["parameters"], cov, cfg.uncertainty)
+    check = None
+    if cov is not None:
+        mc = monte_carlo(estimates["parameters"], cov, cfg.mc_samples, cfg.seed)
+        check = {"samples": cfg.mc_samples, "seed": cfg.seed, "invalid_fraction": mc.pop("rejected"),
+                 "percentiles_16_50_84": {n: [mc[n]["p16"], mc[n]["p50"], mc[n]["p84"]] for n in INDEX_NAMES}}
+    return {"indices": vals, "method": used, "check": check}
+
+
+def _amplitude_label(res: dict[str, Any]) -> str:
+    """'20/20' from the nominal test (metadata), else from the measured rudder and trigger."""
+    m = res["metrics"] or {}
+    rud = res.get("nominal_rudder_deg") or m.get("rudder_deg")
+    head = res.get("nominal_heading_deg") or m.get("heading_deg")
+    return f"{round(rud):g}/{round(head):g}" if rud and head else "?"
+
+
+def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict[str, Any]],
+          config: IndicesConfig | None = None, identification: str | None = None,
+          progress: bool = True) -> tuple[dict, dict, pd.DataFrame]:
+    """Compute (indices.json, zigzag.json, table7 data frame) for one dataset.
+
+    ``index`` is runs/index.json, ``runs`` maps run_id to Run, ``estimates`` maps algorithm to its
+    estimates.json document (srukf-ffm required).
+    """
+    cfg = config or IndicesConfig()
+    entries = index.get("runs", [])
+    try:
+        ident, _ = choose_runs(entries, identification)
+    except ValueError as exc:
+        raise InputError(str(exc), file="runs/index.json") from None
+    results = []
+    for e in tqdm(entries, desc="indices: runs", disable=not progress, leave=False):
+        run = runs[e["run_id"]]
+        for k, v in e.items():
+            run.meta.setdefault(k, v)
+        results.append(analyse_run(run, cfg))
+    by_id = {r["run_id"]: r for r in results}
+
+    ident_res = by_id.get(ident)
+    if ident_res is None or "standard" not in ident_res["kt"]:
+        why = "; ".join(ident_res["errors"]) if ident_res else "run missing"
+        raise InputError(f"identification run {ident}: standard-method K, T unavailable ({why})")
+    gm = ident_res["kt"]["standard"]
+    graphical_model = {"source": f"standard (graphical) method on identification run {ident}",
+                       "run_id": ident, "K": gm["K"], "T": gm["T"]}
+
+    ident_out: dict[str, Any] = {}
+    methods: dict[str, str] = {}
+    failures: dict[str, str] = {}
+    checks: dict[str, Any] = {}
+    for alg, est in estimates.items():
+        try:
+            got = identified(est, cfg)
+        except PipelineError as exc:
+            failures[alg] = str(exc)
+            continue
+        ident_out[alg] = got["indices"]
+        methods[alg] = got["method"]
+        checks[alg] = got["check"]
+    control_model = None
+    for alg in ("srukf-ffm", "ffm-ukf"):
+        if alg in ident_out:
+            src = est_run = estimates[alg].get("run_id", ident)
+            src = f"identified {alg}, Eq. 6 on run {est_run}"
+            if alg != "srukf-ffm":
+                src += f" (srukf-ffm unusable: {failures.get('srukf-ffm', 'missing')})"
+            control_model = {"source": src, **{n: ident_out[alg][n]["value"] for n in INDEX_NAMES}}
+            break
+    if control_model is None:
+        control_model = {"source": "first-order graphical model (no usable identified model: "
+                                   + "; ".join(f"{a}: {m}" for a, m in failures.items()) + ")",
+                         "K": gm["K"], "T1": gm["T"], "T2": 0.0, "T3": 0.0, "T": gm["T"]}
+
+    graphical = []
+    for r in results:
+        for meth in ("standard", "integral"):
+            kt = r["kt"].get(meth)
+            if kt is None:
+                continue
+            row = {"run_id": r["run_id"], "method": meth, "K": kt["K"], "T": kt["T"],
+                   "test": _amplitude_label(r), "test_name": r["test_name"],
+                   "first_side": (r["metrics"] or {}).get("first_side")}
+            if meth == "integral":
+                row.update({"K_std": kt["K_std"], "T_std": kt["T_std"],
+                            "rudder_offset_deg": kt["rudder_offset_deg"]})
+            graphical.append(row)
+    by_amp: dict[str, dict[str, Any]] = {}
+    for g in graphical:
+        d = by_amp.setdefault(g["test"], {}).setdefault(g["method"], {"K": [], "T": []})
+        d["K"].append(g["K"])
+        d["T"].append(g["T"])
+    amp_summary = {a: {m: {"K_mean": float(np.mean(v["K"])), "T_mean": float(np.mean(v["T"])),
+                           "runs": len(v["K"])} for m, v in d.items()} for a, d in by_amp.items()}
+
+    prov = index.get("provenance")
+    indices_doc = {
+        "dataset": index.get("dataset"), "provenance": prov, "identification_run": ident,
+        "identified": ident_out, "uncertainty_method": methods,
+        "uncertainty_check": checks, "identified_failures": failures,
+        "graphical": graphical, "graphical_by_amplitude": amp_summary,
+        "control_model": control_model, "graphical_model": graphical_model, "paper": PAPER,
+        "units": {"K": "1/s", "T1": "s", "T2": "s", "T3": "s", "T": "s"},
+    }
+    zig_doc = {"dataset": index.get("dataset"), "provenance": prov,
+               "runs": [{"run_id": r["run_id"], "test_name": r["test_name"], "kind": r["kind"],
+                         "metrics": r["metrics"], "imo": r["imo"], "errors": r["errors"]} for r in results]}
+
+    ident_kt = ident_res["kt"]
+    rows = []
+    for n in INDEX_NAMES:
+        row = {"index": n}
+        for alg in cfg.algorithms:
+            v = ident_out.get(alg, {}).get(n)
+            row[alg] = v["value"] if v else None
+            row[f"{alg}_std"] = v["std"] if v else None
+        for meth in ("standard", "integral"):
+            row[f"graphical_{meth}"] = ident_kt[meth][n] if (meth in ident_kt and n in ("K", "T")) else None
+        row["paper_identified"] = PAPER_TABLE7[n]
+        row["paper_graphical"] = PAPER_GRAPHICAL.get(n)
+        rows.append(row)
+    return indices_doc, zig_doc, pd.DataFrame(rows)
+
+
+def resolve_run_path(runs_dir: Path, entry: dict[str, Any]) -> Path:
+    """Where a runs/index.json entry's Parquet file is."""
+    f = entry.get("file")
+    if f:
+        p = Path(f)
+        for cand in (p, runs_dir / p, runs_dir / p.name):
+            if cand.is_file():
+                return cand
+    return runs_dir / f"{entry['run_id']}.parquet"

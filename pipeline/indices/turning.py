@@ -1,0 +1,101 @@
+"""Turning circle analysis (ITTC 7.5-04-02-01) of a run in SPEC units (m, deg, m/s, s).
+
+From the execute (start of the rudder ramp, as for zigzags), with the position and heading there as
+origin: advance = distance along the original heading when the heading has changed by 90 deg;
+transfer = distance across it (to the side of the turn) at 90 deg; tactical diameter = distance
+across at 180 deg; steady turning diameter = diameter of the circle fitted (algebraic least squares,
+Kasa) to the track over the steady part (heading change from ``steady_from`` deg, 180 deg for short
+runs); steady speed ratio = mean sqrt(u^2 + v^2) there over the approach speed (mean over the 3 s
+before the execute; speed from the track when u is absent).  Lengths also in ship lengths with
+``run.meta["lpp"]``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from pipeline.errors import InputError
+from pipeline.indices.config import IndicesConfig
+from pipeline.indices.executes import find_executes, heading_at
+from pipeline.indices.zigzag import SIDE_NAME, _signals
+from pipeline.io import Run
+
+
+def _speed(run: Run, t, x, y) -> np.ndarray:
+    if "u" in run.frame.columns:
+        u = run.col("u")
+        v = run.col("v") if "v" in run.frame.columns else np.zeros_like(u)
+        return np.hypot(u, v)
+    return np.hypot(np.gradient(x, t), np.gradient(y, t))
+
+
+def fit_circle(x, y) -> tuple[float, float, float]:
+    """Least-squares circle (Kasa): returns centre x, centre y, radius."""
+    a = np.column_stack([x, y, np.ones_like(x)])
+    b = x * x + y * y
+    (c1, c2, c3), *_ = np.linalg.lstsq(a, b, rcond=None)
+    xc, yc = c1 / 2, c2 / 2
+    return float(xc), float(yc), float(np.sqrt(c3 + xc * xc + yc * yc))
+
+
+def turning_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]:
+    """Turning-circle metrics (module docstring).  Needs columns x0, y0; lpp from run.meta.
+
+    Returns {"side", "rudder_deg", "t_execute_s", "advance_m", "transfer_m", "tactical_diameter_m",
+    "steady_diameter_m", and the same divided by lpp as "*_L", "steady_speed_ratio",
+    "steady_yaw_rate_deg_s", "approach_speed_m_s", "heading_change_deg", "lpp_m"}; quantities the
+    run does not reach (e.g. 180 deg) are None.
+    """
+    cfg = config or IndicesConfig()
+    t, psi, delta = _signals(run)
+    x, y = run.col("x0"), run.col("y0")
+    ex = find_executes(t, delta, cfg.level_fraction, cfg.ramp_band)
+    te = float(ex.times[0])
+    side = int(ex.sides[0])
+    i_e = int(np.searchsorted(t, te))
+    psi_e = heading_at(t, psi, te, cfg.heading_window)
+    xe, ye = float(np.interp(te, t, x)), float(np.interp(te, t, y))
+    ang = np.deg2rad(psi_e)
+    along = (x - xe) * np.cos(ang) + (y - ye) * np.sin(ang)
+    across = side * (-(x - xe) * np.sin(ang) + (y - ye) * np.cos(ang))
+    change = side * (psi - psi_e)
+    speed = _speed(run, t, x, y)
+    pre = (t >= te - 3.0) & (t < te)
+    u0 = run.meta.get("approach_speed")
+    u0 = float(u0) if u0 else float(np.mean(speed[pre] if pre.sum() >= 2 else speed[: max(i_e, 2)]))
+
+    def at(level, arr):
+        k = np.nonzero(change[i_e:] >= level)[0]
+        if k.size == 0:
+            return None
+        j = i_e + int(k[0])
+        if j == 0:
+            return float(arr[0])
+        f = (level - change[j - 1]) / (change[j] - change[j - 1])
+        return float(arr[j - 1] + f * (arr[j] - arr[j - 1]))
+
+    total = float(np.max(change[i_e:]))
+    start = cfg.steady_from if total >= cfg.steady_from + cfg.steady_min_span else 180.0
+    steady = (change >= start) & (np.arange(t.size) >= i_e)
+    d_steady = ratio = r_steady = None
+    if total >= start + cfg.steady_min_span and steady.sum() >= 10:
+        _, _, rad = fit_circle(x[steady], y[steady])
+        d_steady = 2.0 * rad
+        ratio = float(np.mean(speed[steady]) / u0) if u0 > 0 else None
+        r_steady = float(np.mean(run.col("r")[steady])) if "r" in run.frame.columns else None
+    lpp = run.meta.get("lpp")
+    lpp = float(lpp) if lpp else None
+    out = {"side": SIDE_NAME[side], "rudder_deg": float(ex.levels[0]), "t_execute_s": te,
+           "approach_speed_m_s": u0, "heading_change_deg": total, "lpp_m": lpp,
+           "advance_m": at(90.0, along), "transfer_m": at(90.0, across),
+           "tactical_diameter_m": at(180.0, across), "steady_diameter_m": d_steady,
+           "steady_speed_ratio": ratio, "steady_yaw_rate_deg_s": r_steady}
+    for key in ("advance", "transfer", "tactical_diameter", "steady_diameter"):
+        v = out[f"{key}_m"]
+        out[f"{key}_L"] = v / lpp if (v is not None and lpp) else None
+    if out["advance_m"] is None:
+        raise InputError("the heading never changes by 90 deg after the execute: not a turning circle",
+                         file=run.name, column="psi")
+    return out

@@ -1,0 +1,221 @@
+"""Nomoto indices with uncertainty (paper Eq. 6 + propagation) and the indices stage end to end."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_zigzag import simulate_circle, simulate_zigzag
+
+from pipeline.cli import main
+from pipeline.errors import ModelError
+from pipeline.indices import (
+    index_range_over_box,
+    indices_with_uncertainty,
+    monte_carlo,
+    propagate,
+    rounding_half_widths,
+)
+from pipeline.io import read_json, write_json, write_run
+from pipeline.model import INDEX_NAMES, PAPER_TABLE4, PAPER_TABLE7, PARAM_NAMES
+
+# Table 4 exactly as printed in the paper (strings: the number of digits matters)
+TABLE4_PRINTED = {"a11": "-1.882", "a12": "-0.1232", "a21": "-7.422", "a22": "-0.8129",
+                  "b11": "0.0099", "b21": "0.1657"}
+
+
+def test_rounding_half_widths():
+    hw = rounding_half_widths(TABLE4_PRINTED)
+    assert hw["a11"] == pytest.approx(5e-4) and hw["a12"] == pytest.approx(5e-5)
+    assert hw["b11"] == pytest.approx(5e-5)
+
+
+def test_printed_table4_reproduces_table7_to_0p2_percent():
+    got = indices_with_uncertainty(PAPER_TABLE4, None)
+    for n in INDEX_NAMES:
+        assert got[n]["std"] is None
+        assert got[n]["value"] == pytest.approx(PAPER_TABLE7[n], rel=2e-3), n
+    # and it is NOT exact: the printed parameters are rounded (K 0.38729 vs 0.3867, T3 0.6951 vs 0.6960)
+    assert abs(got["K"]["value"] / PAPER_TABLE7["K"] - 1) > 1e-3
+
+
+def test_table7_lies_within_the_rounding_box_of_table4():
+    params = {k: float(v) for k, v in TABLE4_PRINTED.items()}
+    rng = index_range_over_box(params, rounding_half_widths(TABLE4_PRINTED), interior=500)
+    for n in INDEX_NAMES:
+        lo, hi = rng[n]
+        assert lo <= PAPER_TABLE7[n] <= hi, (n, lo, PAPER_TABLE7[n], hi)
+    # the box is narrow: it would not contain values 1 % away
+    assert not rng["K"][0] <= 1.01 * PAPER_TABLE7["K"] <= rng["K"][1]
+
+
+def _cov(theta, rel=0.01, corr=0.3, seed=0):
+    rng = np.random.default_rng(seed)
+    sd = rel * np.abs(theta)
+    c = np.full((6, 6), corr) + (1 - corr) * np.eye(6)
+    q = rng.choice([-1.0, 1.0], 6)
+    return (np.outer(sd, sd) * c) * np.outer(q, q)
+
+
+@pytest.mark.parametrize("method", ["unscented", "linear"])
+def test_propagation_agrees_with_monte_carlo(method):
+    theta = np.array([PAPER_TABLE4[n] for n in PARAM_NAMES])
+    cov = _cov(theta, rel=0.01)
+    got, used = propagate(theta, cov, method)
+    assert used == method
+    mc = monte_carlo(theta, cov, samples=20000, seed=1)
+    assert mc["rejected"] == 0.0
+    for n in INDEX_NAMES:
+        assert got[n]["std"] == pytest.approx(mc[n]["std"], rel=0.05), n
+        assert got[n]["std"] > 0
+
+
+def test_monte_carlo_reports_invalid_mass_of_a_wide_covariance():
+    theta = np.array([PAPER_TABLE4[n] for n in PARAM_NAMES])
+    mc = monte_carlo(theta, _cov(theta, rel=0.5), samples=4000, seed=2)
+    assert 0.05 < mc["rejected"] < 0.95
+    assert mc["K"]["p16"] < mc["K"]["p50"] < mc["K"]["p84"]
+
+
+def test_zero_covariance_and_fixed_parameters():
+    theta = np.array([PAPER_TABLE4[n] for n in PARAM_NAMES])
+    got = indices_with_uncertainty(theta, np.zeros((6, 6)))
+    assert all(got[n]["std"] == 0 for n in INDEX_NAMES)
+    # only b21 uncertain: K and T3 move with it, T1 and T2 (from the a's alone) do not
+    cov = np.zeros((6, 6))
+    cov[5, 5] = 1e-4
+    got = indices_with_uncertainty(theta, cov)
+    assert got["T1"]["std"] == pytest.approx(0, abs=1e-9) and got["T2"]["std"] == pytest.approx(0, abs=1e-9)
+    # dK/db21 = -a11/D
+    det = theta[0] * theta[3] - theta[1] * theta[2]
+    assert got["K"]["std"] == pytest.approx(abs(theta[0] / det) * 1e-2, rel=1e-4)
+
+
+def test_sigma_points_outside_valid_region_fall_back_to_linear():
+    theta = np.array([PAPER_TABLE4[n] for n in PARAM_NAMES])
+    cov = np.zeros((6, 6))
+    cov[1, 1] = 0.6**2                     # a12 +- sqrt(3) 0.6 makes D <= 0 at a sigma point
+    got, used = propagate(theta, cov, "unscented")
+    assert used.startswith("linear")
+    assert np.isfinite(got["K"]["std"])
+
+
+@pytest.mark.parametrize("params,match", [
+    ({"a11": -1.0, "a12": 1.0, "a21": 1.0, "a22": -0.5, "b11": 0.01, "b21": 0.1}, "<= 0"),
+    ({"a11": -1.0, "a12": -1.0, "a21": 1.0, "a22": -1.0, "b11": 0.01, "b21": 0.1}, "complex"),
+    ({"a11": 1.0, "a12": 0.0, "a21": 0.0, "a22": 1.0, "b11": 0.01, "b21": 0.1}, "unstable"),
+])
+def test_no_real_positive_time_constants_is_a_model_error(params, match):
+    with pytest.raises(ModelError, match=match):
+        indices_with_uncertainty(params, np.eye(6) * 1e-6)
+
+
+def test_bad_covariance_is_refused():
+    theta = [PAPER_TABLE4[n] for n in PARAM_NAMES]
+    with pytest.raises(ModelError, match="6 x 6"):
+        indices_with_uncertainty(theta, np.eye(5))
+    with pytest.raises(ModelError, match="positive semi-definite"):
+        indices_with_uncertainty(theta, -np.eye(6))
+    with pytest.raises(ModelError, match="symmetric"):
+        indices_with_uncertainty(theta, np.triu(np.ones((6, 6))))
+    with pytest.raises(ModelError, match="unknown uncertainty method"):
+        propagate(theta, np.eye(6), "magic")
+
+
+# ------------------------------------------------------------------------------ the stage
+
+def _dataset(tmp_path, srukf_params=None):
+    root = tmp_path / "processed"
+    runs_dir = root / "t" / "runs"
+    entries = []
+    specs = [("z20s", 20, 1), ("z20p", 20, -1), ("z10s", 10, 1)]
+    for rid, amp, side in specs:
+        run, _ = simulate_zigzag(K=0.5, T=6.0, rudder=amp, trigger=amp, first_side=side, rate=5.0,
+                                 noise=0.05, seed=amp + side, duration=100)
+        run.meta.update(run_id=rid, first_side="starboard" if side == 1 else "port",
+                        provenance="virtual", model_scale=40.0)
+        write_run(runs_dir / f"{rid}.parquet", run)
+        entries.append({"run_id": rid, "file": f"{rid}.parquet", **run.meta})
+    circ, _ = simulate_circle(radius=9.0, speed=1.5, lpp=6.0)
+    circ.meta.update(run_id="turn", provenance="virtual", model_scale=40.0, first_side="starboard")
+    write_run(runs_dir / "turn.parquet", circ)
+    entries.append({"run_id": "turn", "file": "turn.parquet", **circ.meta})
+    write_json(runs_dir / "index.json", {"dataset": "t", "provenance": "virtual", "runs": entries})
+    theta = np.array([PAPER_TABLE4[n] for n in PARAM_NAMES])
+    for alg, p in (("srukf-ffm", srukf_params or PAPER_TABLE4), ("ffm-ukf", PAPER_TABLE4)):
+        write_json(root / "t" / "identify" / alg / "estimates.json",
+                   {"algorithm": alg, "samples": 585, "run_id": "z20s", "parameters": p,
+                    "covariance": _cov(theta, rel=0.02).tolist()})
+    return root
+
+
+def test_stage_writes_the_catalog_schema(tmp_path):
+    root = _dataset(tmp_path)
+    assert main(["indices", "--dataset", "t", "--root", str(root)]) == 0
+    out = root / "t" / "indices"
+    ind = read_json(out / "indices.json")
+    assert ind["dataset"] == "t" and ind["provenance"] == "virtual"
+    assert set(ind["identified"]) == {"srukf-ffm", "ffm-ukf"}
+    for alg in ind["identified"]:
+        assert set(ind["identified"][alg]) == set(INDEX_NAMES)
+        for n in INDEX_NAMES:
+            assert set(ind["identified"][alg][n]) == {"value", "std"}
+            assert ind["identified"][alg][n]["std"] > 0
+    chk = ind["uncertainty_check"]["srukf-ffm"]
+    assert chk["invalid_fraction"] == 0.0
+    for n in INDEX_NAMES:
+        p16, p50, p84 = chk["percentiles_16_50_84"][n]
+        assert p16 < ind["identified"]["srukf-ffm"][n]["value"] < p84
+    cm = ind["control_model"]
+    assert "srukf-ffm" in cm["source"]
+    assert cm["K"] == pytest.approx(0.38729, rel=1e-4)
+    gm = ind["graphical_model"]
+    assert ind["identification_run"] == "z20s" and "z20s" in gm["source"]
+    assert gm["K"] == pytest.approx(0.5, rel=0.03) and gm["T"] == pytest.approx(6.0, rel=0.03)
+    methods = {(g["run_id"], g["method"]) for g in ind["graphical"]}
+    assert methods == {(r, m) for r in ("z20s", "z20p", "z10s") for m in ("standard", "integral")}
+    assert set(ind["graphical_by_amplitude"]) == {"20/20", "10/10"}
+    assert ind["paper"]["table7"] == PAPER_TABLE7 and ind["paper"]["graphical"]["K"] == 0.576
+
+    zz = read_json(out / "zigzag.json")
+    by = {r["run_id"]: r for r in zz["runs"]}
+    assert by["z20p"]["metrics"]["first_side"] == "port"
+    assert by["z20s"]["imo"]["criteria"][0]["limit"] == 25.0
+    assert by["z10s"]["imo"]["test"] == "zigzag 10/10"
+    assert by["turn"]["kind"] == "turning"
+    assert by["turn"]["metrics"]["tactical_diameter_L"] == pytest.approx(3.0, rel=3e-3)
+    assert by["turn"]["imo"]["pass"] is True
+
+    table = pd.read_csv(out / "table7.csv")
+    assert list(table["index"]) == list(INDEX_NAMES)
+    row = table.set_index("index")
+    assert row.loc["K", "paper_identified"] == pytest.approx(0.3867)
+    assert row.loc["T", "paper_graphical"] == pytest.approx(4.816)
+    assert np.isnan(row.loc["T1", "graphical_standard"])
+    assert row.loc["K", "graphical_standard"] == pytest.approx(gm["K"], rel=1e-5)
+    assert row.loc["T3", "srukf-ffm"] == pytest.approx(0.6951, rel=1e-3)
+
+
+def test_stage_falls_back_when_identified_model_is_unusable(tmp_path):
+    bad = {"a11": -1.0, "a12": 1.0, "a21": 1.0, "a22": -0.5, "b11": 0.01, "b21": 0.1}
+    root = _dataset(tmp_path, srukf_params=bad)
+    assert main(["indices", "--dataset", "t", "--root", str(root), "--uncertainty", "linear"]) == 0
+    ind = json.loads((root / "t" / "indices" / "indices.json").read_text())
+    assert "srukf-ffm" in ind["identified_failures"]
+    assert ind["control_model"]["source"].startswith("identified ffm-ukf")
+    assert ind["uncertainty_method"]["ffm-ukf"] == "linear"
+
+
+def test_missing_estimates_fail_cleanly_and_leave_old_outputs(tmp_path, capsys):
+    root = _dataset(tmp_path)
+    assert main(["indices", "--dataset", "t", "--root", str(root)]) == 0
+    before = (root / "t" / "indices" / "indices.json").read_bytes()
+    (root / "t" / "identify" / "srukf-ffm" / "estimates.json").unlink()
+    assert main(["indices", "--dataset", "t", "--root", str(root)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "estimates.json" in err and "identify" in err
+    assert (root / "t" / "indices" / "indices.json").read_bytes() == before
+    assert sorted(p.name for p in (root / "t" / "indices").iterdir()) == [
+        "indices.json", "table7.csv", "zigzag.json"]
