@@ -85,6 +85,35 @@ class FilterConfig:
 
 
 @dataclass(frozen=True)
+class IndicesConfig:
+    """Zigzag/turning analysis, Nomoto K-T methods and index uncertainty."""
+
+    algorithms: tuple[str, ...] = ("srukf-ffm", "ffm-ukf")   # identify/<alg>/estimates.json read
+    uncertainty: str = "unscented"      # 'unscented' or 'linear' (central-difference Jacobian)
+    mc_samples: int = 20000             # Monte Carlo check of the propagation (tests / diagnostics)
+    seed: int = 4                       # seed of the Monte Carlo draws
+    # Rudder execute detection (zigzag and turning): hysteresis at +-level_fraction of the rudder
+    # amplitude; ramp fitted between ramp_band fractions of each transition.
+    level_fraction: float = 0.5
+    ramp_band: tuple[float, float] = (0.2, 0.8)
+    # Heading extrema: a cubic is fitted to psi within +-peak_window s of the raw extremum
+    # (clipped to a fraction of the interval between executes).
+    peak_window: float = 1.5
+    # Heading at an execute: straight line fitted to psi over this many seconds before it.
+    heading_window: float = 2.0
+    # Yaw rate read off the heading curve (the 'tangent' of the graphical method): local straight
+    # line over +-tangent_window s.
+    tangent_window: float = 0.4
+    # Turning circle: steady part starts at this heading change (deg), lowered to 180 deg when the
+    # run does not turn far enough; needs at least steady_min_span deg of steady turning.
+    steady_from: float = 270.0
+    steady_min_span: float = 90.0
+    # IMO check: model scale factor by ship, used when the run's metadata does not give it
+    # (L/U is a full-scale time; KVLCC2 HSVA 1:45.7 from the data README, KCS SIMMAN 1:37.89).
+    ship_scales: dict[str, float] = field(default_factory=lambda: {"KVLCC2": 45.7, "KCS": 37.89})
+
+
+@dataclass(frozen=True)
 class ControlConfig:
     """CGSA course keeping (paper section 4, ALGORITHMS.md)."""
 
@@ -122,6 +151,7 @@ class DiagnoseConfig:
     structured_r2: float = 0.2           # residuals "stay structured" when effect signatures explain this share
     max_nfev: int = 400                  # function evaluations per output-error fit
     other_side: bool = True              # catalog mode: also train on one zigzag of the other side
+    min_speed_loss: float = 0.03         # speed_loss is tried only when u falls by at least this fraction
 
 
 @dataclass(frozen=True)
@@ -129,6 +159,7 @@ class PipelineConfig:
     ingest: IngestConfig = field(default_factory=IngestConfig)
     tank: TankConfig = field(default_factory=TankConfig)
     filter: FilterConfig = field(default_factory=FilterConfig)
+    indices: IndicesConfig = field(default_factory=IndicesConfig)
     control: ControlConfig = field(default_factory=ControlConfig)
     diagnose: DiagnoseConfig = field(default_factory=DiagnoseConfig)
 

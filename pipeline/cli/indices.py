@@ -6,8 +6,8 @@ from __future__ import annotations
 import dataclasses
 
 from pipeline.cli._common import add_dataset_args, catalog
+from pipeline.config import IndicesConfig
 from pipeline.errors import InputError
-from pipeline.indices.config import IndicesConfig
 from pipeline.indices.stage import build, resolve_run_path
 from pipeline.io import atomic_dir, read_json, read_run, write_json
 

@@ -12,7 +12,7 @@ Public API (pure functions; SPEC units: s, m, deg, deg/s; positive delta turns t
 * :func:`build` (index, runs, estimates) -> the stage's three outputs
 """
 
-from pipeline.indices.config import IndicesConfig
+from pipeline.config import IndicesConfig
 from pipeline.indices.imo import imo_check, overshoot_limits
 from pipeline.indices.nomoto_kt import graphical_kt, integral_kt
 from pipeline.indices.stage import analyse_run, build

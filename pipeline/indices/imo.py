@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.indices.config import IndicesConfig
+from pipeline.config import IndicesConfig
 
 
 def overshoot_limits(l_over_v: float) -> tuple[float, float]:

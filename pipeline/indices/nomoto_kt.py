@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
+from pipeline.config import IndicesConfig
 from pipeline.errors import InputError
-from pipeline.indices.config import IndicesConfig
 from pipeline.indices.executes import slope_at
 from pipeline.indices.zigzag import _signals, zigzag_metrics
 from pipeline.io import Run

@@ -25,8 +25,8 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from pipeline.config import IndicesConfig
 from pipeline.errors import InputError, PipelineError
-from pipeline.indices.config import IndicesConfig
 from pipeline.indices.imo import imo_check
 from pipeline.indices.nomoto_kt import graphical_kt, integral_kt
 from pipeline.indices.turning import turning_metrics

@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.config import IndicesConfig
 from pipeline.errors import InputError
-from pipeline.indices.config import IndicesConfig
 from pipeline.indices.executes import find_executes, heading_at
 from pipeline.indices.zigzag import SIDE_NAME, _signals
 from pipeline.io import Run

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.config import IndicesConfig
 from pipeline.errors import InputError
-from pipeline.indices.config import IndicesConfig
 from pipeline.indices.executes import _crossing_time, extremum, find_executes, heading_at
 from pipeline.io import Run
 
