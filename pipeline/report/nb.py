@@ -1,0 +1,296 @@
+"""Helpers the report notebooks import: loading stage outputs, provenance banner, tables, figures.
+
+The notebooks read ONLY stage outputs under ``<root>/<dataset>/`` (pipeline/catalog.py), through
+:class:`Data`, which records every file it reads so the banner can list them with their SHA-256.
+A missing file or column raises :class:`pipeline.errors.InputError` naming it (one line).
+
+Units in every table and axis are those of SPEC section 2 (s, m, m/s, deg, deg/s).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import html
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from pipeline.catalog import Catalog
+from pipeline.errors import InputError
+from pipeline.io import read_frame, read_json
+
+# The paper's figures (SPEC section 6), shown beside ours.  Tables 5 (20/20) and 6 (10/10).
+PAPER_TABLES_5_6 = {
+    ("20/20", "ffm-ukf"): {"mse_v": 0.0152, "mse_r": 1.28, "mae_psi": 4.43},
+    ("20/20", "srukf-ffm"): {"mse_v": 0.0037, "mse_r": 0.71, "mae_psi": 3.55},
+    ("10/10", "ffm-ukf"): {"mse_v": 0.0046, "mse_r": 0.83, "mae_psi": 3.69},
+    ("10/10", "srukf-ffm"): {"mse_v": 0.0016, "mse_r": 0.49, "mae_psi": 1.95},
+}
+PAPER_IDENT_SECONDS = 0.377      # identification time for 585 samples (paper)
+PAPER_CONTROL = {"rise_time": 24.0, "max_deviation": 1.46, "steady_mae": 0.86, "max_rudder": "< 25",
+                 "steady_rudder_range": "[-3.78, -1.09]", "mean_rudder": -1.70}
+ALG_LABEL = {"srukf-ffm": "SR-UKF-FFM", "ffm-ukf": "FFM-UKF"}
+ALG_COLOR = {"srukf-ffm": "tab:red", "ffm-ukf": "tab:blue"}
+UNITS = {"v": "m/s", "r": "deg/s", "psi": "deg", "delta": "deg", "u": "m/s", "time": "s",
+         "x0": "m", "y0": "m"}
+
+_FIG = {"n": 0}
+_TAB = {"n": 0}
+
+
+def setup() -> None:
+    """Plot and display defaults: inline PNG (embedded as base64 in the HTML), readable sizes."""
+    import matplotlib as mpl
+
+    try:
+        from matplotlib_inline.backend_inline import set_matplotlib_formats
+        set_matplotlib_formats("png")
+    except ImportError:   # pragma: no cover - older IPython
+        pass
+    mpl.rcParams.update({
+        "figure.figsize": (10, 4), "figure.dpi": 90, "savefig.dpi": 90, "axes.grid": True,
+        "grid.alpha": 0.3, "axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 9,
+        "lines.linewidth": 1.2, "figure.constrained_layout.use": True,
+    })
+    pd.set_option("display.precision", 4)
+    _FIG["n"] = 0
+    _TAB["n"] = 0
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+class Data:
+    """Read-only access to one dataset's stage outputs; remembers what was read."""
+
+    def __init__(self, root: str | Path, dataset: str):
+        self.cat = Catalog(root=Path(root), dataset=dataset)
+        self.used: list[Path] = []
+        self._index: dict | None = None
+
+    @property
+    def dataset(self) -> str:
+        return self.cat.dataset
+
+    def path(self, rel: str | Path) -> Path:
+        return self.cat.base / rel
+
+    def _use(self, rel: str | Path) -> Path:
+        p = self.path(rel)
+        if not p.is_file():
+            raise InputError("stage output missing (run that stage first)", file=p)
+        if p not in self.used:
+            self.used.append(p)
+        return p
+
+    def exists(self, rel: str | Path) -> bool:
+        return self.path(rel).is_file()
+
+    def json(self, rel: str | Path) -> Any:
+        return read_json(self._use(rel))
+
+    def frame(self, rel: str | Path, columns: tuple[str, ...] = ()) -> pd.DataFrame:
+        p = self._use(rel)
+        df, _ = read_frame(p)
+        for c in columns:
+            if c not in df.columns:
+                raise InputError("column missing from stage output", file=p, column=c)
+        return df
+
+    def csv(self, rel: str | Path) -> pd.DataFrame:
+        return pd.read_csv(self._use(rel))
+
+    # runs (ingest outputs)
+    @property
+    def index(self) -> dict:
+        if self._index is None:
+            self._index = self.json("runs/index.json")
+        return self._index
+
+    @property
+    def provenance(self) -> str:
+        return str(self.index.get("provenance", "unknown"))
+
+    def runs(self) -> pd.DataFrame:
+        """The runs index as a table (one row per run)."""
+        df = pd.DataFrame(self.index.get("runs", []))
+        if df.empty:
+            raise InputError("no runs listed", file=self.cat.runs_index)
+        return df
+
+    def run(self, run_id: str) -> pd.DataFrame:
+        entry = next((r for r in self.index.get("runs", []) if r.get("run_id") == run_id), None)
+        name = Path((entry or {}).get("file") or f"{run_id}.parquet").name
+        return self.frame(Path("runs") / name, ("time", "psi", "r", "delta"))
+
+    def run_label(self, run_id: str) -> str:
+        entry = next((r for r in self.index.get("runs", []) if r.get("run_id") == run_id), {})
+        name = entry.get("test_name")
+        return f"{run_id} ({name})" if name else str(run_id)
+
+    def short_label(self, run_id: str) -> str:
+        """Compact label for axes: '20/20 S' for a zigzag, 'turn 35 P', else the run_id."""
+        entry = next((r for r in self.index.get("runs", []) if r.get("run_id") == run_id), {})
+        side = {"starboard": " S", "port": " P"}.get(entry.get("first_side") or "", "")
+        if entry.get("kind") == "zigzag" and entry.get("rudder_deg") is not None:
+            return f"{entry['rudder_deg']:g}/{entry.get('heading_deg') or 0:g}{side}"
+        if entry.get("kind") == "turning" and entry.get("rudder_deg") is not None:
+            return f"turn {entry['rudder_deg']:g}{side}"
+        return str(run_id)
+
+    def amplitude(self, run_id: str) -> str | None:
+        """'20/20' style label of a zigzag run from the runs index, else None."""
+        entry = next((r for r in self.index.get("runs", []) if r.get("run_id") == run_id), {})
+        if entry.get("kind") != "zigzag" or entry.get("rudder_deg") is None:
+            return None
+        return f"{entry['rudder_deg']:g}/{entry.get('heading_deg') or 0:g}"
+
+
+# ----------------------------------------------------------------------------------------- banner
+def _kv_table(rows: list[tuple[str, Any]]) -> str:
+    cells = "".join(f"<tr><th style='text-align:left'>{html.escape(str(k))}</th>"
+                    f"<td style='text-align:left'>{html.escape(_fmt(v))}</td></tr>" for k, v in rows)
+    return f"<table>{cells}</table>"
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    if isinstance(v, (list, tuple)):
+        return "(" + ", ".join(_fmt(x) for x in v) + ")"
+    return "" if v is None else str(v)
+
+
+def flatten(obj: Any, prefix: str = "") -> dict[str, Any]:
+    """Nested dicts to one level with dotted keys (lists of scalars kept as they are)."""
+    out: dict[str, Any] = {}
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            out.update(flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    else:
+        out[prefix] = obj
+    return out
+
+
+def banner(data: Data, title: str, settings: dict[str, Any] | None = None):
+    """The provenance banner every report starts with (returns an IPython HTML object).
+
+    Provenance in large type (VIRTUAL TANK in red, measured in green), the runs with their source
+    files and SHA-256 (from runs/index.json), the stage outputs read with their SHA-256, settings.
+    """
+    from IPython.display import HTML
+
+    prov = data.provenance
+    if prov == "virtual":
+        box = ("#b00020", "VIRTUAL TANK: simulated data, NOT measured",
+               "Every figure and table below comes from the built-in virtual tank (3-DOF MMG model of "
+               "the KCS at model scale 1:37.89, SIMMAN 2020 deep water), run through the same stages "
+               "as measured data.")
+    elif prov == "measured":
+        box = ("#1b5e20", "MEASURED tank data", "Runs measured in a towing tank (free-running model).")
+    else:
+        box = ("#e65100", f"{prov.upper()} data: measured and virtual runs mixed",
+               "Check the provenance column of the run table.")
+    runs = data.runs()
+    cols = [c for c in ("run_id", "test_name", "provenance", "source_file", "source_format",
+                        "source_sha256", "dt", "duration", "samples") if c in runs.columns]
+    run_rows = "".join("<tr>" + "".join(f"<td style='text-align:left'>{html.escape(_fmt(r[c]))}</td>"
+                                        for c in cols) + "</tr>" for _, r in runs.iterrows())
+    run_head = "".join(f"<th style='text-align:left'>{html.escape(c)}</th>" for c in cols)
+    files = [(str(p.relative_to(data.cat.base)), _sha256(p)) for p in data.used]
+    file_rows = "".join(f"<tr><td style='text-align:left'>{html.escape(f)}</td>"
+                        f"<td style='text-align:left'><code>{s}</code></td></tr>" for f, s in files)
+    flat = flatten(settings or {})
+    now = _dt.datetime.now().strftime("%Y-%m-%d %H:%M")
+    text = f"""
+<div style="border:3px solid {box[0]};border-radius:6px;padding:10px 14px;margin:4px 0 12px 0">
+<div style="font-size:1.8em;font-weight:bold;color:{box[0]}">{html.escape(box[1])}</div>
+<div style="margin:4px 0 8px 0">{html.escape(box[2])}</div>
+<div><b>{html.escape(title)}</b> &middot; dataset <code>{html.escape(data.dataset)}</code> &middot;
+{len(runs)} runs &middot; rendered {now} &middot; reproduces and extends Meng et al., Ocean
+Engineering 294 (2024) 116853</div>
+<details><summary>Runs: source files and SHA-256</summary>
+<table><tr>{run_head}</tr>{run_rows}</table></details>
+<details><summary>Stage outputs this report read ({len(files)} files, SHA-256)</summary>
+<table><tr><th style='text-align:left'>file (under {html.escape(str(data.cat.base))})</th>
+<th style='text-align:left'>SHA-256</th></tr>{file_rows}</table></details>
+<details open><summary>Settings</summary>{_kv_table(list(flat.items()))}</details>
+</div>"""
+    return HTML(text)
+
+
+# ---------------------------------------------------------------------------------- tables, figs
+def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True):
+    """Display ``df`` as a numbered, captioned HTML table (numbers to ``precision`` significant digits)."""
+    from IPython.display import HTML, display
+
+    _TAB["n"] += 1
+
+    def fmt(x):
+        if isinstance(x, (float, np.floating)):
+            if not math.isfinite(x):
+                return "–"
+            return f"{x:.{precision}g}"
+        return "–" if x is None else str(x)
+
+    styler = df.style.format(fmt).set_caption(f"Table {_TAB['n']}. {caption}")
+    styler = styler.set_table_styles([{"selector": "caption", "props": "caption-side: top; "
+                                       "text-align: left; font-weight: bold; padding: 4px 0;"}])
+    if not index:
+        styler = styler.hide(axis="index")
+    display(HTML(styler.to_html()))
+
+
+def show(fig, caption: str) -> None:
+    """Display a figure (PNG) with a numbered caption that says what to see; closes it."""
+    import matplotlib.pyplot as plt
+    from IPython.display import HTML, display
+
+    _FIG["n"] += 1
+    display(fig)
+    plt.close(fig)
+    display(HTML(f"<p style='margin:0 0 1.2em 0'><b>Figure {_FIG['n']}.</b> {html.escape(caption)}</p>"))
+
+
+def note(text: str) -> None:
+    """A short paragraph of HTML-escaped text (e.g. what is absent and why)."""
+    from IPython.display import HTML, display
+
+    display(HTML(f"<p><i>{html.escape(text)}</i></p>"))
+
+
+def label(name: str) -> str:
+    """Axis label with unit, e.g. 'r (deg/s)'."""
+    return f"{name} ({UNITS[name]})" if name in UNITS else name
+
+
+def pick(df: pd.DataFrame, *names: str) -> str | None:
+    """The first of ``names`` that is a column of ``df`` (for columns the contract leaves open)."""
+    return next((n for n in names if n in df.columns), None)
+
+
+def records(obj: Any, key: str = "run_id") -> list[dict]:
+    """A JSON collection as a list of dicts: a list, ``{"runs": [...]}``, or ``{id: {...}}``."""
+    if isinstance(obj, list):
+        return [r for r in obj if isinstance(r, dict)]
+    if isinstance(obj, dict):
+        for k in ("runs", "rows", "items", "results"):
+            if isinstance(obj.get(k), list):
+                return [r for r in obj[k] if isinstance(r, dict)]
+            if isinstance(obj.get(k), dict):
+                return records(obj[k], key)
+        out = []
+        for k, v in obj.items():
+            if isinstance(v, dict):
+                out.append({key: k, **v})
+        return out
+    return []

@@ -1,0 +1,325 @@
+"""Execute the parameterised notebooks with papermill and render them to self-contained HTML.
+
+One report = one notebook (``notebooks/<name>.ipynb``) executed for one dataset on the Jupyter
+kernel named ``tanktest`` (the project's .venv Python), then converted by nbconvert to a single
+HTML file: figures embedded as base64 PNG, no external scripts (require.js, MathJax and mermaid are
+left out), code cells hidden behind a "show code" toggle (hidden also when scripts are disabled).
+
+Before anything runs, every stage output a notebook reads is checked; a missing one is refused with
+:class:`pipeline.errors.InputError` naming the file.  A notebook that fails while running becomes one
+:class:`pipeline.errors.PipelineError` line (the notebook, the cell, the exception).  Outputs are
+written atomically (:func:`pipeline.io.atomic_path`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import html
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from pipeline.catalog import Catalog
+from pipeline.errors import InputError, PipelineError
+from pipeline.io import atomic_path, read_json, write_json
+
+KERNEL_NAME = "tanktest"
+NOTEBOOK_DIR = Path(__file__).resolve().parents[2] / "notebooks"
+NOTEBOOKS = ("identification", "indices", "control", "diagnosis")
+ALGORITHMS = ("srukf-ffm", "ffm-ukf")
+
+
+def required_inputs(notebook: str, cat: Catalog) -> list[Path]:
+    """Stage outputs that ``notebook`` reads (it reads nothing else).  Order = order of the stages."""
+    runs = [cat.runs_index]
+    ident = [cat.identify_dir(a) / f for a in ALGORITHMS for f in ("estimates.json", "trace.parquet")]
+    table: dict[str, list[Path]] = {
+        "identification": runs + ident + [cat.validate_dir / "metrics.json",
+                                          cat.validate_dir / "predictions.parquet"],
+        "indices": runs + [cat.indices_dir / "indices.json", cat.indices_dir / "zigzag.json"],
+        "control": runs + [cat.indices_dir / "indices.json", cat.control_dir / "metrics.json",
+                           cat.control_dir / "timeseries.parquet"],
+        "diagnosis": runs + [cat.diagnose_dir / "diagnosis.json", cat.diagnose_dir / "series.parquet"],
+    }
+    if notebook not in table:
+        raise InputError(f"unknown notebook {notebook!r} (known: {', '.join(NOTEBOOKS)})")
+    return table[notebook]
+
+
+def check_inputs(notebook: str, cat: Catalog) -> None:
+    """Raise InputError naming the first stage output of ``notebook`` that is missing."""
+    for path in required_inputs(notebook, cat):
+        if not Path(path).is_file():
+            stage = Path(path).relative_to(cat.base).parts[0] if cat.base in Path(path).parents else "?"
+            stage = {"runs": "ingest", "diagnose": "diagnose"}.get(stage, stage)
+            raise InputError(f"stage output missing for the {notebook} report of dataset "
+                             f"'{cat.dataset}' (run `python -m pipeline {stage} --dataset {cat.dataset}` "
+                             "first)", file=path)
+
+
+# ----------------------------------------------------------------------------------------- kernel
+def _same_python(argv0: str) -> bool:
+    a, b = Path(argv0), Path(sys.executable)
+    if os.path.normpath(a.absolute()) == os.path.normpath(b.absolute()):
+        return True
+    # python vs python3 in the same environment's bin directory
+    return a.parent.absolute() == b.parent.absolute() and a.name.startswith("python")
+
+
+def ensure_kernel(name: str = KERNEL_NAME, install: Callable[[list[str]], object] | None = None) -> Path:
+    """Make sure the Jupyter kernel ``name`` exists and runs this Python (``sys.executable``).
+
+    A missing kernelspec is installed from ``sys.executable`` into ``sys.prefix`` (as the Makefile
+    does: ``python -m ipykernel install --sys-prefix --name tanktest``), never from whatever Python
+    is first on PATH.  A kernelspec that points at another Python is reinstalled when it lives in
+    this environment, refused otherwise.  Returns the kernelspec directory.
+    """
+    from jupyter_client.kernelspec import KernelSpecManager, NoSuchKernel
+
+    install = install or (lambda cmd: subprocess.run(cmd, check=True, capture_output=True))
+    cmd = [sys.executable, "-m", "ipykernel", "install", "--sys-prefix", "--name", name,
+           "--display-name", f"{name} (.venv)"]
+    ksm = KernelSpecManager()
+    try:
+        spec = ksm.get_kernel_spec(name)
+    except NoSuchKernel:
+        spec = None
+    if spec is not None and _same_python(spec.argv[0]):
+        return Path(spec.resource_dir)
+    in_env = spec is not None and Path(sys.prefix).absolute() in Path(spec.resource_dir).absolute().parents
+    if spec is not None and not in_env:
+        raise PipelineError(f"kernel '{name}' runs {spec.argv[0]}, not this environment's "
+                            f"{sys.executable}; remove it or reinstall with: {' '.join(cmd)}",
+                            file=spec.resource_dir)
+    try:
+        install(cmd)
+    except (subprocess.CalledProcessError, OSError) as exc:
+        raise PipelineError(f"could not install the Jupyter kernel '{name}' ({exc})") from None
+    try:
+        spec = KernelSpecManager().get_kernel_spec(name)
+    except NoSuchKernel:
+        raise PipelineError(f"Jupyter kernel '{name}' is still missing after: {' '.join(cmd)}") from None
+    if not _same_python(spec.argv[0]):
+        raise PipelineError(f"kernel '{name}' still runs {spec.argv[0]}, not {sys.executable}",
+                            file=spec.resource_dir)
+    return Path(spec.resource_dir)
+
+
+# ------------------------------------------------------------------------------------------- HTML
+_TEMPLATE = r"""
+{%- extends 'lab/index.html.j2' -%}
+{%- block html_head_js -%}{%- endblock html_head_js -%}
+{%- block html_head_js_mathjax -%}{%- endblock html_head_js_mathjax -%}
+{%- block html_head_js_mermaidjs -%}{%- endblock html_head_js_mermaidjs -%}
+{%- block jupyter_widgets -%}{%- endblock jupyter_widgets -%}
+{% block extra_css %}
+<style>
+body:not(.show-code) .jp-CodeCell .jp-Cell-inputWrapper { display: none; }
+body:not(.show-code) .jp-InputPrompt, body:not(.show-code) .jp-OutputPrompt { visibility: hidden; }
+#code-toggle { position: fixed; top: 8px; right: 12px; z-index: 10; font: 13px sans-serif;
+  padding: 3px 8px; border: 1px solid #888; border-radius: 4px; background: #f4f4f4; cursor: pointer; }
+@media print { #code-toggle { display: none; } }
+</style>
+{% endblock extra_css %}
+{% block body_footer %}
+<button id="code-toggle" type="button" onclick="toggleCode(this)">show code</button>
+<script>
+function toggleCode(b) {
+  var on = document.body.classList.toggle('show-code');
+  b.textContent = on ? 'hide code' : 'show code';
+}
+</script>
+{{ super() }}
+{% endblock body_footer %}
+"""
+
+_EXTERNAL = re.compile(r"""<(?:script|link|img|iframe)\b[^>]*\b(?:src|href)\s*=\s*["']?(?:https?:)?//""",
+                       re.IGNORECASE)
+
+
+def to_html(nb, title: str = "tanktest report") -> str:
+    """Render an executed notebook to one self-contained HTML page (see module docstring)."""
+    from jinja2 import DictLoader
+    from nbconvert import HTMLExporter
+
+    exporter = HTMLExporter(extra_loaders=[DictLoader({"tanktest_report.html.j2": _TEMPLATE})],
+                            template_file="tanktest_report.html.j2", embed_images=True)
+    body, _ = exporter.from_notebook_node(nb, resources={"metadata": {"name": title}})
+    m = _EXTERNAL.search(body)
+    if m:   # never ship a page that fetches anything
+        raise PipelineError(f"rendered HTML would load an external resource: {m.group(0)[:80]}")
+    return body
+
+
+# -------------------------------------------------------------------------------------- execution
+@dataclass
+class Report:
+    notebook: str
+    dataset: str
+    html: Path
+    seconds: float
+    provenance: str
+    runs: int
+
+
+def execute(notebook: str, cat: Catalog, kernel: str = KERNEL_NAME, extra: dict | None = None):
+    """Execute ``notebooks/<notebook>.ipynb`` for ``cat`` with papermill; returns the notebook node."""
+    import nbformat
+    import papermill as pm
+    from papermill.exceptions import PapermillExecutionError
+
+    src = NOTEBOOK_DIR / f"{notebook}.ipynb"
+    if not src.is_file():
+        raise InputError("notebook not found", file=src)
+    params = {"dataset": cat.dataset, "root": str(Path(cat.root).absolute()), **(extra or {})}
+    with tempfile.TemporaryDirectory(prefix="tanktest-report-") as tmpdir:
+        tmp = Path(tmpdir) / f"{notebook}-{cat.dataset}.ipynb"
+        log = Path(tmpdir) / "kernel-stderr.txt"
+        try:
+            # The kernel inherits file descriptor 2; its start-up/shutdown chatter goes to a log
+            # that is only quoted when the kernel itself fails.
+            with _stderr_to(log):
+                pm.execute_notebook(str(src), str(tmp), parameters=params, kernel_name=kernel,
+                                    progress_bar=False, log_output=False, cwd=os.getcwd())
+        except PapermillExecutionError as exc:
+            evalue = " ".join(str(exc.evalue).split())
+            raise PipelineError(f"notebook failed in cell {exc.exec_count}: {exc.ename}: {evalue}",
+                                file=src) from None
+        except Exception as exc:  # noqa: BLE001 - kernel start/death: any type, one line out
+            lines = [ln for ln in log.read_text(errors="replace").splitlines() if ln.strip()] \
+                if log.is_file() else []
+            last = f" (kernel said: {lines[-1].strip()[:200]})" if lines else ""
+            raise PipelineError(f"could not execute on kernel '{kernel}': {type(exc).__name__}: "
+                                f"{' '.join(str(exc).split())[:300]}{last}", file=src) from None
+        nb = nbformat.read(str(tmp), as_version=4)
+    return nb
+
+
+@contextlib.contextmanager
+def _stderr_to(path: Path):
+    """Redirect file descriptor 2 (inherited by the kernel process) to ``path`` for the block."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with open(path, "wb") as fh:
+        os.dup2(fh.fileno(), 2)
+        try:
+            yield
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
+def render(notebook: str, cat: Catalog, out_dir: Path, kernel: str = KERNEL_NAME) -> Report:
+    """Check inputs, execute, convert; write ``out_dir/<notebook>-<dataset>.html`` atomically."""
+    check_inputs(notebook, cat)
+    t0 = time.perf_counter()
+    nb = execute(notebook, cat, kernel)
+    body = to_html(nb, title=f"{notebook} report: {cat.dataset}")
+    dest = Path(out_dir) / f"{notebook}-{cat.dataset}.html"
+    with atomic_path(dest, suffix=".html") as tmp:
+        tmp.write_text(body, encoding="utf-8")
+        tmp.chmod(0o644)
+    index = read_json(cat.runs_index)
+    return Report(notebook, cat.dataset, dest, time.perf_counter() - t0,
+                  str(index.get("provenance", "unknown")), len(index.get("runs", [])))
+
+
+# ------------------------------------------------------------------------------------------ index
+def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
+    """Merge ``reports`` into ``out_dir/reports.json`` and (re)write ``out_dir/index.html``.
+
+    One line per report: notebook, dataset, provenance (VIRTUAL TANK or measured), runs, when.
+    Entries whose HTML file no longer exists are dropped.
+    """
+    out_dir = Path(out_dir)
+    manifest_path = out_dir / "reports.json"
+    entries: dict[str, dict] = {}
+    if manifest_path.is_file():
+        try:
+            entries = {e["file"]: e for e in json.loads(manifest_path.read_text()).get("reports", [])}
+        except (json.JSONDecodeError, KeyError, TypeError, AttributeError):
+            entries = {}
+    stamp = time.strftime("%Y-%m-%d %H:%M:%S")
+    for r in reports:
+        entries[r.html.name] = {"file": r.html.name, "notebook": r.notebook, "dataset": r.dataset,
+                                "provenance": r.provenance, "runs": r.runs,
+                                "seconds": round(r.seconds, 2), "rendered": stamp}
+    order = {n: i for i, n in enumerate(NOTEBOOKS)}
+    rows = sorted((e for e in entries.values() if (out_dir / e["file"]).is_file()),
+                  key=lambda e: (e["dataset"], order.get(e["notebook"], 99), e["notebook"]))
+    write_json(manifest_path, {"reports": rows})
+    lines = []
+    for e in rows:
+        prov = e["provenance"]
+        label = ("<b class='virtual'>VIRTUAL TANK (simulated, not measured)</b>" if prov == "virtual"
+                 else "<b class='measured'>measured tank data</b>" if prov == "measured"
+                 else f"<b class='mixed'>{html.escape(prov)} data</b>")
+        lines.append(f"<li><a href='{html.escape(e['file'])}'>{html.escape(e['notebook'])} &mdash; "
+                     f"{html.escape(e['dataset'])}</a> &middot; {label} &middot; {e['runs']} runs "
+                     f"&middot; rendered {html.escape(e['rendered'])} in {e['seconds']:.1f} s</li>")
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>tanktest reports</title>
+<style>body{{font-family:sans-serif;max-width:60em;margin:2em auto;line-height:1.6}}
+.virtual{{color:#b00020}} .measured{{color:#1b5e20}} .mixed{{color:#e65100}}</style></head>
+<body><h1>Tank-test pipeline reports</h1>
+<p>Reproduction and extension of Meng et al., Ocean Engineering 294 (2024) 116853. One line per
+report: notebook &mdash; dataset &middot; data provenance &middot; number of runs.</p>
+<ul>
+{chr(10).join(lines) if lines else "<li>no reports rendered yet</li>"}
+</ul></body></html>
+"""
+    dest = out_dir / "index.html"
+    with atomic_path(dest, suffix=".html") as tmp:
+        tmp.write_text(page, encoding="utf-8")
+        tmp.chmod(0o644)
+    return dest
+
+
+def render_all(datasets: Sequence[str], notebooks: Sequence[str], out_dir: Path,
+               root: Path = Path("data/processed"), kernel: str = KERNEL_NAME,
+               keep_going: bool = False, progress: Callable[[str], None] | None = None
+               ) -> tuple[list[Report], list[str]]:
+    """Render every (dataset, notebook) pair; returns (reports, errors).
+
+    All inputs are checked before any notebook runs: unless ``keep_going``, the first missing
+    stage output raises InputError and nothing is written.  With ``keep_going`` the pairs whose
+    inputs are present (and that run) are rendered and the others listed in ``errors``.
+    """
+    for nb in notebooks:
+        if nb not in NOTEBOOKS:
+            raise InputError(f"unknown notebook {nb!r} (known: {', '.join(NOTEBOOKS)})")
+    pairs, errors = [], []
+    for ds in datasets:
+        for nb in notebooks:
+            cat = Catalog(root=Path(root), dataset=ds)
+            try:
+                check_inputs(nb, cat)
+                pairs.append((nb, cat))
+            except InputError as exc:
+                if not keep_going:
+                    raise
+                errors.append(str(exc))
+    if pairs:
+        ensure_kernel(kernel)
+    reports = []
+    for nb, cat in pairs:
+        if progress:
+            progress(f"{nb}-{cat.dataset}")
+        try:
+            reports.append(render(nb, cat, out_dir, kernel))
+        except PipelineError as exc:
+            if not keep_going:
+                if reports:
+                    write_index(out_dir, reports)
+                raise
+            errors.append(str(exc))
+    write_index(out_dir, reports)
+    return reports, errors
