@@ -31,6 +31,8 @@ data = nb.Data(root, dataset)
 
 def _nb(cells: list) -> nbformat.NotebookNode:
     book = new_notebook(cells=cells)
+    for i, cell in enumerate(book.cells):      # stable ids: rebuilding gives the same files
+        cell["id"] = f"cell-{i:02d}"
     book.metadata["kernelspec"] = {"name": "tanktest", "display_name": "tanktest (.venv)",
                                    "language": "python"}
     book.metadata["language_info"] = {"name": "python"}
@@ -95,7 +97,7 @@ def series_figure(run_id, mode, title):
                 for x in parts:
                     if c in x:
                         ax.plot(x["time"], x[c], color="0.3", lw=1.0,
-                                label="tank (measured)" if x is parts[0] else None)
+                                label=data.source_label if x is parts[0] else None)
             for x in parts:
                 col = f"{c}_pred"
                 if col in x and c in x:
@@ -603,7 +605,7 @@ for rid in list(dict.fromkeys(series.run_id))[:max_runs_plotted]:
     has_r = all(c in s for c in ("r", "r_baseline", "r_extended"))
     fig, axes = plt.subplots(3 if has_r else 2, 1, figsize=(10, 7.5 if has_r else 5.5), sharex=True)
     ax = axes[0]
-    ax.plot(s.time, s.psi, color="0.2", label="measured")
+    ax.plot(s.time, s.psi, color="0.2", label=data.source_label)
     for c, col, lab in (("psi_baseline", "tab:blue", "baseline (linear)"),
                         ("psi_extended", "tab:red", "extended")):
         if c in s:

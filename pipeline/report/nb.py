@@ -120,6 +120,11 @@ class Data:
     def provenance(self) -> str:
         return str(self.index.get("provenance", "unknown"))
 
+    @property
+    def source_label(self) -> str:
+        """Legend label of the logged signals: says plainly whether they are measured or virtual."""
+        return "virtual tank (logged)" if self.provenance == "virtual" else "tank (measured)"
+
     def runs(self) -> pd.DataFrame:
         """The runs index as a table (one row per run)."""
         df = pd.DataFrame(self.index.get("runs", []))
@@ -223,7 +228,7 @@ Engineering 294 (2024) 116853</div>
 <details><summary>Stage outputs this report read ({len(files)} files, SHA-256)</summary>
 <table><tr><th style='text-align:left'>file (under {html.escape(str(data.cat.base))})</th>
 <th style='text-align:left'>SHA-256</th></tr>{file_rows}</table></details>
-<details open><summary>Settings</summary>{_kv_table(list(flat.items()))}</details>
+<details><summary>Settings</summary>{_kv_table(list(flat.items()))}</details>
 </div>"""
     return HTML(text)
 
