@@ -147,8 +147,10 @@ class DiagnoseConfig:
 
     min_gain: float = 0.10               # least relative reduction of free-run MAE psi to call an effect real
     seed: int = 11
-    min_z: float = 3.0                   # least |estimate| / std (autocorrelation-inflated) to call it non-zero
-    structured_r2: float = 0.2           # residuals "stay structured" when effect signatures explain this share
+    min_z: float = 3.0                   # least |estimate| / std (cluster-robust) to call it non-zero
+    block_s: float = 20.0                # s, time-block length of the cluster-robust (sandwich) covariance
+    every_run: bool = True               # a real effect must also cut the MAE psi of every validation run
+    structured_r2: float = 0.2           # residuals "stay structured" when signatures explain this share
     max_nfev: int = 400                  # function evaluations per output-error fit
     other_side: bool = True              # catalog mode: also train on one zigzag of the other side
     min_speed_loss: float = 0.03         # speed_loss is tried only when u falls by at least this fraction

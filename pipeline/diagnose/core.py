@@ -1,0 +1,488 @@
+"""Diagnosis (SPEC section 7): what the linear model gets wrong, the cause, the extended model, the gain.
+
+Method
+------
+1. Fit the linear model of SPEC section 5 on the training runs only (output error, :mod:`.fit`).
+2. Simulate it free-run on each validation run from the measured rudder; examine the residuals:
+   the one-step yaw-acceleration error of the model is regressed on the signature of each effect
+   (a constant for a rudder offset, r^3 for cubic damping, d(delta)/dt for a dead time -- since
+   delta(t - tau) ~ delta - tau d(delta)/dt -- and ln(u/U_ref) times the model's force terms for
+   speed dependence), reported as correlations.
+3. Fit the model extended by each effect alone on the training runs and simulate it on the
+   validation runs.  An effect is *significant* only when ALL of
+   - it survives held-out validation: the relative reduction of mean free-run MAE of psi on the
+     validation runs is at least ``DiagnoseConfig.min_gain``; and
+   - its own parameter is clearly non-zero: |estimate| / std >= ``DiagnoseConfig.min_z`` (std
+     cluster-robust over time blocks, see :mod:`.fit`); and
+   - (``DiagnoseConfig.every_run``) it cuts the MAE of psi on every validation run: both sides and
+     both amplitudes must agree, which autocorrelated residuals cannot fake.
+4. Combine: forward selection starting from the best significant effect; any further tried effect
+   joins (best first) if the joint model, refitted on the training runs, cuts the held-out MAE of psi
+   of the current model by another ``min_gain`` (relative, and by at least ``min_gain`` times the
+   baseline's MAE in absolute terms), on every validation run, with every parameter clearly
+   non-zero.  An effect masked alone by a larger one is found this way, and its joint estimate is
+   the less biased one.
+5. "cause" is the significant effect with the largest single gain, or "none".
+
+Nothing here knows the ship: all scales come from the data (approach speed from the first 2 s of u,
+channel weights from the measured spreads).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.signal import savgol_filter
+
+from pipeline.config import DiagnoseConfig
+from pipeline.diagnose.extended import EFFECT_PARAM, EFFECTS, effective_rudder, speed_factor
+from pipeline.diagnose.fit import FitResult, Series, _odd, _u_ratio, evaluate, fit_model, series_from_run
+from pipeline.errors import InputError, ModelError
+from pipeline.io import Run
+from pipeline.model import PARAM_NAMES
+
+_EFFECT_WORDS = {
+    "rudder_offset": "a constant rudder offset",
+    "nonlinear_yaw_damping": "cubic yaw damping",
+    "rudder_delay": "a rudder dead time",
+    "speed_loss": "speed-dependent coefficients",
+}
+
+
+@dataclass
+class Diagnosis:
+    """Result of :func:`diagnose`: ``report`` is diagnosis.json (SPEC section 7), ``series`` the
+    measured / baseline / extended free-run series per validation run (long format)."""
+
+    report: dict
+    series: pd.DataFrame
+    baseline: FitResult
+    extended: FitResult
+    fits: dict[str, FitResult]
+
+
+# ---------------------------------------------------------------- residual examination
+
+
+def _signatures(fit: FitResult, s: Series, sim: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """One-step yaw-acceleration error of ``fit`` on run ``s`` (deg/s^2) and each effect's signature."""
+    win = _odd(max(5, int(round(1.0 / s.h))), s.t.size)
+    r = savgol_filter(s.r, win, 2)
+    rdot = savgol_filter(s.r, win, 2, deriv=1, delta=s.h)
+    v = savgol_filter(s.v, win, 2) if s.v is not None else sim[:, 0]
+    a11, a12, a21, a22, b11, b21 = fit.theta
+    ex = fit.extra
+    ratio = _u_ratio(s, fit.u_ref)
+    sf = speed_factor(ratio, s.t.size, ex["speed_exponent"])
+    de = effective_rudder(s.t, s.delta, ex["offset_deg"], ex["delay_s"])
+    pred = sf * (a21 * v + a22 * r) + sf**2 * b21 * de + ex["n_rrr_s_per_deg2"] * r**3
+    err = rdot - pred
+    sig = {
+        "rudder_offset": np.ones_like(r) * sf**2 * b21,
+        "nonlinear_yaw_damping": r**3,
+        "rudder_delay": -(sf**2) * b21 * savgol_filter(s.delta, win, 2, deriv=1, delta=s.h),
+    }
+    if ratio is not None:
+        lr = np.log(np.clip(ratio, 0.05, None))
+        sig["speed_loss"] = lr * sf * (a21 * v + a22 * r + 2.0 * sf * b21 * de)
+    return err, sig
+
+
+def residual_structure(fit: FitResult, series: list[Series], per: list[dict]) -> dict:
+    """How much of the model's one-step yaw-acceleration error each effect's signature explains.
+
+    Returns ``{"correlation": {effect: r}, "explained_fraction": R^2 of all signatures together,
+    "mean_psi_error_deg": mean free-run psi error, "r_error_vs_r": correlation of the free-run r
+    error with r}``.
+    """
+    errs, sigs = [], {}
+    psi_err, r_err, r_meas = [], [], []
+    for s, p in zip(series, per, strict=True):
+        e, sg = _signatures(fit, s, p["sim"])
+        errs.append(e)
+        for k, v in sg.items():
+            sigs.setdefault(k, []).append(v)
+        psi_err.append(p["sim"][:, 2] - s.psi)
+        r_err.append(p["sim"][:, 1] - s.r)
+        r_meas.append(s.r)
+    e = np.concatenate(errs)
+    cols = {k: np.concatenate(v) for k, v in sigs.items() if len(v) == len(series)}
+    corr = {}
+    for k, x in cols.items():
+        if np.std(x) > 0:
+            corr[k] = float(np.corrcoef(x, e)[0, 1]) if np.std(e) > 0 else 0.0
+        else:  # a constant signature: how far the mean error is from zero, in error standard deviations
+            corr[k] = float(np.mean(e) / np.std(e)) if np.std(e) > 0 else 0.0
+    X = np.column_stack([np.ones_like(e)] + [x for k, x in cols.items() if np.std(x) > 0])
+    c, *_ = np.linalg.lstsq(X, e, rcond=None)
+    r2 = 1.0 - float(np.var(e - X @ c)) / float(np.var(e)) if np.var(e) > 0 else 0.0
+    re, rm = np.concatenate(r_err), np.concatenate(r_meas)
+    return {
+        "correlation": corr,
+        "explained_fraction": max(r2, 0.0),
+        "mean_psi_error_deg": float(np.mean(np.concatenate(psi_err))),
+        "r_error_vs_r": float(np.corrcoef(re, rm)[0, 1]) if np.std(re) > 0 and np.std(rm) > 0 else 0.0,
+    }
+
+
+# ---------------------------------------------------------------- evidence in words
+
+
+def _estimate(fit: FitResult, effect: str, series: list[Series]) -> tuple[dict, dict]:
+    """(estimate, uncertainty) dicts of one effect's own parameters, SI/deg units."""
+    name = EFFECT_PARAM[effect]
+    est = {name: fit.extra[name]}
+    unc = {name: fit.std.get(name, float("nan"))}
+    if effect == "speed_loss":
+        ratios = np.concatenate([_u_ratio(s, fit.u_ref) for s in series])
+        lo = float(ratios.min())
+        n, sn = fit.extra[name], fit.std.get(name, float("nan"))
+        est.update({"u_ref_m_s": fit.u_ref, "max_speed_loss": 1.0 - lo, "coefficient_loss": 1.0 - lo**n})
+        unc.update({"coefficient_loss": abs(np.log(lo)) * lo**n * sn if lo > 0 else float("nan")})
+    if effect == "nonlinear_yaw_damping":
+        rmax = float(max(np.abs(s.r).max() for s in series))
+        a22 = fit.theta[3]
+        share = fit.extra[name] * rmax**2 / a22 if a22 != 0 else float("nan")
+        est.update({"r_max_deg_s": rmax, "share_of_linear_damping_at_r_max": share})
+        unc.update(
+            {
+                "share_of_linear_damping_at_r_max": abs(fit.std.get(name, np.nan) * rmax**2 / a22)
+                if a22 != 0
+                else float("nan")
+            }
+        )
+    return est, unc
+
+
+def _evidence(
+    effect: str,
+    significant: bool,
+    gain: float,
+    z: float,
+    base: float,
+    ext: float,
+    est: dict,
+    unc: dict,
+    cfg: DiagnoseConfig,
+    note: str = "",
+    run_gains: list | None = None,
+) -> str:
+    name = EFFECT_PARAM[effect]
+    val, sd = est[name], unc[name]
+    if effect == "rudder_offset":
+        what = (
+            f"the rudder acts as logged {val:+.2f} ± {sd:.2f} deg (a neutral-rudder offset or a steady "
+            f"asymmetric yaw moment, e.g. from the propeller, worth that much rudder)"
+        )
+    elif effect == "nonlinear_yaw_damping":
+        what = (
+            f"yaw damping has a cubic term n_rrr = {val:.3g} ± {sd:.2g} s/deg^2 "
+            f"({'more' if val < 0 else 'less'} damping, {abs(est['share_of_linear_damping_at_r_max']):.0%} "
+            f"of the linear damping at r = {est['r_max_deg_s']:.2f} deg/s), so indices from small "
+            f"manoeuvres mis-predict large ones"
+        )
+    elif effect == "rudder_delay":
+        what = f"the rudder acts {val:.2f} ± {sd:.2f} s after it is logged (actuator or logging dead time)"
+    else:
+        what = (
+            f"the coefficients scale as (u/U)^{val:.2f} ± {sd:.2f} (physics: 1 for hull terms, rudder "
+            f"terms squared); the ship lost up to {est['max_speed_loss']:.0%} of its "
+            f"{est['u_ref_m_s']:.3f} m/s approach speed"
+        )
+    head = f"Held-out heading error {base:.2f} -> {ext:.2f} deg ({gain:+.0%}"
+    if run_gains:
+        head += f"; per run {', '.join(f'{g:+.0%}' for g in run_gains)}"
+    head += ")"
+    if significant:
+        return f"{head} when {what}." + (f" {note}" if note else "")
+    why = []
+    if not gain >= cfg.min_gain:
+        why.append(f"gain below {cfg.min_gain:.0%}")
+    if not z >= cfg.min_z:
+        why.append(f"estimate only {z:.1f} std from zero (needs {cfg.min_z:g})")
+    if cfg.every_run and run_gains and min(run_gains) <= 0.0:
+        why.append("not better on every held-out run")
+    return f"Not real: {head} with {_EFFECT_WORDS[effect]} ({'; '.join(why)}); fitted: {what}."
+
+
+# ---------------------------------------------------------------- the diagnosis
+
+
+def _z(fit: FitResult, effect: str) -> float:
+    name = EFFECT_PARAM[effect]
+    sd = fit.std.get(name, float("nan"))
+    val = fit.extra[name]
+    return float(abs(val) / sd) if sd > 0 else (float("inf") if val != 0 else 0.0)
+
+
+def _gain(base: float, ext: float) -> float:
+    return float((base - ext) / base) if base > 0 else 0.0
+
+
+def diagnose(
+    train: list[Run], validate: list[Run], cfg: DiagnoseConfig | None = None, progress: bool = False
+) -> Diagnosis:
+    """Run the diagnosis of SPEC section 7 on processed runs; pure (no files)."""
+    cfg = cfg if cfg is not None else DiagnoseConfig()
+    if not train:
+        raise InputError("no training run given")
+    if not validate:
+        raise InputError("no validation run given")
+    tr = [series_from_run(r) for r in train]
+    va = [series_from_run(r) for r in validate]
+    names = [s.name for s in tr + va]
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise InputError(
+            f"the same run is given twice (training and validation must differ): {', '.join(dup)}"
+        )
+    steps = {round(s.h, 9) for s in tr + va}
+    if len(steps) > 1:
+        raise InputError(f"runs have different sample steps {sorted(steps)} s (ingest them with one dt)")
+
+    iterator = EFFECTS
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(EFFECTS, desc="diagnose: effects", leave=False)
+
+    base = fit_model(tr, (), max_nfev=cfg.max_nfev, block_s=cfg.block_s)
+    base_val, base_per = evaluate(base, va)
+    base_mae = base_val["mae_psi_deg"]
+    structure = residual_structure(base, va, base_per)
+
+    fits: dict[str, FitResult] = {}
+    rows = []
+    for effect in iterator:
+        if effect == "speed_loss" and (any(s.u is None for s in tr + va)):
+            rows.append(
+                {
+                    "effect": effect,
+                    "significant": False,
+                    "estimate": {},
+                    "uncertainty": {},
+                    "validation_gain": None,
+                    "z": None,
+                    "evidence": "Not tried: the runs have no surge speed u, so speed dependence "
+                    "cannot be tested.",
+                }
+            )
+            continue
+        if effect == "speed_loss":
+            drop = max(1.0 - float(np.min(s.u_smooth())) / s.approach_speed() for s in tr)
+            if drop < cfg.min_speed_loss:
+                rows.append(
+                    {
+                        "effect": effect,
+                        "significant": False,
+                        "estimate": {"max_speed_loss": drop},
+                        "uncertainty": {},
+                        "validation_gain": None,
+                        "z": None,
+                        "evidence": f"Not tried: the speed falls by only {drop:.1%} in the training runs "
+                        f"(below {cfg.min_speed_loss:.0%}), so there is no speed loss to explain.",
+                    }
+                )
+                continue
+        try:
+            f = fit_model(tr, (effect,), start=base, max_nfev=cfg.max_nfev, block_s=cfg.block_s)
+        except ModelError as exc:
+            rows.append(
+                {
+                    "effect": effect,
+                    "significant": False,
+                    "estimate": {},
+                    "uncertainty": {},
+                    "validation_gain": None,
+                    "z": None,
+                    "evidence": f"Fit failed: {exc}",
+                }
+            )
+            continue
+        fits[effect] = f
+        val, per = evaluate(f, va)
+        gain = _gain(base_mae, val["mae_psi_deg"])
+        run_gains = [_gain(b["mae_psi_deg"], p["mae_psi_deg"]) for b, p in zip(base_per, per, strict=True)]
+        z = _z(f, effect)
+        held = min(run_gains) > 0.0 or not cfg.every_run
+        sig = bool(gain >= cfg.min_gain and z >= cfg.min_z and held)
+        est, unc = _estimate(f, effect, tr)
+        rows.append(
+            {
+                "effect": effect,
+                "significant": sig,
+                "estimate": est,
+                "uncertainty": unc,
+                "validation_gain": gain,
+                "z": z,
+                "validation": val,
+                "validation_gain_per_run": dict(zip([s.name for s in va], run_gains, strict=True)),
+                "evidence": _evidence(
+                    effect, sig, gain, z, base_mae, val["mae_psi_deg"], est, unc, cfg, run_gains=run_gains
+                ),
+            }
+        )
+    rows.sort(key=lambda r: np.inf if r["validation_gain"] is None else -r["validation_gain"])
+
+    # forward selection of the extended model: the best significant effect first, then, round by round,
+    # the tried effect that cuts the held-out error of the current model most (refitted jointly), while
+    # that cut is real (min_gain overall, every held-out run better, every parameter clearly non-zero)
+    chosen: list[str] = []
+    ext, ext_val, ext_per = base, base_val, base_per
+    first = next((r for r in rows if r["significant"]), None)
+    if first is not None:
+        chosen, ext = [first["effect"]], fits[first["effect"]]
+        ext_val, ext_per = evaluate(ext, va)
+    by_effect = {r["effect"]: r for r in rows}
+    while chosen:
+        best = None
+        for e in [r["effect"] for r in rows if r["effect"] in fits and r["effect"] not in chosen]:
+            try:
+                f = fit_model(tr, tuple(chosen + [e]), start=ext, max_nfev=cfg.max_nfev, block_s=cfg.block_s)
+            except ModelError:
+                continue
+            val, per = evaluate(f, va)
+            g = _gain(ext_val["mae_psi_deg"], val["mae_psi_deg"])
+            # material: the further cut is also worth min_gain of the BASELINE error (a 13 % cut of a
+            # residual already at the noise floor is not a second effect)
+            material = ext_val["mae_psi_deg"] - val["mae_psi_deg"] >= cfg.min_gain * base_mae
+            held = (
+                min(_gain(b["mae_psi_deg"], q["mae_psi_deg"]) for b, q in zip(ext_per, per, strict=True)) > 0
+            )
+            ok = (
+                g >= cfg.min_gain
+                and material
+                and (held or not cfg.every_run)
+                and all(_z(f, c) >= cfg.min_z for c in chosen + [e])
+            )
+            if ok and (best is None or g > best[1]):
+                best = (e, g, f, val, per)
+        if best is None:
+            break
+        e, g, f, val, per = best
+        row = by_effect[e]
+        est, unc = _estimate(f, e, tr)
+        row.update(
+            {
+                "significant": True,
+                "validation_gain_in_combination": g,
+                "combined_with": list(chosen),
+                "estimate_in_combination": est,
+                "uncertainty_in_combination": unc,
+            }
+        )
+        row["evidence"] = (
+            f"Real on top of {' + '.join(chosen)}: "
+            + _evidence(
+                e,
+                True,
+                g,
+                _z(f, e),
+                ext_val["mae_psi_deg"],
+                val["mae_psi_deg"],
+                est,
+                unc,
+                cfg,
+                run_gains=[
+                    _gain(b["mae_psi_deg"], q["mae_psi_deg"]) for b, q in zip(ext_per, per, strict=True)
+                ],
+            )
+            + f" (alone: {row['validation_gain']:+.0%}.)"
+        )
+        chosen, ext, ext_val, ext_per = chosen + [e], f, val, per
+    ext_val, ext_per = evaluate(ext, va)
+    after = residual_structure(ext, va, ext_per) if chosen else structure
+    cause = chosen[0] if chosen else "none"
+
+    structured_note = ""
+    if after["explained_fraction"] >= cfg.structured_r2:
+        top = max(after["correlation"], key=lambda k: abs(after["correlation"][k]))
+        structured_note = (
+            f"Residuals stay structured after the extension: the effect signatures still explain "
+            f"{after['explained_fraction']:.0%} of the yaw-acceleration error (strongest: {top})."
+        )
+    for row in rows:
+        if row["effect"] == cause and structured_note:
+            row["evidence"] += " " + structured_note
+
+    # extended-model estimates of every chosen effect (joint fit)
+    joint = {}
+    for e in chosen:
+        est, unc = _estimate(ext, e, tr)
+        joint[e] = {"estimate": est, "uncertainty": unc, "z": _z(ext, e)}
+
+    if not chosen:
+        summary = (
+            f"No effect cuts the held-out heading error by {cfg.min_gain:.0%} with a clearly non-zero "
+            f"estimate: the linear model's free-run error ({base_mae:.2f} deg) is not explained by an "
+            f"offset, cubic damping, dead time or speed dependence."
+        )
+        if structure["explained_fraction"] >= cfg.structured_r2:
+            summary += (
+                f" Residuals are structured nevertheless ({structure['explained_fraction']:.0%} of the "
+                f"yaw-acceleration error follows the effect signatures)."
+            )
+    else:
+        summary = next(r["evidence"] for r in rows if r["effect"] == cause)
+
+    report = {
+        "cause": cause,
+        "findings": [{k: v for k, v in r.items() if k != "validation"} for r in rows],
+        "baseline": {
+            "parameters": base.params(),
+            "uncertainty": {n: base.std[n] for n in PARAM_NAMES},
+            "validation": base_val,
+            "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in base_per],
+            "residuals": structure,
+        },
+        "extended": {
+            "effects": chosen,
+            "parameters": ext.params(),
+            "uncertainty": {n: ext.std[n] for n in PARAM_NAMES},
+            "effect_estimates": joint,
+            "validation": ext_val,
+            "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in ext_per],
+            "residuals": after,
+        },
+        "gain": {"mae_psi_relative_reduction": _gain(base_mae, ext_val["mae_psi_deg"])},
+        "summary": summary,
+        "training_runs": [s.name for s in tr],
+        "validation_runs": [s.name for s in va],
+        "provenance": _provenance(train + validate),
+        "settings": {
+            "min_gain": cfg.min_gain,
+            "min_z": cfg.min_z,
+            "structured_r2": cfg.structured_r2,
+            "fit": "output-error least squares on free-run psi, r (and v when measured)",
+            "u_ref_m_s": base.u_ref,
+        },
+    }
+    frames = []
+    for s, pb, pe in zip(va, base_per, ext_per, strict=True):
+        d = {
+            "run_id": s.name,
+            "time": s.t,
+            "delta": s.delta,
+            "psi": s.psi,
+            "r": s.r,
+            "v": s.v if s.v is not None else np.full(s.t.size, np.nan),
+            "psi_baseline": pb["sim"][:, 2],
+            "r_baseline": pb["sim"][:, 1],
+            "v_baseline": pb["sim"][:, 0],
+            "psi_extended": pe["sim"][:, 2],
+            "r_extended": pe["sim"][:, 1],
+            "v_extended": pe["sim"][:, 0],
+        }
+        if s.u is not None:
+            d["u"] = s.u
+        frames.append(pd.DataFrame(d))
+    return Diagnosis(
+        report=report, series=pd.concat(frames, ignore_index=True), baseline=base, extended=ext, fits=fits
+    )
+
+
+def _provenance(runs: list[Run]) -> str:
+    kinds = {"virtual" if r.is_virtual else "measured" for r in runs}
+    return kinds.pop() if len(kinds) == 1 else "mixed"

@@ -1,0 +1,182 @@
+"""A simple linear truth model with injectable effects: the clean reference for testing the diagnosis.
+
+The truth is SPEC section 5's sway-yaw model in continuous time (integrated with 8 Euler sub-steps per
+logged sample, so the fitted discrete model is not the generating one), run as a zigzag with a
+rate-limited rudder servo and counter-rudder triggered by the *measured* heading, as a tank would.
+Effects (each off by default) act as SPEC section 7 defines them:
+
+- ``rudder_offset`` deg: effective rudder = logged + offset;
+- ``rudder_delay`` s: effective rudder = logged(t - delay);
+- ``n_rrr`` s/deg^2: r' gains n_rrr r^3 (Norrbin cubic yaw damping, negative = more damping);
+- ``speed_loss_k``: surge u' = -(u - U0)/tau_u - k U0 (r in rad/s)^2; the linear coefficients scale
+  with u/U0 and the rudder terms with (u/U0)^2 (dimensional coefficients ~ U/L, rudder force ~ U^2).
+
+Without effects the data are exactly linear plus seeded white measurement noise: "clean" means that.
+The logged rudder is the servo's output (what a rudder-angle sensor reads).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from pipeline.io import Run
+from pipeline.model import PAPER_TABLE4, as_theta
+
+
+@dataclass(frozen=True)
+class TruthConfig:
+    theta: tuple[float, ...] = tuple(PAPER_TABLE4.values())  # a11 a12 a21 a22 b11 b21, SPEC units
+    u0: float = 2.0  # m/s approach speed
+    dt: float = 0.08  # s logging step
+    substeps: int = 8
+    rudder_rate: float = 14.0  # deg/s servo rate
+    rudder_offset: float = 0.0  # deg
+    rudder_delay: float = 0.0  # s
+    n_rrr: float = 0.0  # s/deg^2
+    speed_loss_k: float = 0.0  # non-dimensional surge loss coefficient
+    tau_u: float = 12.0  # s, surge recovery time constant
+    noise: bool = True
+    noise_psi: float = 0.05  # deg
+    noise_r: float = 0.05  # deg/s
+    noise_v: float = 0.005  # m/s
+    noise_u: float = 0.005  # m/s
+    noise_delta: float = 0.05  # deg
+    seed: int = 0
+
+
+def zigzag_truth(
+    rudder_deg: float,
+    heading_deg: float,
+    first_side: str = "starboard",
+    duration: float = 100.0,
+    cfg: TruthConfig = TruthConfig(),
+) -> Run:
+    """Simulate a rudder/heading zigzag of the truth model; returns a processed-style :class:`Run`.
+
+    ``first_side`` 'starboard' (positive rudder first) or 'port'.  Units of SPEC section 2.
+    """
+    a11, a12, a21, a22, b11, b21 = as_theta(cfg.theta)
+    rng = np.random.default_rng(cfg.seed)
+    h = cfg.dt / cfg.substeps
+    n = int(round(duration / cfg.dt)) + 1
+    nsub = (n - 1) * cfg.substeps + 1
+    sign = 1.0 if first_side == "starboard" else -1.0
+    lag = int(round(cfg.rudder_delay / h))
+    hist = np.zeros(nsub + 1)  # servo rudder per sub-step (for the delay)
+    v = r = psi = 0.0
+    u = cfg.u0
+    d = 0.0
+    cmd = sign * rudder_deg
+    out = np.zeros((n, 6))  # time psi r v u delta (true)
+    noise_psi = rng.normal(0.0, cfg.noise_psi, n) if cfg.noise else np.zeros(n)
+    psi_meas = 0.0
+    for i in range(nsub):
+        if i % cfg.substeps == 0:
+            k = i // cfg.substeps
+            out[k] = (k * cfg.dt, psi, r, v, u, d)
+            psi_meas = psi + noise_psi[k]
+            # counter-rudder when the measured heading passes the trigger on the commanded side
+            if cmd > 0 and psi_meas >= heading_deg:
+                cmd = -rudder_deg
+            elif cmd < 0 and psi_meas <= -heading_deg:
+                cmd = rudder_deg
+        step = np.clip(cmd - d, -cfg.rudder_rate * h, cfg.rudder_rate * h)
+        d += step
+        hist[i] = d
+        d_eff = (hist[i - lag] if i >= lag else 0.0) + cfg.rudder_offset
+        s = u / cfg.u0
+        dv = s * a11 * v + s * a12 * r + s * s * b11 * d_eff
+        dr = s * a21 * v + s * a22 * r + s * s * b21 * d_eff + cfg.n_rrr * r**3
+        du = -(u - cfg.u0) / cfg.tau_u - cfg.speed_loss_k * cfg.u0 * np.deg2rad(r) ** 2
+        psi += h * r
+        v += h * dv
+        r += h * dr
+        u += h * du
+    frame = pd.DataFrame(
+        {
+            "time": out[:, 0],
+            "psi": out[:, 1],
+            "r": out[:, 2],
+            "v": out[:, 3],
+            "u": out[:, 4],
+            "delta": out[:, 5],
+        }
+    )
+    if cfg.noise:
+        frame["psi"] += noise_psi
+        frame["r"] += rng.normal(0.0, cfg.noise_r, n)
+        frame["v"] += rng.normal(0.0, cfg.noise_v, n)
+        frame["u"] += rng.normal(0.0, cfg.noise_u, n)
+        frame["delta"] += rng.normal(0.0, cfg.noise_delta, n)
+    side = "S" if first_side == "starboard" else "P"
+    name = f"truth_zigzag_{rudder_deg:g}_{heading_deg:g}_{side}"
+    meta = {
+        "run_id": name,
+        "provenance": "virtual",
+        "test_name": f"zigzag {rudder_deg:g}/{heading_deg:g} {first_side}",
+        "kind": "zigzag",
+        "rudder_deg": rudder_deg,
+        "heading_deg": heading_deg,
+        "first_side": first_side,
+        "dt": cfg.dt,
+        "source_format": "truth-model",
+    }
+    return Run(frame=frame, meta=meta)
+
+
+def yaw_rate_amplitude(run: Run, skip_s: float = 10.0) -> float:
+    """Largest |r| (deg/s) after ``skip_s`` seconds (the zigzag's yaw-rate amplitude)."""
+    f = run.frame
+    return float(np.abs(f["r"].to_numpy()[f["time"].to_numpy() >= skip_s]).max())
+
+
+def lowest_speed_ratio(run: Run) -> float:
+    """min(u)/u(0) over the run."""
+    u = run.frame["u"].to_numpy()
+    return float(u.min() / u[0])
+
+
+def _bisect(fun, lo: float, hi: float, target: float, iters: int = 30) -> float:
+    """Solve fun(x) = target for monotone increasing fun on [lo, hi]."""
+    for _ in range(iters):
+        mid = 0.5 * (lo + hi)
+        if fun(mid) < target:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def damping_for_cut(cut: float, cfg: TruthConfig = TruthConfig(), duration: float = 60.0) -> float:
+    """n_rrr (s/deg^2, negative) that cuts the yaw-rate amplitude of the truth's 20/20 zigzag by ``cut``."""
+    import dataclasses
+
+    clean = dataclasses.replace(
+        cfg, noise=False, n_rrr=0.0, rudder_offset=0.0, rudder_delay=0.0, speed_loss_k=0.0
+    )
+    amp0 = yaw_rate_amplitude(zigzag_truth(20, 20, "starboard", duration, clean))
+
+    def reduction(mag):
+        run = zigzag_truth(20, 20, "starboard", duration, dataclasses.replace(clean, n_rrr=-mag))
+        return 1.0 - yaw_rate_amplitude(run) / amp0
+
+    return -_bisect(reduction, 0.0, 0.05, cut)
+
+
+def speed_loss_for(loss: float, cfg: TruthConfig = TruthConfig(), duration: float = 60.0) -> float:
+    """speed_loss_k giving the lowest speed (1 - ``loss``) u0 in the truth's 20/20 zigzag."""
+    import dataclasses
+
+    clean = dataclasses.replace(
+        cfg, noise=False, n_rrr=0.0, rudder_offset=0.0, rudder_delay=0.0, speed_loss_k=0.0
+    )
+
+    def drop(k):
+        return 1.0 - lowest_speed_ratio(
+            zigzag_truth(20, 20, "starboard", duration, dataclasses.replace(clean, speed_loss_k=k))
+        )
+
+    return _bisect(drop, 0.0, 20.0, loss)
