@@ -22,7 +22,7 @@ Parquet with :func:`pipeline.io.write_frame`, both atomic):
                            "mse_v", "mse_r", "mae_psi", "samples"}], "paper": {...}}``.
 ``validate/predictions.parquet``   long format: algorithm, run_id, mode, time, delta, v, r, psi, v_pred,
                            r_pred, psi_pred.
-``indices/indices.json``   ``{"dataset", "provenance", "identified": {alg: {"K": {"value", "std"}, "T1": ...}},
+``indices/indices.json``   ``{"dataset", "provenance", "identified": {alg: {"K": {"value", "std"}, ...}},
                            "graphical": [{"run_id", "method": "standard"|"integral", "K", "T", ...}],
                            "control_model": {"source", "K", "T1", "T2", "T3", "T"},
                            "graphical_model": {"source", "K", "T"}, "paper": {...}}``.

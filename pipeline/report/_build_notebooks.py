@@ -19,7 +19,7 @@ dataset = "virtual"            # data/processed/<dataset>/
 root = "data/processed"        # processed-data root
 '''
 
-SETUP = '''import numpy as np
+SETUP = '''import numpy as np  # noqa: F401  (for analysts who dig further)
 import pandas as pd
 import matplotlib.pyplot as plt
 from IPython.display import display
@@ -92,7 +92,7 @@ def series_figure(run_id, mode, title):
         parts.append(p)
         if not any(len(x) for x in parts):
             continue
-        for ax, c in zip(axes[:3], ("v", "r", "psi")):
+        for ax, c in zip(axes[:3], ("v", "r", "psi"), strict=True):
             if first:
                 for x in parts:
                     if c in x:
@@ -125,7 +125,7 @@ ordered = [ident_run] + held[:max_heldout_plotted]
 if len(held) > max_heldout_plotted:
     nb.note(f"{len(held) - max_heldout_plotted} more held-out runs are in the tables below, not drawn "
             f"(max_heldout_plotted = {max_heldout_plotted}).")
-for i, rid in enumerate(ordered):
+for rid in ordered:
     lab = data.run_label(rid)
     if rid == ident_run:
         fig = series_figure(rid, "one-step", f"Identification run {lab}: one-step prediction")
@@ -148,7 +148,7 @@ for i, rid in enumerate(ordered):
     code('''
 from pipeline.model import PAPER_TABLE4, PARAM_NAMES
 fig, axes = plt.subplots(2, 3, figsize=(11, 5.5), sharex=True)
-for ax, p in zip(axes.flat, PARAM_NAMES):
+for ax, p in zip(axes.flat, PARAM_NAMES, strict=True):
     for a in algorithms:
         tr = trace[a]
         if p not in tr:
@@ -314,7 +314,7 @@ if not g.empty and "run_id" in g:
              "amplitude because the real ship is not linear.")
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     ids = list(dict.fromkeys(g.run_id))
-    for ax, q in zip(axes, ("K", "T")):
+    for ax, q in zip(axes, ("K", "T"), strict=True):
         if q not in g:
             continue
         for meth, sub in g.groupby("method") if "method" in g else [("", g)]:
