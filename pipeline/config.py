@@ -154,6 +154,7 @@ class DiagnoseConfig:
     max_nfev: int = 400                  # function evaluations per output-error fit
     other_side: bool = True              # catalog mode: also train on one zigzag of the other side
     min_speed_loss: float = 0.03         # speed_loss is tried only when u falls by at least this fraction
+    two_fold: bool = True                # also the reverse fold (train on the validation runs): sides >= 2
 
 
 @dataclass(frozen=True)

@@ -127,6 +127,19 @@ def test_hsva_measured_kvlcc2(hsva_dir, tmp_path):
     # cubic damping brings a large held-out gain on this full-form ship
     nl = next(f for f in rep["findings"] if f["effect"] == "nonlinear_yaw_damping")
     assert nl["validation_gain"] > 0.3 and nl["estimate"]["n_rrr_s_per_deg2"] < 0
+    # the mirror split gives the same answer: two folds, stable baselines, the same cause, same sign
+    assert len(rep["folds"]) == 2 and all(f["baseline"]["stable"] for f in rep["folds"])
+    assert rep["cause"] == "nonlinear_yaw_damping" and nl["significant"]
+    for fold in nl["folds"]:
+        assert fold["significant"] and fold["estimate"]["n_rrr_s_per_deg2"] < 0 and fold["z"] >= 3.0
+    # each fold's baseline is the stable optimum of least training cost over its starts
+    from pipeline.diagnose.fit import fit_baseline, fit_model, is_stable, series_from_run
+
+    mirror = [series_from_run(r) for r in val]
+    best = fit_baseline(mirror)
+    assert is_stable(best.theta)
+    single = fit_model(mirror)  # the single continuation start: an unstable or costlier optimum
+    assert best.cost <= single.cost + 1e-9
 
 
 def test_block_sandwich_std_matches_monte_carlo_for_correlated_errors():

@@ -172,7 +172,12 @@ def test_tank_offset_found_on_top_of_the_ship(tank_runs):
     rep = diagnose(train, val).report
     off = next(f for f in rep["findings"] if f["effect"] == "rudder_offset")
     assert rep["cause"] == "rudder_offset", off["evidence"]
-    assert off["significant"] and off["validation_gain"] >= 0.30, off["evidence"]
+    # against a STABLE baseline (the fit keeps the stable optimum, see fit_baseline): held-out error
+    # bounded; the offset's gain on it is real but smaller than against the unstable baseline of the
+    # single-start fit (57 deg held-out, which any extension "improved" by > 30 %)
+    assert rep["folds"][0]["baseline"]["stable"], rep["baseline"]["parameters"]
+    assert rep["baseline"]["validation"]["mae_psi_deg"] < 15.0, rep["baseline"]["validation"]
+    assert off["significant"] and off["validation_gain"] >= 0.10, off["evidence"]
     effects = ("rudder_offset", "nonlinear_yaw_damping")
     clean_train, _ = tank_runs()
     inj = fit_model([series_from_run(r) for r in train], effects, max_nfev=200)

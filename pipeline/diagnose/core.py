@@ -24,6 +24,14 @@ Method
    the less biased one.
 5. "cause" is the significant effect with the largest single gain, or "none".
 
+Two folds: when each side has >= 2 runs covering the same manoeuvres (:func:`_exchangeable`), the
+whole procedure also runs on the reverse fold (train on the validation runs, validate on the
+training runs); an effect is significant only when it also holds there (gain >= min_gain, z >=
+min_z, same sign), and a combination step only when it holds in both folds.  Top-level numbers are
+the first fold's; ``"folds"`` in the report (and in every finding) has both.  Every fold's baseline
+is :func:`.fit.fit_baseline` (several starts including the other fold's optimum, the stable fit of
+least training cost), and each effect's fit also starts from the other fold's optimum.
+
 Nothing here knows the ship: all scales come from the data (approach speed from the first 2 s of u,
 channel weights from the measured spreads).
 """
@@ -38,7 +46,17 @@ from scipy.signal import savgol_filter
 
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose.extended import EFFECT_PARAM, EFFECTS, effective_rudder, speed_factor
-from pipeline.diagnose.fit import FitResult, Series, _odd, _u_ratio, evaluate, fit_model, series_from_run
+from pipeline.diagnose.fit import (
+    FitResult,
+    Series,
+    _odd,
+    _u_ratio,
+    evaluate,
+    fit_baseline,
+    fit_model,
+    is_stable,
+    series_from_run,
+)
 from pipeline.errors import InputError, ModelError
 from pipeline.io import Run
 from pipeline.model import PARAM_NAMES
@@ -168,6 +186,7 @@ def _evidence(
     cfg: DiagnoseConfig,
     note: str = "",
     run_gains: list | None = None,
+    extra_why: list[str] | None = None,
 ) -> str:
     name = EFFECT_PARAM[effect]
     val, sd = est[name], unc[name]
@@ -204,7 +223,10 @@ def _evidence(
         why.append(f"estimate only {z:.1f} std from zero (needs {cfg.min_z:g})")
     if cfg.every_run and run_gains and min(run_gains) <= 0.0:
         why.append("not better on every held-out run")
-    return f"Not real: {head} with {_EFFECT_WORDS[effect]} ({'; '.join(why)}); fitted: {what}."
+    why.extend(extra_why or [])
+    return f"Not real: {head} with {_EFFECT_WORDS[effect]} ({'; '.join(why)}); fitted: {what}." + (
+        f" {note}" if note else ""
+    )
 
 
 # ---------------------------------------------------------------- the diagnosis
@@ -215,6 +237,18 @@ def _z(fit: FitResult, effect: str) -> float:
     sd = fit.std.get(name, float("nan"))
     val = fit.extra[name]
     return float(abs(val) / sd) if sd > 0 else (float("inf") if val != 0 else 0.0)
+
+
+def _exchangeable(a: list[Series], b: list[Series], tol: float = 0.15) -> bool:
+    """True when the two sides cover the same manoeuvres: as many runs, and their rudder amplitudes
+    (99th percentile of |delta|, deg), sorted, agree within ``tol`` (relative).  Only then is the reverse
+    fold the same question asked the other way round; when one side has the small zigzags and the
+    other the large ones, the reverse fold would test extrapolation the other way, another claim."""
+    if len(a) != len(b):
+        return False
+    amp_a = sorted(float(np.percentile(np.abs(s.delta), 99)) for s in a)
+    amp_b = sorted(float(np.percentile(np.abs(s.delta), 99)) for s in b)
+    return all(abs(x - y) <= tol * max(x, y, 1e-9) for x, y in zip(amp_a, amp_b, strict=True))
 
 
 def _gain(base: float, ext: float) -> float:
@@ -248,12 +282,33 @@ def diagnose(
 
         iterator = tqdm(EFFECTS, desc="diagnose: effects", leave=False)
 
-    base = fit_model(tr, (), max_nfev=cfg.max_nfev, block_s=cfg.block_s)
-    base_val, base_per = evaluate(base, va)
+    # the folds: (train, validate) as given and, when each side has >= 2 runs (cfg.two_fold), the
+    # reverse (train on the validation runs, validate on the training runs); a finding must hold in both
+    folds = [(tr, va)]
+    if cfg.two_fold and len(tr) >= 2 and len(va) >= 2 and _exchangeable(tr, va):
+        folds.append((va, tr))
+    nf = len(folds)
+    kw = {"max_nfev": cfg.max_nfev, "block_s": cfg.block_s}
+    bases = [fit_baseline(folds[0][0], **kw)]
+    if nf == 2:
+        bases.append(fit_baseline(folds[1][0], extra_starts=(bases[0],), **kw))
+        # and the first fold from the second's optimum: the same multi-start for both folds
+        again = fit_model(folds[0][0], (), start=bases[1], **kw)
+        if is_stable(again.theta) and (again.cost < bases[0].cost or not is_stable(bases[0].theta)):
+            again.message = bases[0].message
+            bases[0] = again
+    base = bases[0]
+    fold_base = [evaluate(b, v) for b, (_, v) in zip(bases, folds, strict=True)]
+    base_val, base_per = fold_base[0]
     base_mae = base_val["mae_psi_deg"]
     structure = residual_structure(base, va, base_per)
 
+    def fold_name(k: int) -> str:
+        t, v = folds[k]
+        return f"train {' + '.join(s.name for s in t)}, validate {' + '.join(s.name for s in v)}"
+
     fits: dict[str, FitResult] = {}
+    fold_fits: dict[str, list[FitResult]] = {}
     rows = []
     for effect in iterator:
         if effect == "speed_loss" and (any(s.u is None for s in tr + va)):
@@ -287,7 +342,7 @@ def diagnose(
                 )
                 continue
         try:
-            f = fit_model(tr, (effect,), start=base, max_nfev=cfg.max_nfev, block_s=cfg.block_s)
+            fl = [fit_model(t, (effect,), start=b, **kw) for b, (t, _) in zip(bases, folds, strict=True)]
         except ModelError as exc:
             rows.append(
                 {
@@ -301,73 +356,153 @@ def diagnose(
                 }
             )
             continue
-        fits[effect] = f
-        val, per = evaluate(f, va)
-        gain = _gain(base_mae, val["mae_psi_deg"])
-        run_gains = [_gain(b["mae_psi_deg"], p["mae_psi_deg"]) for b, p in zip(base_per, per, strict=True)]
-        z = _z(f, effect)
-        held = min(run_gains) > 0.0 or not cfg.every_run
-        sig = bool(gain >= cfg.min_gain and z >= cfg.min_z and held)
-        est, unc = _estimate(f, effect, tr)
+        if nf == 2:
+            # the extended fit is not convex either: each fold also starts from the other fold's
+            # optimum, keeping the lower TRAINING cost (the start is a guess, the choice is the fold's)
+            for k in range(nf):
+                try:
+                    alt = fit_model(folds[k][0], (effect,), start=fl[1 - k], **kw)
+                except ModelError:
+                    continue
+                if alt.cost < fl[k].cost:
+                    fl[k] = alt
+        fits[effect], fold_fits[effect] = fl[0], fl
+        frows = []
+        for k, (f, (t, v)) in enumerate(zip(fl, folds, strict=True)):
+            val, per = evaluate(f, v)
+            bv, bp = fold_base[k]
+            gain = _gain(bv["mae_psi_deg"], val["mae_psi_deg"])
+            run_gains = [_gain(b["mae_psi_deg"], p["mae_psi_deg"]) for b, p in zip(bp, per, strict=True)]
+            z = _z(f, effect)
+            held = min(run_gains) > 0.0 or not cfg.every_run
+            est, unc = _estimate(f, effect, t)
+            frows.append(
+                {
+                    "training_runs": [s.name for s in t],
+                    "validation_runs": [s.name for s in v],
+                    "significant": bool(gain >= cfg.min_gain and z >= cfg.min_z and held),
+                    "validation_gain": gain,
+                    "validation_gain_per_run": dict(zip([s.name for s in v], run_gains, strict=True)),
+                    "z": z,
+                    "estimate": est,
+                    "uncertainty": unc,
+                    "baseline_mae_psi_deg": bv["mae_psi_deg"],
+                    "extended_mae_psi_deg": val["mae_psi_deg"],
+                    "_val": val,
+                    "_run_gains": run_gains,
+                }
+            )
+        f0 = frows[0]
+        pname = EFFECT_PARAM[effect]
+        for fr in frows[1:]:
+            # the reverse fold replicates the finding: gain >= min_gain and z >= min_z with the estimate
+            # of the same sign (the every-run rule is the primary fold's; on runs whose baseline error is
+            # already at the noise floor a real effect can lose a few per cent)
+            fr["significant"] = bool(
+                fr["validation_gain"] >= cfg.min_gain
+                and fr["z"] >= cfg.min_z
+                and np.sign(fr["estimate"][pname]) == np.sign(f0["estimate"][pname])
+            )
+        sig = all(fr["significant"] for fr in frows)
+        note, why = "", []
+        if nf == 2:
+            f1 = frows[1]
+            note = (
+                f"Reverse fold ({fold_name(1)}): {f1['baseline_mae_psi_deg']:.2f} -> "
+                f"{f1['extended_mae_psi_deg']:.2f} deg ({f1['validation_gain']:+.0%}; per run "
+                f"{', '.join(f'{g:+.0%}' for g in f1['_run_gains'])}), z = {f1['z']:.1f}, estimate "
+                f"{f1['estimate'][EFFECT_PARAM[effect]]:.3g} ± {f1['uncertainty'][EFFECT_PARAM[effect]]:.2g}"
+                f"; real only when it holds in both folds."
+            )
+            if f0["significant"] and not f1["significant"]:
+                why.append("does not hold in the reverse fold")
         rows.append(
             {
                 "effect": effect,
                 "significant": sig,
-                "estimate": est,
-                "uncertainty": unc,
-                "validation_gain": gain,
-                "z": z,
-                "validation": val,
-                "validation_gain_per_run": dict(zip([s.name for s in va], run_gains, strict=True)),
+                "estimate": f0["estimate"],
+                "uncertainty": f0["uncertainty"],
+                "validation_gain": f0["validation_gain"],
+                "z": f0["z"],
+                "validation": f0["_val"],
+                "validation_gain_per_run": f0["validation_gain_per_run"],
+                "validation_gain_folds": [fr["validation_gain"] for fr in frows],
+                "folds": [{k: v for k, v in fr.items() if not k.startswith("_")} for fr in frows],
                 "evidence": _evidence(
-                    effect, sig, gain, z, base_mae, val["mae_psi_deg"], est, unc, cfg, run_gains=run_gains
+                    effect,
+                    sig,
+                    f0["validation_gain"],
+                    f0["z"],
+                    base_mae,
+                    f0["extended_mae_psi_deg"],
+                    f0["estimate"],
+                    f0["uncertainty"],
+                    cfg,
+                    note=note,
+                    run_gains=f0["_run_gains"],
+                    extra_why=why,
                 ),
             }
         )
-    rows.sort(key=lambda r: np.inf if r["validation_gain"] is None else -r["validation_gain"])
+    # largest gain first; with two folds, ranked by the smaller of the two folds' gains
+    rows.sort(
+        key=lambda r: np.inf if r["validation_gain"] is None else -min(r.get("validation_gain_folds") or [0])
+    )
 
     # forward selection of the extended model: the best significant effect first, then, round by round,
     # the tried effect that cuts the held-out error of the current model most (refitted jointly), while
-    # that cut is real (min_gain overall, every held-out run better, every parameter clearly non-zero)
+    # that cut is real in every fold (min_gain overall, every held-out run better, every parameter
+    # clearly non-zero)
     chosen: list[str] = []
-    ext, ext_val, ext_per = base, base_val, base_per
+    exts = list(bases)
+    ext_evals = list(fold_base)
     first = next((r for r in rows if r["significant"]), None)
     if first is not None:
-        chosen, ext = [first["effect"]], fits[first["effect"]]
-        ext_val, ext_per = evaluate(ext, va)
+        chosen, exts = [first["effect"]], list(fold_fits[first["effect"]])
+        ext_evals = [evaluate(f, v) for f, (_, v) in zip(exts, folds, strict=True)]
     by_effect = {r["effect"]: r for r in rows}
     while chosen:
         best = None
         for e in [r["effect"] for r in rows if r["effect"] in fits and r["effect"] not in chosen]:
             try:
-                f = fit_model(tr, tuple(chosen + [e]), start=ext, max_nfev=cfg.max_nfev, block_s=cfg.block_s)
+                fl = [
+                    fit_model(t, tuple(chosen + [e]), start=x, **kw)
+                    for x, (t, _) in zip(exts, folds, strict=True)
+                ]
             except ModelError:
                 continue
-            val, per = evaluate(f, va)
-            g = _gain(ext_val["mae_psi_deg"], val["mae_psi_deg"])
-            # material: the further cut is also worth min_gain of the BASELINE error (a 13 % cut of a
-            # residual already at the noise floor is not a second effect)
-            material = ext_val["mae_psi_deg"] - val["mae_psi_deg"] >= cfg.min_gain * base_mae
-            held = (
-                min(_gain(b["mae_psi_deg"], q["mae_psi_deg"]) for b, q in zip(ext_per, per, strict=True)) > 0
-            )
-            ok = (
-                g >= cfg.min_gain
-                and material
-                and (held or not cfg.every_run)
-                and all(_z(f, c) >= cfg.min_z for c in chosen + [e])
-            )
-            if ok and (best is None or g > best[1]):
-                best = (e, g, f, val, per)
+            evs, gs, oks = [], [], []
+            for k, (f, (_, v)) in enumerate(zip(fl, folds, strict=True)):
+                val, per = evaluate(f, v)
+                (cv, cp), (bv, _) = ext_evals[k], fold_base[k]
+                g = _gain(cv["mae_psi_deg"], val["mae_psi_deg"])
+                # material: the further cut is also worth min_gain of the BASELINE error (a 13 % cut of
+                # a residual already at the noise floor is not a second effect)
+                material = cv["mae_psi_deg"] - val["mae_psi_deg"] >= cfg.min_gain * bv["mae_psi_deg"]
+                held = min(_gain(b["mae_psi_deg"], q["mae_psi_deg"]) for b, q in zip(cp, per, strict=True))
+                held = held > 0
+                oks.append(
+                    g >= cfg.min_gain
+                    and material
+                    and (held or not cfg.every_run)
+                    and all(_z(f, c) >= cfg.min_z for c in chosen + [e])
+                )
+                evs.append((val, per))
+                gs.append(g)
+            if all(oks) and (best is None or min(gs) > min(best[1])):
+                best = (e, gs, fl, evs)
         if best is None:
             break
-        e, g, f, val, per = best
+        e, gs, fl, evs = best
+        g, f, (val, per) = gs[0], fl[0], evs[0]
+        ext_val, ext_per = ext_evals[0]
         row = by_effect[e]
         est, unc = _estimate(f, e, tr)
         row.update(
             {
                 "significant": True,
                 "validation_gain_in_combination": g,
+                "validation_gain_in_combination_folds": gs,
                 "combined_with": list(chosen),
                 "estimate_in_combination": est,
                 "uncertainty_in_combination": unc,
@@ -389,9 +524,12 @@ def diagnose(
                     _gain(b["mae_psi_deg"], q["mae_psi_deg"]) for b, q in zip(ext_per, per, strict=True)
                 ],
             )
-            + f" (alone: {row['validation_gain']:+.0%}.)"
+            + f" (alone: {row['validation_gain']:+.0%}"
+            + (f"; reverse fold in combination: {gs[1]:+.0%}" if nf == 2 else "")
+            + ".)"
         )
-        chosen, ext, ext_val, ext_per = chosen + [e], f, val, per
+        chosen, exts, ext_evals = chosen + [e], fl, evs
+    ext = exts[0]
     ext_val, ext_per = evaluate(ext, va)
     after = residual_structure(ext, va, ext_per) if chosen else structure
     cause = chosen[0] if chosen else "none"
@@ -447,6 +585,29 @@ def diagnose(
             "residuals": after,
         },
         "gain": {"mae_psi_relative_reduction": _gain(base_mae, ext_val["mae_psi_deg"])},
+        "folds": [
+            {
+                "training_runs": [s.name for s in t],
+                "validation_runs": [s.name for s in v],
+                "baseline": {
+                    "parameters": b.params(),
+                    "uncertainty": {n: b.std[n] for n in PARAM_NAMES},
+                    "stable": is_stable(b.theta),
+                    "training_cost": b.cost,
+                    "fit": b.message,
+                    "validation": bv,
+                    "per_run": [{k: x for k, x in p.items() if k != "sim"} for p in bp],
+                },
+                "extended": {
+                    "effects": chosen,
+                    "parameters": x.params(),
+                    "validation": xv,
+                    "per_run": [{k: y for k, y in p.items() if k != "sim"} for p in xp],
+                },
+                "gain": {"mae_psi_relative_reduction": _gain(bv["mae_psi_deg"], xv["mae_psi_deg"])},
+            }
+            for (t, v), b, (bv, bp), x, (xv, xp) in zip(folds, bases, fold_base, exts, ext_evals, strict=True)
+        ],
         "summary": summary,
         "training_runs": [s.name for s in tr],
         "validation_runs": [s.name for s in va],
@@ -455,7 +616,9 @@ def diagnose(
             "min_gain": cfg.min_gain,
             "min_z": cfg.min_z,
             "structured_r2": cfg.structured_r2,
-            "fit": "output-error least squares on free-run psi, r (and v when measured)",
+            "fit": "output-error least squares on free-run psi, r (and v when measured); baseline: "
+            "stable fit of least training cost over several starts",
+            "two_fold": len(folds) == 2,
             "u_ref_m_s": base.u_ref,
         },
     }
