@@ -81,6 +81,12 @@ class Diagnosis:
     fits: dict[str, FitResult]
 
 
+def _untried(effect: str, evidence: str, estimate: dict | None = None) -> dict:
+    """A findings row for an effect that was not tried or could not be fitted (never significant)."""
+    return {"effect": effect, "significant": False, "estimate": estimate or {}, "uncertainty": {},
+            "validation_gain": None, "z": None, "evidence": evidence}
+
+
 # ---------------------------------------------------------------- residual examination
 
 
@@ -312,49 +318,20 @@ def diagnose(
     rows = []
     for effect in iterator:
         if effect == "speed_loss" and (any(s.u is None for s in tr + va)):
-            rows.append(
-                {
-                    "effect": effect,
-                    "significant": False,
-                    "estimate": {},
-                    "uncertainty": {},
-                    "validation_gain": None,
-                    "z": None,
-                    "evidence": "Not tried: the runs have no surge speed u, so speed dependence "
-                    "cannot be tested.",
-                }
-            )
+            rows.append(_untried(effect, "Not tried: the runs have no surge speed u, so speed dependence "
+                                         "cannot be tested."))
             continue
         if effect == "speed_loss":
             drop = max(1.0 - float(np.min(s.u_smooth())) / s.approach_speed() for s in tr)
             if drop < cfg.min_speed_loss:
-                rows.append(
-                    {
-                        "effect": effect,
-                        "significant": False,
-                        "estimate": {"max_speed_loss": drop},
-                        "uncertainty": {},
-                        "validation_gain": None,
-                        "z": None,
-                        "evidence": f"Not tried: the speed falls by only {drop:.1%} in the training runs "
-                        f"(below {cfg.min_speed_loss:.0%}), so there is no speed loss to explain.",
-                    }
-                )
+                rows.append(_untried(effect, f"Not tried: the speed falls by only {drop:.1%} in the training "
+                                             f"runs (below {cfg.min_speed_loss:.0%}), so there is no speed "
+                                             "loss to explain.", {"max_speed_loss": drop}))
                 continue
         try:
             fl = [fit_model(t, (effect,), start=b, **kw) for b, (t, _) in zip(bases, folds, strict=True)]
         except ModelError as exc:
-            rows.append(
-                {
-                    "effect": effect,
-                    "significant": False,
-                    "estimate": {},
-                    "uncertainty": {},
-                    "validation_gain": None,
-                    "z": None,
-                    "evidence": f"Fit failed: {exc}",
-                }
-            )
+            rows.append(_untried(effect, f"Fit failed: {exc}"))
             continue
         if nf == 2:
             # the extended fit is not convex either: each fold also starts from the other fold's
