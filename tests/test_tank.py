@@ -323,3 +323,42 @@ def test_cli_writes_the_default_set(tmp_path, capsys):
                             "kcs_zigzag_10_10_P.csv", "kcs_turning_35_S.csv", "kcs_turning_35_P.csv"])
     text = (out / "kcs_turning_35_P.csv").read_text()
     assert "# test: turning circle 35 port" in text and "# seed: 5" in text and "noise-free" in text
+
+
+# ---------------------------------------------------------------- sizing injected effects (issue 6)
+
+
+def test_extra_damping_for_cut_gives_that_cut():
+    from pipeline.tank.effects import extra_damping_for_cut, yaw_rate_amplitude_20_20
+
+    cfg = dataclasses.replace(TankConfig(), hold_speed=True)
+    extra = extra_damping_for_cut(0.25, cfg)
+    assert extra < 0.0
+    amp0 = yaw_rate_amplitude_20_20(cfg)
+    amp = yaw_rate_amplitude_20_20(dataclasses.replace(cfg, extra_yaw_damping=extra))
+    assert 1.0 - amp / amp0 == pytest.approx(0.25, abs=1e-4)
+    with pytest.raises(ValueError, match="cut must be a fraction"):
+        extra_damping_for_cut(1.5, cfg)
+
+
+def test_n_rrr_equivalent_is_cubic_linear_and_matches_the_mmg_formula():
+    """The injected N'_rrr in the diagnosis's units: independent of r (exactly cubic at zero drift),
+    linear in N'_rrr, negative for more damping, and equal to the hand-derived
+    (M^-1)_rr (rho/2) L^2 d U^2 N'_rrr (L/U)^3 (pi/180)^2 with the tank's mass matrix."""
+    import math
+
+    from pipeline.tank import kcs
+    from pipeline.tank.effects import n_rrr_equivalent
+
+    cfg = dataclasses.replace(TankConfig(), hold_speed=True)
+    n1 = n_rrr_equivalent(-0.2, cfg)
+    assert n1 < 0.0
+    assert n_rrr_equivalent(-0.2, cfg, r_deg_s=4.0) == pytest.approx(n1, rel=1e-9)
+    assert n_rrr_equivalent(-0.4, cfg) == pytest.approx(2.0 * n1, rel=1e-9)
+    c = tank.KCSCoefficients()
+    p = kcs.param_vector(cfg, c, kcs.trim_rps(cfg, c))
+    m, my, iz, xg = p[kcs.I_M], p[kcs.I_MY], p[kcs.I_IZ], p[kcs.I_XG]
+    inv_rr = (m + my) / ((m + my) * iz - (xg * m) ** 2)
+    L, d, U = cfg.lpp, c.draft, cfg.approach_speed
+    expected = inv_rr * 0.5 * c.rho * L**2 * d * U**2 * -0.2 * (L / U) ** 3 * (math.pi / 180.0) ** 2
+    assert n1 == pytest.approx(expected, rel=1e-6)

@@ -1,0 +1,198 @@
+"""Hidden-effect cases on the virtual tank (issue 6): effects injected into the MMG KCS.
+
+Unlike the linear truth model (tests/test_diagnose_cases.py) the KCS is not linear: it has cubic yaw
+damping of its own (Yoshimura's N'_rrr, N'_vvr, ... and the rudder's inflow), so a "clean" tank is
+not "none": the diagnosis must name the ship's own nonlinear_yaw_damping, and an injected effect must
+be found *on top of it*.  The criteria of the issue then read:
+
+- right cause: the injected effect is significant and in the extended model, next to nothing but the
+  ship's own cubic damping; the clean ship gives nonlinear_yaw_damping and nothing else;
+- gain >= 30 %: what the injected effect is worth inside the extended model (held-out MAE psi of the
+  extended model refitted without it, against with it: ``validation_gain_in_extended``), in both
+  folds.  (Its gain alone over the linear model mixes in the ship's own misfit: an injected 1.5 deg
+  offset alone cuts the held-out error by 25 % in one fold and 89 % in the other.)
+- estimate within 25 %: an offset directly (the symmetric KCS has none of its own); extra damping as
+  the increment of n_rrr over the same diagnosis of the clean ship, against the injected N'_rrr
+  converted to n_rrr by the tank's own equations (:func:`pipeline.tank.effects.n_rrr_equivalent`).
+
+Design: the port/starboard-symmetric KCS (gamma_R equal both ways: the default KCS's propeller
+asymmetry makes the rudder's effectiveness depend on the side, see
+test_default_kcs_claims_no_dead_time_or_speed), speed held unless the case frees it, seeded measurement
+noise; train on 10/10 starboard + 5/5 port, validate on 10/10 port + 5/5 starboard (both sides, two
+amplitudes; two folds).  Small zigzags, because there a linear model is the right baseline: on 20/20
+zigzags the KCS's own nonlinearity (its K falls 43 % from 10/10 to 20/20) dominates every run.
+
+Not demonstrable on this ship (strict xfail, measured, so an improvement shows up as a failure to
+update): a rudder dead time of 0.3-1 s, which the linear time constants absorb (0.6 s injected: on
+top of the ship's own cubic damping the dead time cuts the held-out error by 8 % in one fold, where
+one of the two runs gets worse, and 40 % in the other; its estimate 0.56 / 0.52 s is right), and
+speed loss with the speed free (11 % in these zigzags): at constant propeller rps the slipstream keeps
+the rudder's inflow up (u_R falls 2.5 % for a 10 % speed loss, so the rudder force falls 5 %, not
+19 %), the yaw dynamics hardly change, and speed dependence gains -5 % / -1 % held-out with a fitted
+exponent of 0.10 / 0.06.  On the linear truth model both are found (test_diagnose_cases.py).
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+import pytest
+
+from pipeline.config import DiagnoseConfig, TankConfig
+from pipeline.diagnose import diagnose
+
+tank = pytest.importorskip("pipeline.tank")
+from pipeline.tank.effects import extra_damping_for_cut, n_rrr_equivalent  # noqa: E402
+
+TRAIN = [(10, "starboard"), (5, "port")]
+VALIDATE = [(10, "port"), (5, "starboard")]
+OWN = "nonlinear_yaw_damping"
+KINDS = ("none", "rudder_offset", "nonlinear_yaw_damping", "rudder_offset", "nonlinear_yaw_damping")
+
+
+def _symmetric():
+    base = tank.KCSCoefficients()
+    return dc.replace(base, gamma_minus=base.gamma_plus)
+
+
+def _draw_cases():
+    rng = np.random.default_rng(DiagnoseConfig().seed + 1)
+    cases = []
+    for i, kind in enumerate(KINDS):
+        mag = {
+            "none": 0.0,
+            "rudder_offset": rng.uniform(1.0, 3.0) * rng.choice([-1.0, 1.0]),
+            "nonlinear_yaw_damping": rng.uniform(0.15, 0.35),  # cut of the 20/20 yaw-rate amplitude
+        }[kind]
+        cases.append((i, kind, float(mag)))
+    return cases
+
+
+CASES = _draw_cases()
+
+
+def _runs(cfg: TankConfig, coeffs):
+    def make(legs):
+        return [tank.simulate(tank.zigzag(a, a, side, duration=80.0), cfg, coeffs=coeffs) for a, side in legs]
+
+    return make(TRAIN), make(VALIDATE)
+
+
+_CACHE: dict = {}
+
+
+def _diagnosis(**kw):
+    key = tuple(sorted(kw.items()))
+    if key not in _CACHE:
+        coeffs = _symmetric()
+        cfg = dc.replace(TankConfig(), **{"hold_speed": True, **kw})
+        _CACHE[key] = diagnose(*_runs(cfg, coeffs)).report
+    return _CACHE[key]
+
+
+def _summary(rep):
+    return {
+        f["effect"]: (
+            f["significant"], f.get("validation_gain_folds"), f.get("validation_gain_in_extended_folds")
+        )
+        for f in rep["findings"]
+    }
+
+
+def _estimate(rep, effect, name):
+    return rep["extended"]["effect_estimates"][effect]["estimate"][name]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", CASES, ids=[f"{c[0]:02d}-{c[1]}" for c in CASES])
+def test_tank_hidden_effect_is_found_on_top_of_the_ship(case):
+    i, kind, mag = case
+    if kind == "none":
+        rep = _diagnosis()
+        # the KCS's own nonlinearity, and nothing else
+        assert rep["cause"] == OWN, _summary(rep)
+        assert rep["extended"]["effects"] == [OWN], _summary(rep)
+        own = next(f for f in rep["findings"] if f["effect"] == OWN)
+        assert min(own["validation_gain_folds"]) >= 0.30, _summary(rep)
+        assert _estimate(rep, OWN, "n_rrr_s_per_deg2") < 0.0
+        return
+    if kind == "rudder_offset":
+        rep = _diagnosis(rudder_offset=mag)
+        name, truth = "offset_deg", mag
+        est = _estimate(rep, kind, name)
+    else:
+        coeffs = _symmetric()
+        extra = extra_damping_for_cut(mag, dc.replace(TankConfig(), hold_speed=True), coeffs)
+        rep = _diagnosis(extra_yaw_damping=extra)
+        name = "n_rrr_s_per_deg2"
+        truth = n_rrr_equivalent(extra, dc.replace(TankConfig(), hold_speed=True), coeffs)
+        est = _estimate(rep, kind, name) - _estimate(_diagnosis(), kind, name)
+    summary = _summary(rep)
+    assert kind in rep["extended"]["effects"], summary
+    assert set(rep["extended"]["effects"]) <= {kind, OWN}, summary
+    assert rep["cause"] in (kind, OWN), summary
+    finding = next(f for f in rep["findings"] if f["effect"] == kind)
+    assert finding["significant"], finding["evidence"]
+    assert min(finding["validation_gain_in_extended_folds"]) >= 0.30, summary
+    assert abs(est - truth) <= 0.25 * abs(truth), (name, est, truth)
+    assert rep["extended"]["effect_estimates"][kind]["uncertainty"][name] > 0
+    # and no false effect: offset / dead time / speed are absent unless injected
+    sig = {f["effect"] for f in rep["findings"] if f["significant"]}
+    assert sig <= {kind, OWN}, summary
+
+
+@pytest.mark.slow
+def test_default_kcs_claims_no_dead_time_or_speed():
+    """The default KCS's propeller makes the flow straightening gamma_R differ port and starboard: a
+    rudder effectiveness that depends on the side, which is neither a dead time nor a speed effect.
+    (Nor is it a constant offset: with the design here the offset cuts the held-out error on one fold,
+    +27 %, and worsens it on the other, -7 %, and offset + cubic damping worsen both, so the diagnosis
+    names none; on 20/20 zigzags alone an offset of -0.99 deg passes.)"""
+    cfg = dc.replace(TankConfig(), hold_speed=True)
+    rep = diagnose(*_runs(cfg, None)).report
+    sig = {f["effect"] for f in rep["findings"] if f["significant"]}
+    assert not sig & {"rudder_delay", "speed_loss"}, _summary(rep)
+    assert set(rep["extended"]["effects"]) <= {"rudder_offset", OWN}, _summary(rep)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured: a dead time is absorbed by the KCS's linear time "
+                   "constants; on top of its own cubic damping 0.6 s adds 8 % / 40 % held-out (folds)")
+def test_tank_dead_time_is_found():
+    rep = _diagnosis(rudder_delay=0.6)
+    finding = next(f for f in rep["findings"] if f["effect"] == "rudder_delay")
+    assert "rudder_delay" in rep["extended"]["effects"], _summary(rep)
+    assert min(finding["validation_gain_in_extended_folds"]) >= 0.30
+
+
+@pytest.mark.slow
+def test_tank_dead_time_is_measured_not_claimed():
+    """What the diagnosis does say about a 0.6 s dead time on the KCS: the dead time fitted (alone) is
+    within 25 % of 0.6 s, and no false offset is claimed."""
+    rep = _diagnosis(rudder_delay=0.6)
+    finding = next(f for f in rep["findings"] if f["effect"] == "rudder_delay")
+    assert abs(finding["estimate"]["delay_s"] - 0.6) <= 0.25 * 0.6, finding["estimate"]
+    sig = {f["effect"] for f in rep["findings"] if f["significant"]}
+    assert "rudder_offset" not in sig, _summary(rep)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured: at constant rps the KCS's rudder inflow hardly drops "
+                   "with speed; speed dependence gains -5 % / -1 % held-out on top of its cubic damping")
+def test_tank_speed_loss_is_found():
+    rep = _diagnosis(hold_speed=False)
+    assert "speed_loss" in rep["extended"]["effects"], _summary(rep)
+
+
+@pytest.mark.slow
+def test_tank_speed_free_is_tried_not_imagined():
+    """Speed free: the KCS slows in the zigzags, speed dependence is tried (the loss is measured), and
+    the ship's own damping stays the cause; with the speed held it is not even tried."""
+    rep = _diagnosis(hold_speed=False)
+    sl = next(f for f in rep["findings"] if f["effect"] == "speed_loss")
+    assert sl["validation_gain"] is not None
+    assert 0.05 <= sl["estimate"]["max_speed_loss"] <= 0.35, sl["estimate"]
+    assert rep["cause"] == OWN, _summary(rep)
+    held = next(f for f in _diagnosis()["findings"] if f["effect"] == "speed_loss")
+    assert held["validation_gain"] is None and held["estimate"]["max_speed_loss"] < 0.03, held
