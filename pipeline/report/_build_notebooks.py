@@ -572,6 +572,7 @@ for f in dg.get("findings") or []:
     est = f.get("estimate") or {}
     rows.append({"effect": f.get("effect"), "significant": f.get("significant"),
                  "validation_gain": f.get("validation_gain"),
+                 "worth_in_extended": f.get("validation_gain_in_extended"),
                  "estimate": ", ".join(f"{k} = {v:.4g}" if isinstance(v, (int, float)) else f"{k} = {v}"
                                        for k, v in est.items()),
                  "evidence": f.get("evidence")})
@@ -579,7 +580,9 @@ if rows:
     nb.table(pd.DataFrame(rows).set_index("effect"),
              "Every effect tried, largest held-out gain first: validation_gain is the relative "
              "reduction of the mean free-run MAE of psi on the validation runs; significant needs both "
-             "a real gain and an estimate clearly different from zero.")
+             "a real gain and an estimate clearly different from zero. worth_in_extended (effects of "
+             "the extended model): the held-out gain of the extended model over the same model "
+             "refitted without that effect.")
 vrows = []
 for name, block in (("baseline (linear)", dg.get("baseline") or {}),
                     ("extended: " + " + ".join((dg.get("extended") or {}).get("effects") or ["none"]),
