@@ -272,9 +272,10 @@ def _gain(base: float, ext: float) -> float:
 def _best_pair(rows, fits, fold_fits, folds, fold_base, cfg: DiagnoseConfig, kw):
     """Two effects that are real only together (each alone fails some fold), or None.
 
-    Tried only when no single effect is significant: e.g. a KCS whose propeller asymmetry acts as a
-    rudder offset, where the linear model without the ship's cubic damping cannot use the offset in
-    one fold, and without the offset cannot use the damping in the other.  A pair counts when, in
+    Tried only when no single effect is significant: two effects can mask each other (a linear model
+    without a ship's cubic damping may misuse an offset on one fold's held-out runs, and without the
+    offset misuse the damping on the other's), so that neither holds alone in both folds.  A pair
+    counts when, in
     every fold, the joint model (refitted on the training runs) cuts the held-out MAE psi of the
     baseline by ``min_gain`` on every validation run, both parameters are clearly non-zero, and EACH
     member is needed: the joint model beats the other member alone by ``min_gain`` too.  Returns
