@@ -18,10 +18,12 @@ Method
      both amplitudes must agree, which autocorrelated residuals cannot fake.
 4. Combine: forward selection starting from the best significant effect; any further tried effect
    joins (best first) if the joint model, refitted on the training runs, cuts the held-out MAE of psi
-   of the current model by another ``min_gain`` (relative, and by at least ``min_gain`` times the
-   baseline's MAE in absolute terms), on every validation run, with every parameter clearly
-   non-zero.  An effect masked alone by a larger one is found this way, and its joint estimate is
-   the less biased one.
+   of the current model by another ``min_gain`` (relative in every fold, and, summed over the folds,
+   by at least ``min_gain`` times the baseline's MAE in absolute terms), on every validation run, with
+   every parameter clearly non-zero.  An effect masked alone by a larger one is found this way, and
+   its joint estimate is the less biased one.  When no single effect is significant, pairs are tried
+   (:func:`_best_pair`: each member must be needed).  Every effect of the extended model gets its
+   drop-one worth, ``validation_gain_in_extended``.
 5. "cause" is the significant effect with the largest single gain, or "none".
 
 Two folds: when each side has >= 2 runs covering the same manoeuvres (:func:`_exchangeable`), the
