@@ -197,8 +197,10 @@ def test_two_effects_real_only_together_are_found_as_a_pair():
         fold_fits = {e: [fit_model(t, (e,), start=b, **kw) for b, (t, _) in zip(bases, folds, strict=True)]
                      for e in effects}
         fits = {e: fold_fits[e][0] for e in effects}
-        return _best_pair([{"effect": e} for e in effects], fits, fold_fits, folds, fold_base,
-                          DiagnoseConfig(), kw)
+        rows = [{"effect": e, "folds": [{"extended_mae_psi_deg": evaluate(f, v)[0]["mae_psi_deg"]}
+                                        for f, (_, v) in zip(fold_fits[e], folds, strict=True)]}
+                for e in effects]
+        return _best_pair(rows, fits, fold_fits, folds, fold_base, DiagnoseConfig(), kw)
 
     assert pair_for(TruthConfig(seed=5)) is None
     n_rrr = damping_for_cut(0.3)

@@ -285,6 +285,9 @@ def _best_pair(rows, fits, fold_fits, folds, fold_base, cfg: DiagnoseConfig, kw)
     per fold, {effect: drop-one gains per fold}); the best pair by its worst fold's gain.
     """
     tried = [r["effect"] for r in rows if r["effect"] in fits]
+    # held-out MAE psi of each effect alone, per fold (from its findings row)
+    alone_mae = {r["effect"]: [fr["extended_mae_psi_deg"] for fr in r["folds"]]
+                 for r in rows if r["effect"] in fits}
     best = None
     for i, a in enumerate(tried):
         for b in tried[i + 1:]:
@@ -302,9 +305,8 @@ def _best_pair(rows, fits, fold_fits, folds, fold_base, cfg: DiagnoseConfig, kw)
                 bv, bp = fold_base[k]
                 g = _gain(bv["mae_psi_deg"], val["mae_psi_deg"])
                 every = min(_gain(x["mae_psi_deg"], q["mae_psi_deg"]) for x, q in zip(bp, per, strict=True))
-                alone = {e: evaluate(fold_fits[e][k], v)[0]["mae_psi_deg"] for e in (a, b)}
-                drop[a].append(_gain(alone[b], val["mae_psi_deg"]))
-                drop[b].append(_gain(alone[a], val["mae_psi_deg"]))
+                drop[a].append(_gain(alone_mae[b][k], val["mae_psi_deg"]))
+                drop[b].append(_gain(alone_mae[a][k], val["mae_psi_deg"]))
                 ok = ok and (
                     g >= cfg.min_gain
                     and (every > 0.0 or not cfg.every_run)
@@ -606,17 +608,15 @@ def diagnose(
         gains = []
         for k, (t, v) in enumerate(folds):
             if not others:
-                without = fold_base[k][0]
-            elif len(others) == 1:
-                without = evaluate(fold_fits[others[0]][k], v)[0]
+                without = fold_base[k][0]["mae_psi_deg"]
+            elif len(others) == 1:  # the single-effect fit, already evaluated for its findings row
+                without = by_effect[others[0]]["folds"][k]["extended_mae_psi_deg"]
             else:
                 try:
-                    without = evaluate(fit_model(t, others, start=exts[k], **kw), v)[0]
+                    without = evaluate(fit_model(t, others, start=exts[k], **kw), v)[0]["mae_psi_deg"]
                 except ModelError:
                     without = None
-            gains.append(
-                None if without is None else _gain(without["mae_psi_deg"], ext_evals[k][0]["mae_psi_deg"])
-            )
+            gains.append(None if without is None else _gain(without, ext_evals[k][0]["mae_psi_deg"]))
         by_effect[e]["validation_gain_in_extended"] = gains[0]
         by_effect[e]["validation_gain_in_extended_folds"] = gains
     ext = exts[0]
