@@ -7,10 +7,14 @@ so a failed stage leaves no partial file and earlier outputs stay intact (SPEC s
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import json
 import math
 import os
+import re
+import secrets
 import shutil
+import sys
 import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -68,12 +72,80 @@ class Run:
         return self.meta.get("provenance") == "virtual"
 
 
+_PID_NAME = re.compile(r"\.(?:out|old|tmp)\.(\d+)\.")
+
+
+def _pid_alive(pid: int) -> bool:
+    """True when a process with this id exists (a temporary of a live run must not be removed)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:                     # exists, belongs to someone else
+        return True
+    return True
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+
+
+def clean_stale_temporaries(dest: str | Path) -> list[Path]:
+    """Remove the temporaries that killed runs left beside ``dest``; returns what was removed.
+
+    Every temporary this module makes carries the id of the process that made it
+    (``.<name>.out.<pid>.*`` directories, ``.<name>.old.<pid>.*`` swapped-out sets,
+    ``.<name>.tmp.<pid>.*`` files).  Only those whose process no longer exists are touched, so a
+    concurrent run into the same place keeps its own.  A swapped-out set (``.old.``) of a run killed
+    between the two renames of the fallback swap is put back when ``dest`` is missing; otherwise it is
+    removed.  Temporaries of the earlier naming (``.<name>.`` + 8 random characters, no process id)
+    are removed too.
+    """
+    dest = Path(dest)
+    parent = dest.parent
+    removed: list[Path] = []
+    if not parent.is_dir():
+        return removed
+    prefix = f".{dest.name}."
+    legacy = re.compile(re.escape(prefix) + r"[a-z0-9_]{8}(?:\.tmp|\.parquet|\.csv|\.html)?$")
+    try:
+        entries = sorted(parent.iterdir())
+    except OSError:
+        return removed
+    for item in entries:
+        name = item.name
+        if not name.startswith(prefix):
+            continue
+        m = _PID_NAME.match(name[len(prefix) - 1:])
+        if m:
+            if _pid_alive(int(m[1])):
+                continue
+            if ".old." in name and not dest.exists() and item.is_dir():
+                with contextlib.suppress(OSError):
+                    os.rename(item, dest)                 # the set of the last good run comes back
+                    continue
+            _remove(item)
+            removed.append(item)
+        elif legacy.match(name):
+            _remove(item)
+            removed.append(item)
+    return removed
+
+
 @contextlib.contextmanager
 def atomic_path(dest: str | Path, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path beside ``dest``; rename it onto ``dest`` only if the block succeeds."""
     dest = Path(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=suffix or ".tmp", dir=dest.parent)
+    clean_stale_temporaries(dest)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.tmp.{os.getpid()}.", suffix=suffix or ".tmp",
+                               dir=dest.parent)
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -85,26 +157,134 @@ def atomic_path(dest: str | Path, suffix: str | None = None) -> Iterator[Path]:
             tmp_path.unlink()
 
 
+# ------------------------------------------------------------------ directory sets
+_RENAME_EXCHANGE = 2                             # linux/fs.h
+_AT_FDCWD = -100
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths in one atomic step (Linux renameat2 RENAME_EXCHANGE); False if unsupported."""
+    if sys.platform != "linux":
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    rc = fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE)
+    return rc == 0
+
+
+def set_manifest_path(dest: str | Path) -> Path:
+    """Where the manifest of the output set ``dest`` lives: ``<parent>/.<name>.set.json``.
+
+    It lists the files of the last complete set written into ``dest``.  It sits beside the
+    directory, not in it, so that a directory holds exactly the stage's outputs.
+    """
+    dest = Path(dest)
+    return dest.parent / f".{dest.name}.set.json"
+
+
+def _listing(root: Path) -> list[str]:
+    return sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file() or p.is_symlink())
+
+
+def _read_manifest(dest: Path) -> list[str] | None:
+    try:
+        data = json.loads(set_manifest_path(dest).read_text())
+        files = data.get("files")
+        return [str(f) for f in files] if isinstance(files, list) else None
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def _owned(dest: Path) -> bool:
+    """True when everything in ``dest`` belongs to the last set written there (or it is empty)."""
+    if not dest.exists():
+        return True
+    if not dest.is_dir():
+        return False
+    present = _listing(dest)
+    dirs_only = not present and not any(dest.iterdir())
+    if dirs_only:
+        return True
+    listed = _read_manifest(dest)
+    return listed is not None and set(present) <= set(listed)
+
+
 @contextlib.contextmanager
 def atomic_dir(dest: str | Path) -> Iterator[Path]:
-    """Yield a temporary directory beside ``dest``; it replaces ``dest`` only if the block succeeds.
+    """Yield a temporary directory beside ``dest``; its files become ``dest`` as one set, or nothing.
 
-    Files already in ``dest`` that the block does not rewrite are kept (the new files are moved
-    in one by one, each with an atomic rename).
+    SPEC section 8: a stage's outputs appear together or not at all, earlier outputs stay intact when
+    the block fails, and no file of an earlier run is left beside the new ones.
+
+    - The block writes into ``.<name>.out.<pid>.*`` beside ``dest``.  If it raises, that directory is
+      removed and ``dest`` is untouched.
+    - When ``dest`` holds only the previous set of this function (the manifest
+      :func:`set_manifest_path` lists every file in it) or is missing or empty, the new directory
+      replaces it in one atomic exchange (Linux ``renameat2``; elsewhere two renames, with the old
+      set recoverable by :func:`clean_stale_temporaries` if the process dies between them), and the
+      old set is deleted: stale files (plots of an earlier run) do not survive.
+    - When ``dest`` also holds files this function did not write (a user's folder given as
+      ``--out``), nothing of theirs is removed: the new files are renamed in one by one, files of the
+      previous set that the new set does not have are removed, and the manifest is written last.
+    - Temporaries of killed runs beside ``dest`` are removed first (:func:`clean_stale_temporaries`).
     """
     dest = Path(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.", dir=dest.parent))
+    clean_stale_temporaries(dest)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.out.{os.getpid()}.", dir=dest.parent))
     try:
         yield tmp
-        dest.mkdir(parents=True, exist_ok=True)
-        for item in sorted(tmp.rglob("*")):
-            if item.is_file():
-                target = dest / item.relative_to(tmp)
-                target.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(item, target)
+        os.chmod(tmp, 0o777 & ~_UMASK)           # mkdtemp makes 0700; give the usual mode
+        files = _listing(tmp)
+        if _owned(dest):
+            _swap_in(tmp, dest)
+        else:
+            _merge_in(tmp, dest, files)
+        write_json(set_manifest_path(dest), {"files": files})
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _swap_in(tmp: Path, dest: Path) -> None:
+    for _ in range(5):                           # a concurrent run may swap in between: retry
+        if not dest.exists():
+            try:
+                os.rename(tmp, dest)
+                return
+            except OSError:
+                continue
+        if _exchange(tmp, dest):                 # tmp now holds the old set
+            shutil.rmtree(tmp, ignore_errors=True)
+            return
+        old = dest.parent / f".{dest.name}.old.{os.getpid()}.{secrets.token_hex(4)}"
+        try:
+            os.rename(dest, old)
+        except FileNotFoundError:
+            continue
+        try:
+            os.rename(tmp, dest)
+        except OSError:
+            os.rename(old, dest)                 # put the old set back, try again
+            continue
+        shutil.rmtree(old, ignore_errors=True)
+        return
+    raise OSError(f"could not replace {dest} (another run keeps writing it)")
+
+
+def _merge_in(tmp: Path, dest: Path, files: list[str]) -> None:
+    previous = set(_read_manifest(dest) or [])
+    for rel in files:
+        target = dest / rel
+        target.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(tmp / rel, target)
+    for rel in sorted(previous - set(files)):
+        with contextlib.suppress(OSError):
+            (dest / rel).unlink()
 
 
 def _jsonable(obj: Any) -> Any:

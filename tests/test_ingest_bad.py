@@ -53,7 +53,7 @@ def test_bad_file_leaves_earlier_outputs_untouched(tmp_path, capsys):
     rc = main(["ingest", str(good2), str(good1), str(BAD_DIR / "time_gap.csv"), "--out", str(out)])
     assert rc != 0
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
-    assert sorted(p.name for p in out.parent.iterdir()) == ["runs"]
+    assert sorted(p.name for p in out.parent.iterdir()) == [".runs.set.json", "runs"]
     assert "time_gap.csv" in capsys.readouterr().err
 
 

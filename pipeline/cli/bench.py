@@ -19,7 +19,7 @@ def register(sub) -> None:
     p.add_argument("--only", nargs="*", help="benchmark modules to run (default: all)")
     p.add_argument("--quick", action="store_true", help="fewer repetitions")
     p.add_argument("--out", type=Path, default=Path("data/processed/bench.json"))
-    p.set_defaults(func=_run)
+    p.set_defaults(func=_run, out_is_file=True)
 
 
 def _run(args) -> int:
