@@ -11,10 +11,28 @@ import re
 from typing import Any
 
 _ZIGZAG = re.compile(
-    r"(?:zig[\s-]*zag|^\s*z)(?:.*?[^\w.])??(?P<rud>\d+(?:\.\d+)?)\s*(?:°|deg|m-0)?\s*/\s*-?\s*(?P<head>\d+(?:\.\d+)?)",
+    r"(?:zig[\s-]*zag|^\s*z)(?:.*?[^\w.])??(?P<rud>\d+(?:\.\d+)?)[^\d/\n]{0,5}/\s*-?\s*(?P<head>\d+(?:\.\d+)?)",
     re.IGNORECASE,
 )
-_TURN = re.compile(r"turn(?:ing)?(?:\s*circle)?\D*?(?P<rud>\d+(?:\.\d+)?)", re.IGNORECASE)
+# Between the number and the slash: a degree sign in any code page ('°' Latin-1, 'ø' read from
+# cp437, 'Â°' UTF-8 read as Latin-1, '¡' Mac Roman), 'deg' or blanks: up to 5 characters that are
+# neither digits nor the slash.
+_TURN = re.compile(r"turn(?:ing)?", re.IGNORECASE)
+# A number standing alone (not part of a word such as 'KVLCC2' or 'KCS-2'), with an optional sign.
+_ALONE_NUMBER = re.compile(r"(?<![\w.])(?P<sign>[+-])?\s?(?P<num>\d+(?:\.\d+)?)(?![\w.]|-\w)")
+_DEG_AFTER = re.compile(r"^\s*(?:°|deg|\(deg\)|\[deg\])", re.IGNORECASE)
+
+
+def _turn_rudder(text: str, start: int) -> float | None:
+    """Rudder angle of a turning-circle title: after 'turn', the number marked in degrees, else the
+    last standalone number (ship names with digits, such as KVLCC2, are words, not numbers)."""
+    tail = text[start:]
+    nums = list(_ALONE_NUMBER.finditer(tail))
+    if not nums:
+        return None
+    marked = [m for m in nums if _DEG_AFTER.match(tail[m.end():])]
+    m = (marked or nums)[-1]
+    return float(m["num"])
 
 
 def _side(text: str) -> str | None:
@@ -30,7 +48,9 @@ def parse_test_name(text: str) -> dict[str, Any]:
     """Parse a test description.
 
     Returns ``{"kind": "zigzag"|"turning"|"other", "rudder_deg": float|None,
-    "heading_deg": float|None, "first_side": "port"|"starboard"|None}``.
+    "heading_deg": float|None, "first_side": "port"|"starboard"|None}``.  ``rudder_deg`` is the
+    magnitude (deg); the side comes from words (port, starboard, ps, sb, ...), not from a sign,
+    whose convention differs between tanks.
     """
     text = text or ""
     m = _ZIGZAG.search(text)
@@ -39,7 +59,7 @@ def parse_test_name(text: str) -> dict[str, Any]:
                 "first_side": _side(text)}
     m = _TURN.search(text)
     if m:
-        return {"kind": "turning", "rudder_deg": float(m["rud"]), "heading_deg": None,
+        return {"kind": "turning", "rudder_deg": _turn_rudder(text, m.end()), "heading_deg": None,
                 "first_side": _side(text)}
     return {"kind": "other", "rudder_deg": None, "heading_deg": None, "first_side": _side(text)}
 

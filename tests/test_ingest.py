@@ -184,11 +184,11 @@ def test_bench_rows():
     assert rows[1]["value"] == pytest.approx(360_000 / rows[0]["value"])
 
 
-def test_marin_without_scale_is_taken_as_model_scale():
-    run = read_raw(MARIN_FILE, config=IngestConfig(max_abs_rate=90.0))
-    assert run.meta["scale_factor"] == 1.0
-    assert run.meta["original_dt"] == pytest.approx(0.5, rel=1e-4)
-    assert "lpp" not in run.meta
+def test_marin_full_scale_without_scale_is_refused():
+    """Issue 13 blocker: full-scale KVLCC2 files taken as model scale must not pass silently."""
+    with pytest.raises(InputError, match=r"Lpp 320 m .*look full scale: give the scale") as err:
+        read_raw(MARIN_FILE, config=IngestConfig(max_abs_rate=90.0))
+    assert "\n" not in str(err.value) and "marin_zigzag_fullscale.dat" in str(err.value)
 
 
 # ------------------------------------------------------------------ resampling

@@ -18,7 +18,16 @@ from scipy import interpolate, signal
 
 from pipeline.config import IngestConfig
 from pipeline.errors import InputError
-from pipeline.ingest.formats import FORMATS, KNOWN_SHIPS_LPP_FULL, PARSERS, RawTable, decode, detect_format
+from pipeline.ingest import checks
+from pipeline.ingest.formats import (
+    FORMATS,
+    KNOWN_SHIPS_LPP_FULL,
+    PARSERS,
+    RawTable,
+    decode_with_note,
+    detect_format,
+    unpack,
+)
 from pipeline.io import Run
 from pipeline.runinfo import parse_test_name
 from pipeline.units import froude_to_model
@@ -38,16 +47,22 @@ def _sha256(data: bytes) -> str:
 
 
 def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = None,
-             config: IngestConfig = DEFAULT_CONFIG) -> Run:
+             config: IngestConfig = DEFAULT_CONFIG, *, rudder_sign: int = 1, ship: str | None = None,
+             lpp_full: float | None = None, test_name: str | None = None) -> Run:
     """Read one raw tank file into a :class:`Run` at its original sampling.
 
     Parameters
     ----------
-    path : raw file (canonical CSV, MARIN .dat or HSVA .dat; SPEC section 3).
+    path : raw file (canonical CSV, MARIN .dat or HSVA .dat; SPEC section 3), optionally gzip-compressed.
     fmt : 'csv', 'marin' or 'hsva' to override recognition from content.
     scale : geometric scale factor of the file's values (full/model); None or 1 = model scale.
         Froude scaling brings the run to model scale (:func:`pipeline.units.froude_to_model`).
     config : limits used by the validation (SPEC section 8).
+    rudder_sign : +1, or -1 for files whose rudder is positive to port (beyond what the format's
+        reader already converts); applied before the sign check.
+    ship, lpp_full : ship name and full-scale Lpp (m) from the dataset description, used for the
+        scale check and recorded (model Lpp = lpp_full / scale).
+    test_name : overrides the test title of the file (dataset.toml per-run override).
 
     Returns a Run in canonical units and signs, model scale, original (possibly non-uniform) time
     steps, heading unwrapped.  Raises :class:`InputError` naming the file, row (1-based line in the
@@ -63,14 +78,19 @@ def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = Non
         raise InputError("is a directory, not a tank file", file=name) from None
     except OSError as exc:
         raise InputError(f"cannot read file ({exc.strerror})", file=name) from None
-    return parse_raw(data, name=name, fmt=fmt, scale=scale, config=config)
+    return parse_raw(data, name=name, fmt=fmt, scale=scale, config=config, rudder_sign=rudder_sign,
+                     ship=ship, lpp_full=lpp_full, test_name=test_name)
 
 
 def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None, scale: float | None = None,
-              config: IngestConfig = DEFAULT_CONFIG) -> Run:
+              config: IngestConfig = DEFAULT_CONFIG, rudder_sign: int = 1, ship: str | None = None,
+              lpp_full: float | None = None, test_name: str | None = None) -> Run:
     """:func:`read_raw` on the file's content (bytes or text); ``name`` is used in messages."""
     raw_bytes = data.encode("utf-8") if isinstance(data, str) else bytes(data)
-    text = decode(raw_bytes)
+    content, notes = unpack(raw_bytes, file=name)
+    text, encoding = decode_with_note(content)
+    if encoding == "utf-16":
+        notes.append("UTF-16 text")
     lines = text.splitlines()
     if not any(s.strip() for s in lines):
         raise InputError("file is empty", file=name)
@@ -81,18 +101,65 @@ def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None
     table = PARSERS[fmt](lines, file=name)
     if scale is not None and not (np.isfinite(scale) and scale > 0):
         raise InputError(f"scale factor must be positive, got {scale}", file=name)
+    if rudder_sign not in (1, -1):
+        raise InputError(f"rudder sign must be 1 or -1, got {rudder_sign}", file=name)
     scale = float(scale) if scale else 1.0
+    if rudder_sign == -1:
+        table.frame["delta"] = -table.frame["delta"]
+        notes.append("rudder sign reversed (--rudder-sign -1)")
+    if test_name is not None:
+        table.meta["test_name"] = test_name
     frame = _validate(table, name, scale, config)
     meta = _base_meta(table, name, raw_bytes, scale, frame)
-    _check_units(frame, table.lines, meta, name, config)
+    if ship:
+        meta["ship"] = ship
+    lpp_model, lpp_source = _model_lpp(meta, scale, lpp_full)
+    if lpp_model is not None:
+        meta["lpp"] = lpp_model
+        meta["lpp_source"] = lpp_source
+    if lpp_full is not None:
+        meta["lpp_full"] = float(lpp_full)
+    meta["rudder_sign"] = rudder_sign
+    t = frame["time"].to_numpy()
+    n_grid = int(np.floor((t[-1] - t[0]) / config.dt + 1e-9)) + 1
+    if n_grid < config.min_samples:
+        raise InputError(f"too few samples: {n_grid} at {config.dt:g} s over {t[-1] - t[0]:.3g} s, need at "
+                         f"least {config.min_samples}", file=name)
+    meta.update(checks.check_scale(meta, frame, name, scale, lpp_model, lpp_source))
+    checks.check_spikes(frame, table.lines, name)
+    checks.check_units(frame, table.lines, meta, name, config, meta.get("declared_units"))
+    meta.update(checks.check_rudder_sign(frame, name))
+    if notes:
+        meta["ingest_notes"] = notes + list(meta.get("ingest_notes", []))
     meta.update(_run_figures(frame, config))
     return Run(frame=frame, meta=meta)
+
+
+def _model_lpp(meta: dict, scale: float, lpp_full: float | None) -> tuple[float | None, str | None]:
+    """Model Lpp (m) and where it came from: the dataset's full-scale Lpp over the scale, the file's
+    own Lpp (at the file's scale), or a known ship's full-scale Lpp over the scale."""
+    if lpp_full:
+        return float(lpp_full) / scale, f"dataset Lpp {lpp_full:g} m / scale {scale:g}"
+    if meta.get("lpp"):
+        return float(meta["lpp"]), meta.get("lpp_source", "the file's header")
+    ship = str(meta.get("ship", "")).upper()
+    if ship in KNOWN_SHIPS_LPP_FULL:
+        full = KNOWN_SHIPS_LPP_FULL[ship]
+        return full / scale, f"{ship} Lpp {full:g} m / scale {scale:g}"
+    return None, None
 
 
 def _validate(table: RawTable, name: str, scale: float, config: IngestConfig) -> pd.DataFrame:
     """NaN/inf, time order and gaps, step rebuild, Froude scaling, heading unwrap."""
     frame = table.frame
     lines = table.lines
+    if len(frame) >= 3:
+        step = float(np.median(np.diff(frame["time"].to_numpy(dtype=float))))
+        declared_time = "time" in table.meta.get("declared_units", {})
+        if step > config.max_gap * max(scale, 1.0) ** 0.5 and not declared_time:
+            raise InputError(f"time step {step:g} is longer than the gap limit ({config.max_gap:g} s at "
+                             "model scale) at almost every sample: time is probably not in seconds "
+                             "(declare it in the header, e.g. 'time [ms]')", file=name, column="time")
     for col in frame.columns:
         vals = frame[col].to_numpy(dtype=float)
         bad = np.flatnonzero(~np.isfinite(vals))
@@ -176,14 +243,29 @@ def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.D
     meta.update(table.meta)
     meta.setdefault("test_name", "")
     meta.setdefault("provenance", "measured")
-    if "lpp" not in meta and meta.get("ship", "").upper() in KNOWN_SHIPS_LPP_FULL and scale != 1.0:
-        meta["lpp"] = KNOWN_SHIPS_LPP_FULL[meta["ship"].upper()] / scale
+    if meta.get("lpp") and table.fmt == "csv":
+        meta["lpp"] = float(meta["lpp"]) / scale          # the header's Lpp is at the file's scale
+        meta["lpp_source"] = "the file's header"
     t = frame["time"].to_numpy()
     meta["original_dt"] = float(f"{np.median(np.diff(t)):.10g}")
     test = parse_test_name(meta["test_name"])
     meta.update(test)
-    if test["first_side"] is None and test["kind"] in ("zigzag", "turning"):
-        meta["first_side"] = _first_side(frame["delta"].to_numpy())
+    t, psi, delta = (frame[c].to_numpy(dtype=float) for c in ("time", "psi", "delta"))
+    if test["kind"] == "other":
+        guess = checks.infer_test_from_rudder(t, psi, delta)
+        if guess["kind"] != "other":
+            meta.update(guess)
+            meta["test_from"] = "rudder signal"
+            meta["first_side_from"] = "rudder"
+            why = f" (title {meta['test_name']!r} not understood)" if meta["test_name"] else " (no title)"
+            note = f"test read from the rudder signal: {guess['kind']} {guess['rudder_deg']:g} deg{why}"
+            meta.setdefault("ingest_notes", []).append(note)
+    elif test["kind"] == "turning" and test["rudder_deg"] is None:
+        guess = checks.infer_test_from_rudder(t, psi, delta)
+        meta["rudder_deg"] = guess["rudder_deg"]
+        meta["rudder_from"] = "rudder signal"
+    if meta.get("first_side") is None and meta["kind"] in ("zigzag", "turning"):
+        meta["first_side"] = _first_side(delta)
         meta["first_side_from"] = "rudder"
     return meta
 
@@ -196,39 +278,6 @@ def _first_side(delta: np.ndarray) -> str | None:
         return None
     k = int(np.argmax(np.abs(d) >= 0.5 * peak))
     return "starboard" if d[k] > 0 else "port"
-
-
-def _check_units(frame: pd.DataFrame, lines: np.ndarray, meta: dict, name: str, config: IngestConfig) -> None:
-    """Values that cannot be in the units of SPEC section 2 (e.g. radians, rudder beyond its stop)."""
-    delta = frame["delta"].to_numpy()
-    k = int(np.argmax(np.abs(delta)))
-    if abs(delta[k]) > config.max_abs_rudder:
-        raise InputError(f"rudder angle {delta[k]:.4g} deg is beyond +-{config.max_abs_rudder:g} deg: "
-                         "units cannot be right", file=name, row=int(lines[k]), column="delta")
-    r = frame["r"].to_numpy()
-    k = int(np.argmax(np.abs(r)))
-    if abs(r[k]) > config.max_abs_rate:
-        raise InputError(f"yaw rate {r[k]:.4g} deg/s is beyond +-{config.max_abs_rate:g} deg/s at model "
-                         "scale: units (or --scale) cannot be right", file=name, row=int(lines[k]),
-                         column="r")
-    t = frame["time"].to_numpy()
-    psi = frame["psi"].to_numpy()
-    if len(t) >= 5 and np.std(r) > 0.2:
-        dpsi = np.gradient(psi, t)
-        slope = float(np.dot(dpsi, r) / np.dot(r, r))
-        if abs(slope) < 0.1 and np.max(np.abs(psi)) < 7.0:
-            raise InputError(f"heading looks like radians (d(psi)/dt is {slope:.3g} times r)", file=name,
-                             column="psi")
-        if abs(slope) > 10:
-            raise InputError(f"yaw rate looks like rad/s (d(psi)/dt is {slope:.3g} times r)", file=name,
-                             column="r")
-        if slope < -0.5:
-            raise InputError("yaw rate has the opposite sign of d(psi)/dt", file=name, column="r")
-    rud = meta.get("rudder_deg")
-    amax = float(np.max(np.abs(delta)))
-    if rud and rud >= 5 and amax < 0.2 * rud and amax <= 0.7:
-        raise InputError(f"rudder looks like radians (largest {amax:.3g} for a {rud:g} deg test)", file=name,
-                         column="delta")
 
 
 def _run_figures(frame: pd.DataFrame, config: IngestConfig) -> dict[str, Any]:
@@ -326,9 +375,11 @@ def resample(run: Run, dt: float | None = None, *, config: IngestConfig = DEFAUL
 
 
 def ingest_file(path: str | Path, *, fmt: str | None = None, scale: float | None = None,
-                config: IngestConfig = DEFAULT_CONFIG) -> Run:
-    """Read, validate and resample a raw file to ``config.dt``: what every stage calls for a raw file."""
-    return resample(read_raw(path, fmt=fmt, scale=scale, config=config), config.dt, config=config)
+                config: IngestConfig = DEFAULT_CONFIG, **kwargs) -> Run:
+    """Read, validate and resample a raw file to ``config.dt``: what every stage calls for a raw file.
+
+    ``kwargs``: rudder_sign, ship, lpp_full, test_name (see :func:`read_raw`)."""
+    return resample(read_raw(path, fmt=fmt, scale=scale, config=config, **kwargs), config.dt, config=config)
 
 
 def with_dt(config: IngestConfig, dt: float | None) -> IngestConfig:

@@ -96,12 +96,61 @@ class RawTable:
     time_quantised: bool = False           # True: time repeats by rounding, rebuild the step
 
 
+GZIP_MAGIC = b"\x1f\x8b"
+MAX_DECOMPRESSED = 1 << 30          # bytes; a tank file is megabytes: more is a broken or hostile archive
+
+
+def unpack(data: bytes, file=None) -> tuple[bytes, list[str]]:
+    """Undo a gzip wrapper (recognised by its magic bytes); returns (bytes, notes).
+
+    Other archive types are refused by name (zip, 7z, xz, bzip2) rather than as an unknown format.
+    """
+    notes: list[str] = []
+    if data[:2] == GZIP_MAGIC:
+        import gzip
+        import zlib
+
+        try:
+            with gzip.GzipFile(fileobj=io.BytesIO(data)) as fh:
+                out = fh.read(MAX_DECOMPRESSED + 1)
+        except (OSError, EOFError, zlib.error) as exc:
+            raise InputError(f"gzip file cannot be decompressed ({exc})", file=file) from None
+        if len(out) > MAX_DECOMPRESSED:
+            raise InputError(f"gzip file expands beyond {MAX_DECOMPRESSED >> 20} MB", file=file)
+        notes.append("gzip-compressed file, decompressed")
+        return out, notes
+    for magic, kind in ((b"PK\x03\x04", "zip"), (b"7z\xbc\xaf", "7z"), (b"\xfd7zXZ", "xz"),
+                        (b"BZh", "bzip2")):
+        if data.startswith(magic):
+            raise InputError(f"{kind} archive: extract the tank file first (gzip is read directly)",
+                             file=file)
+    return data, notes
+
+
 def decode(data: bytes) -> str:
-    """Bytes to text: UTF-8 (with or without BOM), else Latin-1 (HSVA headers)."""
+    """Bytes to text: UTF-16 (by its byte-order mark, or by the zero bytes of ASCII text in UTF-16
+    without one), UTF-8 (with or without BOM), else Latin-1 (HSVA headers)."""
+    text, _ = decode_with_note(data)
+    return text
+
+
+def decode_with_note(data: bytes) -> tuple[str, str]:
+    """:func:`decode` and the encoding used ('utf-16', 'utf-8', 'latin-1')."""
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        return data.decode("utf-16"), "utf-16"
+    head = data[:4000]
+    if len(head) >= 8 and head.count(0) >= 0.3 * len(head):
+        even, odd = head[0::2].count(0), head[1::2].count(0)
+        enc = "utf-16-le" if odd > 3 * max(even, 1) else "utf-16-be" if even > 3 * max(odd, 1) else None
+        if enc:
+            try:
+                return data.decode(enc), "utf-16"
+            except UnicodeDecodeError:
+                pass
     try:
-        return data.decode("utf-8-sig")
+        return data.decode("utf-8-sig"), "utf-8"
     except UnicodeDecodeError:
-        return data.decode("latin-1")
+        return data.decode("latin-1"), "latin-1"
 
 
 def _is_number(tok: str) -> bool:
@@ -116,15 +165,40 @@ def _first_numeric_line(lines: list[str], limit: int = 20) -> int | None:
     return None
 
 
-def detect_format(lines: list[str], file: str | Path | None = None) -> str:
-    """Recognise the format from the content: 'csv', 'marin' or 'hsva'."""
+DELIMITERS = {",": "comma", ";": "semicolon", "\t": "tab", " ": "whitespace"}
+
+
+def table_header(lines: list[str]) -> tuple[int, str] | None:
+    """(index, delimiter) of a delimited header row naming a ``time`` column, else None.
+
+    The header is the first line that is neither blank nor a ``#`` comment.  Delimiters tried:
+    comma, semicolon, tab, then runs of whitespace; the first that splits the line into at least two
+    names, one of them ``time``, wins.
+    """
     i = 0
     while i < len(lines) and (not lines[i].strip() or lines[i].lstrip().startswith("#")):
         i += 1
-    if i < len(lines) and "," in lines[i]:
-        names = [_clean_name(n) for n in lines[i].split(",")]
+    if i >= len(lines):
+        return None
+    line = lines[i]
+    for delim in (",", ";", "\t", " "):
+        parts = line.split() if delim == " " else line.split(delim)
+        if len(parts) < 2:
+            continue
+        names = [split_name(n)[0] for n in parts]
         if "time" in names:
-            return "csv"
+            return i, delim
+    return None
+
+
+def detect_format(lines: list[str], file: str | Path | None = None) -> str:
+    """Recognise the format from the content: 'csv', 'marin' or 'hsva'.
+
+    A delimited table whose header names a ``time`` column is read as canonical CSV, whatever the
+    delimiter (comma, semicolon, tab, whitespace): :func:`parse_csv` says what is missing.
+    """
+    if table_header(lines) is not None:
+        return "csv"
     head = " ".join(lines[:3]).upper()
     j = _first_numeric_line(lines)
     if j is not None:
@@ -133,31 +207,93 @@ def detect_format(lines: list[str], file: str | Path | None = None) -> str:
             return "hsva"
         if ntok == 11:
             return "marin"
-    raise InputError("unknown format: not a canonical CSV (header with time, psi, r, delta), "
-                     "a MARIN .dat (11 columns) or an HSVA .dat (12 columns)", file=file)
+        raise InputError(f"unknown format: numeric rows of {ntok} columns without a header row naming "
+                         "them (a MARIN .dat has 11 columns, an HSVA .dat 12; a table needs a header "
+                         "row naming time, psi, r, delta)", file=file)
+    first = next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), "")
+    raise InputError("unknown format: no header row naming a 'time' column and no numeric rows "
+                     f"(first line {first.strip()[:40]!r})", file=file)
+
+
+# Units a header may declare, per canonical column kind: unit -> factor to the canonical unit.
+_ANGLE = {"deg": 1.0, "degree": 1.0, "degrees": 1.0, "°": 1.0, "rad": 180.0 / np.pi, "radian": 180.0 / np.pi,
+          "radians": 180.0 / np.pi}
+_RATE = {"deg/s": 1.0, "°/s": 1.0, "deg_s": 1.0, "degs": 1.0, "deg/sec": 1.0, "rad/s": 180.0 / np.pi,
+         "rad_s": 180.0 / np.pi, "rads": 180.0 / np.pi, "rad/sec": 180.0 / np.pi, "deg/min": 1.0 / 60.0}
+DECLARED_UNITS = {
+    "time": {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0, "ms": 1e-3, "msec": 1e-3, "min": 60.0},
+    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3},
+    "angle": _ANGLE,
+    "rate": _RATE,
+    "velocity": {"m/s": 1.0, "m_s": 1.0, "mps": 1.0, "cm/s": 1e-2, "kn": 0.514444, "kt": 0.514444,
+                 "knots": 0.514444, "knot": 0.514444},
+    "frequency": {"1/min": 1.0, "rpm": 1.0, "rev/min": 1.0, "1/s": 60.0, "rps": 60.0, "rev/s": 60.0,
+                  "hz": 60.0},
+    "force": {"n": 1.0, "kn": 1e3},
+    "moment": {"nm": 1.0, "n m": 1.0, "n.m": 1.0, "knm": 1e3},
+}
+COLUMN_UNIT_KIND = {
+    "time": "time", "x0": "length", "y0": "length", "psi": "angle", "u": "velocity", "v": "velocity",
+    "r": "rate", "delta": "angle", "rpm": "frequency", "phi": "angle", "p": "rate", "thrust": "force",
+    "torque": "moment",
+}
+_SUFFIX_UNITS = ("rad_s", "deg_s", "rad", "deg", "ms", "rps", "rpm", "kn", "mm", "cm", "s", "m_s", "mps")
+
+
+def split_name(name: str) -> tuple[str, str | None]:
+    """Header name to (canonical name, declared unit or None).
+
+    ``'Time [s]'`` -> ('time', 's'); ``'psi (rad)'`` -> ('psi', 'rad'); ``'psi_rad'`` -> ('psi', 'rad');
+    ``'r_deg_s'`` -> ('r', 'deg_s').  A ``_unit`` suffix counts only after a canonical column name.
+    """
+    raw = name.strip().strip('"').strip("'").strip()
+    m = re.match(r"^(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$", raw)
+    if m:
+        return m[1].strip().strip('"').lower(), (m[2].strip().lower() or None)
+    base = raw.lower()
+    for unit in _SUFFIX_UNITS:
+        stem = base[: -len(unit) - 1]
+        if base.endswith("_" + unit) and stem in COLUMN_UNIT_KIND:
+            return stem, unit
+    return base, None
 
 
 def _clean_name(name: str) -> str:
     """'Time [s]' -> 'time'."""
-    return re.sub(r"[\[(].*$", "", name).strip().strip('"').strip("'").strip().lower()
+    return split_name(name)[0]
+
+
+_VOID = {"", "nan", "na", "n/a", "-", "none", "null"}
+
+
+def _tokens(row: str, sep: str) -> list[str]:
+    return row.split() if sep in (" ", "ws") else row.split(sep)
 
 
 def _numeric_block(rows: list[str], linenos: np.ndarray, names: tuple[str, ...], sep: str,
-                   file) -> pd.DataFrame:
-    """Parse data rows into floats, naming the row and column of the first bad value."""
+                   file, *, decimal: str = ".", optional: frozenset[str] | None = None,
+                   notes: list[str] | None = None) -> pd.DataFrame:
+    """Parse data rows into floats, naming the row and column of the first bad value.
+
+    ``sep``: ',', ';', '\\t' or 'ws' (runs of whitespace).  ``decimal``: '.' or ',' (decimal comma,
+    only with a separator other than the comma).  Numbers in double quotes are numbers.  A column in
+    ``optional`` (a name the pipeline does not use) holding text is dropped with a line in ``notes``
+    instead of refusing the file; text in any other column is refused, naming row and column.
+    """
     n = len(names)
-    if sep == ",":
-        counts = np.fromiter((r.count(",") + 1 for r in rows), dtype=np.int64, count=len(rows))
-    else:
-        counts = np.fromiter((len(r.split()) for r in rows), dtype=np.int64, count=len(rows))
+    counts = np.fromiter((len(_tokens(r, sep)) for r in rows), dtype=np.int64, count=len(rows))
     bad = np.flatnonzero(counts != n)
     if bad.size:
         k = int(bad[0])
         raise InputError(f"expected {n} values, found {int(counts[k])}", file=file, row=int(linenos[k]))
-    text = "\n".join(r.strip() for r in rows)
+    body = [r.strip() for r in rows]
+    if decimal == ",":
+        body = [r.replace(",", ".") for r in body]
+    text = "\n".join(body)
     try:
         df = pd.read_csv(io.StringIO(text), header=None, names=list(names),
-                         sep="," if sep == "," else r"\s+", engine="c", quoting=csv.QUOTE_NONE,
+                         sep=r"\s+" if sep in (" ", "ws") else sep, engine="c",
+                         quoting=csv.QUOTE_MINIMAL if sep != "ws" else csv.QUOTE_NONE,
                          skip_blank_lines=False, low_memory=False, keep_default_na=False,
                          na_values=[""])
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError, OverflowError) as exc:
@@ -170,35 +306,67 @@ def _numeric_block(rows: list[str], linenos: np.ndarray, names: tuple[str, ...],
         if col.dtype.kind in "fi":
             out[name] = col.to_numpy(dtype=float)
             continue
-        as_text = col.astype(str).str.strip()
-        num = np.full(len(as_text), np.nan)
-        for k, tok in enumerate(as_text):
-            if tok in ("", "nan", "NaN", "None", "<NA>"):
-                continue
-            if not _is_number(tok) and tok.lower() not in ("inf", "+inf", "-inf", "infinity", "-infinity"):
+        num = pd.to_numeric(col, errors="coerce").to_numpy(dtype=float)
+        miss = np.isnan(num)
+        if miss.any():
+            as_text = col.astype(str).str.strip().str.strip('"').str.strip("'").str.strip()
+            for k in np.flatnonzero(miss):
+                tok = as_text.iat[k]
+                if tok.lower() in _VOID or tok == "<NA>":
+                    continue
+                low = tok.lower()
+                if low in ("inf", "+inf", "-inf", "infinity", "+infinity", "-infinity"):
+                    num[k] = float(low.replace("infinity", "inf"))
+                    continue
+                if _is_number(tok):
+                    num[k] = float(tok.replace("d", "e").replace("D", "e"))
+                    continue
+                if optional is not None and name in optional:
+                    if notes is not None:
+                        notes.append(f"column '{name}' ignored: not numeric (row {int(linenos[k])}: "
+                                     f"{tok[:20]!r})")
+                    num = None
+                    break
                 raise InputError(f"value {tok[:20]!r} is not a number", file=file, row=int(linenos[k]),
                                  column=name)
-            num[k] = float(tok.replace("d", "e").replace("D", "e"))
-        out[name] = num
+        if num is not None:
+            out[name] = num
     return pd.DataFrame(out)
 
 
-def _data_rows(lines: list[str], start: int) -> tuple[list[str], np.ndarray]:
-    """Non-empty lines from ``start`` on (empty rows, e.g. trailing ones, are skipped)."""
+def _data_rows(lines: list[str], start: int, sep: str = "ws") -> tuple[list[str], np.ndarray, int]:
+    """Data lines from ``start`` on, their 1-based line numbers, and how many void rows ended the file.
+
+    Empty rows and rows of separators only (``,,,,`` as spreadsheets export them) are skipped
+    wherever they are.  Rows at the end of the file whose every value is empty or NaN (real MARIN
+    files end with them) are dropped and counted; a NaN row inside the run stays and is refused later.
+    """
     rows, nums = [], []
+    strip_chars = " \t\r" + ("" if sep == "ws" else sep)
     for i in range(start, len(lines)):
         s = lines[i]
-        if s.strip():
+        if s.strip(strip_chars):
             rows.append(s)
             nums.append(i + 1)
-    return rows, np.asarray(nums, dtype=np.int64)
+    dropped = 0
+    while rows and all(t.strip().strip('"').lower() in _VOID for t in _tokens(rows[-1], sep)):
+        rows.pop()
+        nums.pop()
+        dropped += 1
+    return rows, np.asarray(nums, dtype=np.int64), dropped
+
+
+USED_COLUMNS = frozenset(COLUMN_UNIT_KIND)
 
 
 def parse_csv(lines: list[str], file=None) -> RawTable:
-    """Canonical CSV (SPEC section 3)."""
+    """Canonical CSV (SPEC section 3), also semicolon- (with decimal commas), tab- or
+    whitespace-delimited, with declared units in the header names converted to canonical ones."""
     meta: dict[str, Any] = {}
     header: dict[str, str] = {}
     comments: list[str] = []
+    notes: list[str] = []
+    found = table_header(lines)
     i = 0
     while i < len(lines) and (not lines[i].strip() or lines[i].lstrip().startswith("#")):
         s = lines[i].strip()
@@ -211,7 +379,12 @@ def parse_csv(lines: list[str], file=None) -> RawTable:
         i += 1
     if i >= len(lines):
         raise InputError("no header row (time, psi, r, delta, ...) found", file=file)
-    names = [_clean_name(n) for n in lines[i].split(",")]
+    sep = found[1] if found else ","
+    if sep == " ":
+        sep = "ws"
+    parts = _tokens(lines[i], sep)
+    split = [split_name(n) for n in parts]
+    names = [n for n, _ in split]
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
         raise InputError("column named twice in the header", file=file, row=i + 1, column=dup)
@@ -219,11 +392,49 @@ def parse_csv(lines: list[str], file=None) -> RawTable:
         raise InputError("empty column name in the header", file=file, row=i + 1)
     for c in CSV_REQUIRED:
         if c not in names:
-            raise InputError("required column is missing from the header", file=file, row=i + 1, column=c)
-    rows, linenos = _data_rows(lines, i + 1)
+            have = ", ".join(names[:8])
+            raise InputError(f"required column is missing from the header (columns found: {have})",
+                             file=file, row=i + 1, column=c)
+    rows, linenos, dropped = _data_rows(lines, i + 1, sep)
     if not rows:
         raise InputError("no data rows", file=file)
-    frame = _numeric_block(rows, linenos, tuple(names), ",", file)
+    decimal = "."
+    if sep != ",":
+        sample = " ".join(rows[:50])
+        if "," in sample:
+            if re.search(r"\d,\d", sample) and not re.search(r"\d\.\d", sample):
+                decimal = ","
+                notes.append(f"{DELIMITERS[' ' if sep == 'ws' else sep]}-separated with decimal commas")
+            else:
+                raise InputError("commas inside values of a table that is not comma-separated, mixed with "
+                                 "decimal points: cannot tell a decimal comma from a separator", file=file,
+                                 row=int(linenos[0]))
+    if sep != ",":
+        notes.append(f"{DELIMITERS[' ' if sep == 'ws' else sep]}-separated table")
+    if dropped:
+        notes.append(f"{dropped} empty or NaN rows at the end of the file dropped")
+    optional = frozenset(n for n in names if n not in USED_COLUMNS)
+    frame = _numeric_block(rows, linenos, tuple(names), sep, file, decimal=decimal, optional=optional,
+                           notes=notes)
+    declared: dict[str, str] = {}
+    for (name, unit) in split:
+        if unit is None or name not in frame.columns:
+            continue
+        kind = COLUMN_UNIT_KIND.get(name)
+        if kind is None:
+            continue
+        table = DECLARED_UNITS[kind]
+        key = unit.replace(" ", "") if kind != "moment" else unit
+        if key not in table and unit not in table:
+            raise InputError(f"declared unit {unit!r} is not a {kind} unit the reader knows "
+                             f"({', '.join(sorted(table))})", file=file, row=i + 1, column=name)
+        factor = table.get(key, table.get(unit))
+        if factor != 1.0:
+            frame[name] = frame[name] * factor
+            notes.append(f"column '{name}' converted from declared {unit} (x {factor:.6g})")
+        declared[name] = unit
+    if declared:
+        meta["declared_units"] = declared
     prov = header.get("provenance", "").strip().lower()
     meta["provenance"] = "virtual" if "virtual" in prov else "measured"
     meta["test_name"] = header.get("test", header.get("test_name", "")).strip()
@@ -237,10 +448,14 @@ def parse_csv(lines: list[str], file=None) -> RawTable:
                 raise InputError(f"header value {key!r} is not a number: {header[key][:20]!r}",
                                  file=file) from None
             meta[dest] = int(val) if key == "seed" and val.is_integer() else val
+    if "model_scale" in meta:
+        meta["file_states_model_scale"] = True      # SPEC: CSV values are model scale; 'scale' is the model's
     if header:
         meta["header"] = header
     if comments:
         meta["comments"] = comments
+    if notes:
+        meta["ingest_notes"] = notes
     return RawTable("csv", frame, linenos, meta)
 
 
@@ -249,11 +464,13 @@ def parse_marin(lines: list[str], file=None) -> RawTable:
     j = _first_numeric_line(lines)
     if j is None:
         raise InputError("no numeric data rows found (MARIN .dat)", file=file)
-    rows, linenos = _data_rows(lines, j)
+    rows, linenos, dropped = _data_rows(lines, j)
     raw = _numeric_block(rows, linenos, MARIN_COLUMNS, "ws", file)
     head = [s.strip() for s in lines[:j]]
     test = head[1] if len(head) > 1 else (head[0] if head else "")
     meta: dict[str, Any] = {"provenance": "measured", "test_name": test}
+    if dropped:
+        meta["ingest_notes"] = [f"{dropped} empty or NaN rows at the end of the file dropped"]
     if head:
         meta["institute"] = head[0]
     m = re.search(r"\bfor\s+([A-Za-z0-9-]+)", test)
@@ -272,10 +489,12 @@ def parse_hsva(lines: list[str], file=None) -> RawTable:
     j = _first_numeric_line(lines)
     if j is None:
         raise InputError("no numeric data rows found (HSVA .dat)", file=file)
-    rows, linenos = _data_rows(lines, j)
+    rows, linenos, dropped = _data_rows(lines, j)
     raw = _numeric_block(rows, linenos, HSVA_COLUMNS, "ws", file)
     head = [s.strip() for s in lines[:j]]
     meta: dict[str, Any] = {"provenance": "measured", "test_name": head[2] if len(head) > 2 else ""}
+    if dropped:
+        meta["ingest_notes"] = [f"{dropped} empty or NaN rows at the end of the file dropped"]
     if head:
         meta["institute"] = head[0]
     if len(head) > 1 and head[1]:
@@ -290,7 +509,9 @@ def parse_hsva(lines: list[str], file=None) -> RawTable:
     })
     if meta.get("ship") == "KVLCC2":
         meta["lpp"] = 7.0           # HSVA model, scale 1:45.7 (shared/data/kvlcc2_hsva/README.md)
+        meta["lpp_source"] = "HSVA KVLCC2 model"
         meta["model_scale"] = 45.7
+        meta["file_states_model_scale"] = True      # CPMC files are model-scale measurements
     return RawTable("hsva", frame, linenos, meta)
 
 

@@ -1,0 +1,322 @@
+"""Physical checks at ingest: units, signs, spikes and scale that cannot be right (SPEC sections 2, 8).
+
+Every check works on a run already in canonical names and at model scale (after Froude scaling),
+and refuses with one line (:class:`pipeline.errors.InputError`) naming file, row or column.  The
+thresholds and their reasons:
+
+Yaw rate against heading (``r = d(psi)/dt``, SPEC section 2)
+    The heading change is regressed on the time integral of r, with an offset and a linear drift
+    term (a rate-gyro bias integrates to a ramp): ``psi - psi0 = s * int(r dt) + a + b t``.  The
+    integral removes the measurement noise that a numerical derivative would amplify.  On every
+    run we hold (6 virtual-tank runs, 13 HSVA runs, the MARIN fixture) ``s`` is within 0.5 % of 1.
+    Accepted: ``|s - 1| <= R_TOLERANCE`` (10 %: a rate sensor and a heading sensor calibrated
+    within a few per cent each).  ``s`` near pi/180 means psi in rad with r in deg/s, near 180/pi r in rad/s
+    with psi in deg, near -1 a reversed sign: each is named.  Skipped when neither signal moves by
+    ``MIN_EXCITATION_DEG`` (nothing to compare).
+
+Heading amplitude against the test
+    A zigzag's heading must pass its heading trigger (that is what triggers the rudder): once the
+    rudder has been reversed, the heading change before the reversal must reach half the stated
+    trigger, or ``MIN_ZIGZAG_HEADING_DEG`` when no trigger is stated.  A turning circle turns on: at least ``MIN_TURN_HEADING_DEG``.  Heading
+    and yaw rate both in radians pass the r-psi test but fail this one.
+
+Rudder range and units
+    Beyond +-``IngestConfig.max_abs_rudder`` (90 deg) no rudder is.  A rudder that never exceeds
+    ``RAD_RUDDER_MAX`` (0.7, i.e. 40 deg read as radians) while the ship turns at more than
+    ``TURNING_RATE_DEG_S`` deg/s and changes heading by ``MIN_ZIGZAG_HEADING_DEG`` cannot be in
+    degrees: no ship turns like that on less than a degree of rudder.
+
+Rudder sign (SPEC section 2: positive delta makes r positive)
+    Over every phase where the rudder is held beyond half its largest angle on one side, the yaw
+    rate must change toward that side (the first-order response of any course-stable or mildly
+    unstable ship to a held rudder).  The changes are summed with the rudder's sign; a sum below
+    zero, larger than ``SIGN_NOISE_FACTOR`` times the noise of r, with most phases against the
+    convention, is refused with the hint ``--rudder-sign -1``.
+
+Spikes (issue 14 item 5; SPEC section 8: the run is refused, naming the row)
+    A sample of psi or r that departs from the straight line through its two neighbours by more
+    than ``SPIKE_MAD_FACTOR`` robust standard deviations of that departure, and by more than a
+    physical floor (``SPIKE_FLOOR_PSI_DEG``: 2 deg in one step, which at the 0.05-0.1 s steps of
+    tank logging would take a yaw acceleration above 400 deg/s^2; ``SPIKE_FLOOR_R_DEG_S`` 2 deg/s),
+    is a spike.  Refused rather than removed: a sample the logger got wrong may have neighbours that
+    are wrong too, and the user should see the file.
+
+Scale (issue 13 item 2)
+    With the model length L (from the dataset's Lpp over the scale, the file, or a known ship) the
+    approach Froude number Fn = U / sqrt(g L) must be in ``FROUDE_BAND`` (0.05-0.45: displacement
+    ships are tested for manoeuvring at Fn 0.1-0.3, KVLCC2 0.142, KCS 0.26; below 0.05 the rudder
+    force is too small to test, above 0.45 a displacement hull is beyond its hump speed).  The model
+    itself must be a model: L in ``MODEL_LPP_BAND`` (1-15 m; free-running models are 2-12 m).
+    Without L the approach speed must be in ``MODEL_SPEED_BAND`` (0.15-5 m/s: the Froude band over
+    1-12 m models).  A file that states itself model scale (a model scale in its header) is refused
+    when a further scale is given (double scaling).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from pipeline.config import IngestConfig
+from pipeline.errors import InputError
+
+R_TOLERANCE = 0.10
+MIN_EXCITATION_DEG = 0.5
+MIN_ZIGZAG_HEADING_DEG = 2.0
+MIN_TURN_HEADING_DEG = 30.0
+RAD_RUDDER_MAX = 0.7
+TURNING_RATE_DEG_S = 1.0
+SIGN_NOISE_FACTOR = 5.0
+SPIKE_MAD_FACTOR = 30.0
+SPIKE_FLOOR_PSI_DEG = 2.0
+SPIKE_FLOOR_R_DEG_S = 2.0
+FROUDE_BAND = (0.05, 0.45)
+MODEL_LPP_BAND = (1.0, 15.0)
+MODEL_SPEED_BAND = (0.15, 5.0)
+G = 9.81
+
+
+def _row(lines: np.ndarray, k: int) -> int | None:
+    return int(lines[k]) if lines is not None and 0 <= k < len(lines) else None
+
+
+# ------------------------------------------------------------------ rudder pattern
+def rudder_phases(t: np.ndarray, delta: np.ndarray, level: float = 0.5) -> list[tuple[int, int, int]]:
+    """Phases where |delta| is at least ``level`` times its largest value: (start, end, sign)."""
+    peak = float(np.max(np.abs(delta))) if delta.size else 0.0
+    if peak <= 0:
+        return []
+    on = np.abs(delta) >= level * peak
+    sgn = np.where(on, np.sign(delta), 0).astype(int)
+    phases = []
+    k = 0
+    n = len(delta)
+    while k < n:
+        if sgn[k] == 0:
+            k += 1
+            continue
+        j = k
+        while j + 1 < n and sgn[j + 1] == sgn[k]:
+            j += 1
+        phases.append((k, j, int(sgn[k])))
+        k = j + 1
+    # merge flickers of the same sign split by a sample or two below the level
+    merged: list[tuple[int, int, int]] = []
+    for ph in phases:
+        if merged and merged[-1][2] == ph[2]:
+            merged[-1] = (merged[-1][0], ph[1], ph[2])
+        else:
+            merged.append(ph)
+    return merged
+
+
+def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray) -> dict[str, Any]:
+    """What the rudder signal says the test is, when the title does not.
+
+    Zigzag: at least two held phases of alternating side; rudder = median of their largest angles;
+    heading trigger = median heading change from the start at the executes after the first.
+    Turning: one held phase (or phases of one side) covering most of the run after the execute.
+    Returns ``{"kind", "rudder_deg", "heading_deg", "first_side"}`` (kind 'other' when neither).
+    """
+    out: dict[str, Any] = {"kind": "other", "rudder_deg": None, "heading_deg": None, "first_side": None}
+    if delta.size < 5 or np.max(np.abs(delta)) < 1.0:
+        return out
+    ph = [p for p in rudder_phases(t, delta) if t[p[1]] - t[p[0]] >= 0.5]
+    if not ph:
+        return out
+    out["first_side"] = "starboard" if ph[0][2] > 0 else "port"
+    amp = float(np.median([np.max(np.abs(delta[a:b + 1])) for a, b, _ in ph]))
+    out["rudder_deg"] = float(np.round(amp))
+    signs = [s for _, _, s in ph]
+    if len(ph) >= 2 and all(signs[i] != signs[i + 1] for i in range(len(signs) - 1)):
+        out["kind"] = "zigzag"
+        psi0 = psi[ph[0][0]]
+        trig = [abs(psi[a] - psi0) for a, _, _ in ph[1:]]
+        out["heading_deg"] = float(np.round(np.median(trig))) if trig else None
+    elif len(set(signs)) == 1 and t[ph[-1][1]] - t[ph[0][0]] >= 0.5 * (t[-1] - t[ph[0][0]]):
+        out["kind"] = "turning"
+    return out
+
+
+# ------------------------------------------------------------------ spikes
+def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str) -> None:
+    """Refuse a one-sample jump of psi or r that no ship can make (module docstring)."""
+    for col, floor, unit in (("psi", SPIKE_FLOOR_PSI_DEG, "deg"), ("r", SPIKE_FLOOR_R_DEG_S, "deg/s")):
+        x = frame[col].to_numpy(dtype=float)
+        if x.size < 5:
+            continue
+        d = np.empty_like(x)
+        d[1:-1] = x[1:-1] - 0.5 * (x[:-2] + x[2:])
+        d[0] = x[0] - (2 * x[1] - x[2])
+        d[-1] = x[-1] - (2 * x[-2] - x[-3])
+        inner = d[1:-1]
+        mad = 1.4826 * float(np.median(np.abs(inner - np.median(inner))))
+        thr = max(floor, SPIKE_MAD_FACTOR * mad)
+        big = np.flatnonzero(np.abs(d) > thr)
+        if big.size:
+            k = int(big[np.argmax(np.abs(d[big]))])
+            raise InputError(f"spike: {x[k]:.6g} {unit} departs by {d[k]:+.4g} {unit} from its neighbours "
+                             f"(more than the {thr:.3g} {unit} a ship can change in one step)", file=name,
+                             row=_row(lines, k), column=col)
+
+
+# ------------------------------------------------------------------ units
+def _integral(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(t))])
+
+
+def r_psi_ratio(t: np.ndarray, psi: np.ndarray, r: np.ndarray) -> float | None:
+    """Slope s of ``psi - psi0 = s int(r dt) + a + b t`` (None when neither signal moves)."""
+    ir = _integral(t, r)
+    tt = t - t[0]
+    a = np.column_stack([np.ones_like(tt), tt])
+    res_psi = psi - psi[0] - a @ np.linalg.lstsq(a, psi - psi[0], rcond=None)[0]
+    res_ir = ir - a @ np.linalg.lstsq(a, ir, rcond=None)[0]
+    if max(np.std(res_psi), np.std(res_ir)) < MIN_EXCITATION_DEG:
+        return None
+    den = float(np.dot(res_ir, res_ir))
+    if den <= 1e-300:
+        return 0.0
+    return float(np.dot(res_ir, res_psi) / den)
+
+
+def check_units(frame: pd.DataFrame, lines: np.ndarray, meta: dict, name: str, config: IngestConfig,
+                declared: dict[str, str] | None = None) -> None:
+    """Values that cannot be in the units of SPEC section 2 (module docstring)."""
+    declared = declared or {}
+    t = frame["time"].to_numpy(dtype=float)
+    psi = frame["psi"].to_numpy(dtype=float)
+    r = frame["r"].to_numpy(dtype=float)
+    delta = frame["delta"].to_numpy(dtype=float)
+    k = int(np.argmax(np.abs(delta)))
+    if abs(delta[k]) > config.max_abs_rudder:
+        raise InputError(f"rudder angle {delta[k]:.4g} deg is beyond +-{config.max_abs_rudder:g} deg: "
+                         "units cannot be right", file=name, row=_row(lines, k), column="delta")
+    k = int(np.argmax(np.abs(r)))
+    if abs(r[k]) > config.max_abs_rate:
+        raise InputError(f"yaw rate {r[k]:.4g} deg/s is beyond +-{config.max_abs_rate:g} deg/s at model "
+                         "scale: units (or --scale) cannot be right", file=name, row=_row(lines, k),
+                         column="r")
+    if len(t) >= 5:
+        s = r_psi_ratio(t, psi, r)
+        if s is not None and abs(s - 1.0) > R_TOLERANCE:
+            deg = 180.0 / np.pi
+            hint = " (declare the unit in the header, e.g. 'psi [rad]', or convert)"
+            if abs(s * deg - 1.0) <= 0.15:
+                raise InputError(f"heading looks like radians while r is in deg/s (the heading changes "
+                                 f"{s:.3g} times the integral of r, 1/57.3 expected for radians){hint}",
+                                 file=name, column="psi")
+            if abs(s / deg - 1.0) <= 0.15:
+                hint_r = " (declare the unit in the header, e.g. 'r [rad/s]', or convert)"
+                raise InputError(f"yaw rate looks like rad/s while psi is in deg (the heading changes "
+                                 f"{s:.3g} times the integral of r){hint_r}", file=name, column="r")
+            if abs(s + 1.0) <= 0.15:
+                raise InputError("yaw rate has the opposite sign of d(psi)/dt (r must be d(psi)/dt, "
+                                 "positive to starboard)", file=name, column="r")
+            raise InputError(f"yaw rate is not d(psi)/dt: the heading changes {s:.3g} times the integral "
+                             f"of r (accepted within {R_TOLERANCE:.0%}); units or columns cannot be right",
+                             file=name, column="r")
+    change = float(np.max(np.abs(psi - psi[0]))) if psi.size else 0.0
+    kind = meta.get("kind")
+    rud = meta.get("rudder_deg")
+    amax = float(np.max(np.abs(delta))) if delta.size else 0.0
+    if "delta" not in declared:
+        if rud and rud >= 5 and amax < 0.2 * rud and amax <= RAD_RUDDER_MAX:
+            raise InputError(f"rudder looks like radians (largest {amax:.3g} for a {rud:g} deg test): "
+                             "declare 'delta [rad]' in the header or convert", file=name, column="delta")
+        if (0 < amax <= RAD_RUDDER_MAX and change >= MIN_ZIGZAG_HEADING_DEG
+                and np.max(np.abs(r)) >= TURNING_RATE_DEG_S):
+            raise InputError(f"rudder looks like radians (largest {amax:.3g} while the ship turns at up "
+                             f"to {np.max(np.abs(r)):.3g} deg/s): declare 'delta [rad]' in the header or "
+                             "convert", file=name, column="delta")
+    phases = rudder_phases(t, delta) if amax > 0 else []
+    reversed_once = len(phases) >= 2 and phases[0][2] != phases[1][2]
+    if kind == "zigzag" and reversed_once:
+        # the rudder was reversed, so the heading reached the trigger before the reversal
+        trig = meta.get("heading_deg") if meta.get("test_from") != "rudder signal" else None
+        need = 0.5 * trig if trig else MIN_ZIGZAG_HEADING_DEG
+        change = float(np.max(np.abs(psi[: phases[1][0] + 1] - psi[0])))
+        if change < need:
+            raise InputError(f"heading changes by only {change:.3g} during a zigzag that needs {need:g} deg "
+                             "to trigger its rudder: heading (and yaw rate) probably in radians; declare "
+                             "'psi [rad]' in the header or convert", file=name, column="psi")
+    elif kind == "turning" and amax >= 5 and change < MIN_TURN_HEADING_DEG and t[-1] - t[0] > 20:
+        raise InputError(f"heading changes by only {change:.3g} during a turning circle (at least "
+                         f"{MIN_TURN_HEADING_DEG:g} deg expected): heading probably in radians", file=name,
+                         column="psi")
+
+
+def check_rudder_sign(frame: pd.DataFrame, name: str) -> dict[str, Any]:
+    """Positive delta must make r positive (module docstring); returns the evidence for metadata."""
+    t = frame["time"].to_numpy(dtype=float)
+    r = frame["r"].to_numpy(dtype=float)
+    delta = frame["delta"].to_numpy(dtype=float)
+    if delta.size < 10 or np.max(np.abs(delta)) < 2.0:
+        return {"rudder_sign_check": "not enough rudder to check"}
+    dr2 = r[2:] - 2 * r[1:-1] + r[:-2]
+    noise = 1.4826 * float(np.median(np.abs(dr2 - np.median(dr2)))) / np.sqrt(6.0)
+    total, agree, against = 0.0, 0, 0
+    for a, b, sgn in rudder_phases(t, delta):
+        if b - a < 2:
+            continue
+        w = max(1, min(3, (b - a) // 4))
+        change = float(np.mean(r[b - w + 1:b + 1]) - np.mean(r[a:a + w]))
+        total += sgn * change
+        agree += sgn * change > 0
+        against += sgn * change < 0
+    evidence = {"rudder_sign_check": f"yaw rate changed toward the rudder in {agree} of {agree + against} "
+                                     "held rudder phases"}
+    if total < 0 and against > agree and -total > SIGN_NOISE_FACTOR * max(noise, 1e-3):
+        raise InputError(f"rudder sign is reversed: positive delta gives negative yaw rate in {against} of "
+                         f"{agree + against} rudder phases (SPEC: positive delta makes r positive); if the "
+                         "file's rudder is positive to port, ingest with --rudder-sign -1", file=name,
+                         column="delta")
+    return evidence
+
+
+# ------------------------------------------------------------------ scale
+def check_scale(meta: dict, frame: pd.DataFrame, name: str, scale: float, lpp_model: float | None,
+                lpp_source: str | None) -> dict[str, Any]:
+    """Froude number and speed plausible for the stated scale (module docstring)."""
+    if scale != 1.0 and meta.get("model_scale") and meta.get("file_states_model_scale"):
+        raise InputError(f"the file states it is model scale (1:{meta['model_scale']:g}); a scale of "
+                         f"{scale:g} would scale it twice: drop --scale (or set [data] scale = 1)", file=name)
+    out: dict[str, Any] = {}
+    u = None
+    t = frame["time"].to_numpy(dtype=float)
+    sel = t - t[0] <= 2.0
+    if "u" in frame.columns:
+        u = float(np.mean(frame["u"].to_numpy(dtype=float)[sel]))
+    elif {"x0", "y0"} <= set(frame.columns) and sel.sum() >= 3:
+        x, y = frame["x0"].to_numpy(dtype=float), frame["y0"].to_numpy(dtype=float)
+        u = float(np.mean(np.hypot(np.gradient(x, t), np.gradient(y, t))[sel]))
+    hint_full = "the files look full scale: give the scale (--scale, or [data] scale in dataset.toml)"
+    hint_twice = ("the files look scaled twice: they may already be model scale (drop --scale, or "
+                  "[data] scale = 1)" if scale != 1.0 else "check the speed column's units")
+    if lpp_model is not None:
+        lo, hi = MODEL_LPP_BAND
+        if not lo <= lpp_model <= hi:
+            raise InputError(f"a model of Lpp {lpp_model:.4g} m ({lpp_source}) at scale {scale:g} is not a "
+                             f"tank model ({lo:g}-{hi:g} m): {hint_full if lpp_model > hi else hint_twice}",
+                             file=name)
+    if u is None:
+        return out
+    out["approach_speed_check"] = u
+    if lpp_model is not None:
+        fn = u / np.sqrt(G * lpp_model)
+        out["froude_number"] = float(fn)
+        lo, hi = FROUDE_BAND
+        if not lo <= fn <= hi:
+            raise InputError(f"approach speed {u:.3g} m/s at model scale is Froude number {fn:.3g} for a "
+                             f"{lpp_model:.3g} m model ({lpp_source}), outside {lo:g}-{hi:g} for a "
+                             f"manoeuvring test: {hint_full if fn > hi else hint_twice}", file=name,
+                             column="u" if "u" in frame.columns else None)
+    else:
+        lo, hi = MODEL_SPEED_BAND
+        if not lo <= u <= hi:
+            raise InputError(f"approach speed {u:.3g} m/s is not a model's ({lo:g}-{hi:g} m/s at scale "
+                             f"{scale:g}): {hint_full if u > hi else hint_twice}", file=name,
+                             column="u" if "u" in frame.columns else None)
+    return out
