@@ -17,8 +17,9 @@ Yaw rate against heading (``r = d(psi)/dt``, SPEC section 2)
 Heading amplitude against the test
     A zigzag's heading must pass its heading trigger (that is what triggers the rudder): once the
     rudder has been reversed, the heading change before the reversal must reach half the stated
-    trigger, or ``MIN_ZIGZAG_HEADING_DEG`` when no trigger is stated.  A turning circle turns on: at least ``MIN_TURN_HEADING_DEG``.  Heading
-    and yaw rate both in radians pass the r-psi test but fail this one.
+    trigger, or ``MIN_ZIGZAG_HEADING_DEG`` when no trigger is stated.  A turning circle turns on:
+    at least ``MIN_TURN_HEADING_DEG``.  Heading and yaw rate both in radians pass the r-psi test but
+    fail this one.
 
 Rudder range and units
     Beyond +-``IngestConfig.max_abs_rudder`` (90 deg) no rudder is.  A rudder that never exceeds
