@@ -29,6 +29,9 @@ def register(sub) -> None:
     p.add_argument("--format", dest="fmt", choices=FORMATS, help="override format recognition")
     p.add_argument("--scale", type=float, help="scale (full/model) of the values")
     p.add_argument("--dt", type=float, help="output step in s (default 0.08)")
+    p.add_argument("--rudder-sign", type=int, choices=(1, -1), default=1,
+                   help="-1 for files whose rudder is positive to port (canonical: positive delta gives "
+                        "positive r)")
     p.add_argument("--dataset", help="dataset name for index.json (default: the parent folder of --out)")
     p.set_defaults(func=_run)
 
@@ -53,7 +56,8 @@ def _run(args) -> int:
         if f.stem in ids:
             raise InputError(f"two files give the same run id {f.stem!r} (also {ids[f.stem]})", file=f.name)
         ids[f.stem] = f
-    runs = [ingest_file(f, fmt=args.fmt, scale=args.scale, config=config) for f in files]
+    runs = [ingest_file(f, fmt=args.fmt, scale=args.scale, config=config, rudder_sign=args.rudder_sign)
+            for f in files]
     dataset = args.dataset or args.out.resolve().parent.name
     provs = {r.meta.get("provenance") for r in runs}
     index = {

@@ -142,8 +142,11 @@ def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray) ->
 
 
 # ------------------------------------------------------------------ spikes
-def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str) -> None:
-    """Refuse a one-sample jump of psi or r that no ship can make (module docstring)."""
+def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str, logged: pd.DataFrame | None = None) -> None:
+    """Refuse a one-sample jump of psi or r that no ship can make (module docstring).
+
+    ``frame`` is the run with heading unwrapped; ``logged`` (same rows) gives the value as the file
+    has it, for the message."""
     for col, floor, unit in (("psi", SPIKE_FLOOR_PSI_DEG, "deg"), ("r", SPIKE_FLOOR_R_DEG_S, "deg/s")):
         x = frame[col].to_numpy(dtype=float)
         if x.size < 5:
@@ -158,7 +161,8 @@ def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str) -> None:
         big = np.flatnonzero(np.abs(d) > thr)
         if big.size:
             k = int(big[np.argmax(np.abs(d[big]))])
-            raise InputError(f"spike: {x[k]:.6g} {unit} departs by {d[k]:+.4g} {unit} from its neighbours "
+            shown = float(logged[col].iloc[k]) if logged is not None and col in logged else x[k]
+            raise InputError(f"spike: {shown:.6g} {unit} departs by {d[k]:+.4g} {unit} from its neighbours "
                              f"(more than the {thr:.3g} {unit} a ship can change in one step)", file=name,
                              row=_row(lines, k), column=col)
 

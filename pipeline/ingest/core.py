@@ -126,7 +126,7 @@ def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None
         raise InputError(f"too few samples: {n_grid} at {config.dt:g} s over {t[-1] - t[0]:.3g} s, need at "
                          f"least {config.min_samples}", file=name)
     meta.update(checks.check_scale(meta, frame, name, scale, lpp_model, lpp_source))
-    checks.check_spikes(frame, table.lines, name)
+    checks.check_spikes(frame, table.lines, name, table.frame)
     checks.check_units(frame, table.lines, meta, name, config, meta.get("declared_units"))
     meta.update(checks.check_rudder_sign(frame, name))
     if notes:
@@ -252,7 +252,7 @@ def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.D
     meta.update(test)
     t, psi, delta = (frame[c].to_numpy(dtype=float) for c in ("time", "psi", "delta"))
     if test["kind"] == "other":
-        guess = checks.infer_test_from_rudder(t, psi, delta)
+        guess = checks.infer_test_from_rudder(t, delta, psi)
         if guess["kind"] != "other":
             meta.update(guess)
             meta["test_from"] = "rudder signal"
@@ -261,7 +261,7 @@ def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.D
             note = f"test read from the rudder signal: {guess['kind']} {guess['rudder_deg']:g} deg{why}"
             meta.setdefault("ingest_notes", []).append(note)
     elif test["kind"] == "turning" and test["rudder_deg"] is None:
-        guess = checks.infer_test_from_rudder(t, psi, delta)
+        guess = checks.infer_test_from_rudder(t, delta, psi)
         meta["rudder_deg"] = guess["rudder_deg"]
         meta["rudder_from"] = "rudder signal"
     if meta.get("first_side") is None and meta["kind"] in ("zigzag", "turning"):
