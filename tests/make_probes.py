@@ -78,7 +78,8 @@ def _rows(tr: dict[str, np.ndarray], cols=COLS, fmt=None) -> list[list[str]]:
     return [[fmt.get(c, "{:.6g}").format(tr[c][k]) for c in cols] for k in range(len(tr["time"]))]
 
 
-def _text(rows, header=",".join(COLS), head=None, sep=",", end="\n") -> str:
+def _text(rows, header=None, head=None, sep=",", end="\n") -> str:
+    header = ",".join(COLS) if header is None else header
     head = HEADER if head is None else head
     return end.join(head + [header] + [sep.join(r) for r in rows]) + end
 

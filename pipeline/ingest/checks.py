@@ -142,7 +142,8 @@ def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray) ->
 
 
 # ------------------------------------------------------------------ spikes
-def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str, logged: pd.DataFrame | None = None) -> None:
+def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str,
+                 logged: pd.DataFrame | None = None) -> None:
     """Refuse a one-sample jump of psi or r that no ship can make (module docstring).
 
     ``frame`` is the run with heading unwrapped; ``logged`` (same rows) gives the value as the file
