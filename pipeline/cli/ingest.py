@@ -1,12 +1,25 @@
-"""``python -m pipeline ingest FILE... --out DIR``: raw tank files to processed runs (SPEC sections 2-4, 8).
+"""``python -m pipeline ingest``: raw tank files to processed runs (SPEC sections 2-4, 8, 9).
 
-All files are read and validated first; only if every one is good are ``DIR/<run_id>.parquet``
-(run_id = file stem) and ``DIR/index.json`` written, each atomically.  A bad file: one line naming
-the file and the problem, exit status 2, nothing written, earlier outputs in DIR untouched.
-Files that are not tank data (README.md, .stamp, .gitkeep, hidden files) are skipped with a note.
+Two forms:
 
-``index.json`` (pipeline/catalog.py): ``{"dataset", "provenance", "runs": [{"run_id", "file", ...meta}]}``
-listing the runs of this invocation.
+    python -m pipeline ingest --dataset NAME [--raw DIR] [--root DIR] [--out DIR] [--dt S]
+    python -m pipeline ingest FILE... --out DIR [--dataset NAME] [--scale S] [--format F] [--rudder-sign -1]
+
+The first finds the dataset's files itself (pipeline.dataset: data/raw/NAME/dataset.toml, its
+``files_dir`` and ``files`` patterns; no file or folder name passes through a shell) and writes
+``<root>/NAME/runs/`` (default data/processed/NAME/runs).  The dataset's scale, model scale, ship,
+particulars, format, rudder sign and per-run overrides are applied; ``--scale`` etc. may not
+contradict them.  The second reads the files given; with ``--dataset`` a dataset.toml of that name,
+if there is one, is applied too.
+
+All files are read and validated first; only if every one is good are ``<run_id>.parquet``
+(run_id = file name without extension) and ``index.json`` written, as one set
+(:func:`pipeline.io.atomic_dir`).  A bad file: one line naming the file and the problem, exit
+status 2, nothing written, earlier outputs untouched.  Files that are not tank data (README.md,
+dataset.toml, .stamp, hidden files) are skipped with a note.
+
+``index.json`` (pipeline/catalog.py): ``{"dataset", "provenance", "ship": {...particulars, scale},
+"roles", "runs": [{"run_id", "file", ...meta}]}``.
 """
 
 from __future__ import annotations
@@ -15,36 +28,97 @@ import sys
 from pathlib import Path
 
 from pipeline.config import IngestConfig
+from pipeline.dataset import (
+    BUILTIN,
+    DEFAULT_RAW,
+    TOML_NAME,
+    Dataset,
+    dataset_folder,
+    is_tank_file,
+    load_dataset,
+    run_id_of,
+)
 from pipeline.errors import InputError
 from pipeline.ingest import FORMATS, ingest_file, with_dt
 from pipeline.io import atomic_dir, write_json, write_run
 
-SKIP_SUFFIXES = {".md", ".stamp", ".gitkeep", ".txt", ".json", ".pdf", ".png"}
+__all__ = ["is_tank_file", "register"]
 
 
 def register(sub) -> None:
     p = sub.add_parser("ingest", help="read, validate and resample raw tank files into processed runs")
-    p.add_argument("files", nargs="+", type=Path, metavar="FILE", help="raw files (CSV, MARIN/HSVA .dat)")
-    p.add_argument("--out", type=Path, required=True, help="output directory (e.g. data/processed/hsva/runs)")
+    p.add_argument("files", nargs="*", type=Path, metavar="FILE",
+                   help="raw files (CSV, MARIN/HSVA .dat); none: the files of --dataset")
+    p.add_argument("--out", type=Path, help="output directory (default with --dataset: ROOT/NAME/runs)")
+    p.add_argument("--dataset", help="dataset name: data/raw/NAME (its dataset.toml is applied)")
+    p.add_argument("--raw", type=Path, default=DEFAULT_RAW, help="raw-data root (default: data/raw)")
+    p.add_argument("--root", type=Path, default=Path("data/processed"),
+                   help="processed-data root (default: data/processed)")
     p.add_argument("--format", dest="fmt", choices=FORMATS, help="override format recognition")
     p.add_argument("--scale", type=float, help="scale (full/model) of the values")
     p.add_argument("--dt", type=float, help="output step in s (default 0.08)")
-    p.add_argument("--rudder-sign", type=int, choices=(1, -1), default=1,
+    p.add_argument("--rudder-sign", type=int, choices=(1, -1), default=None,
                    help="-1 for files whose rudder is positive to port (canonical: positive delta gives "
                         "positive r)")
-    p.add_argument("--dataset", help="dataset name for index.json (default: the parent folder of --out)")
     p.set_defaults(func=_run)
 
 
-def is_tank_file(path: Path) -> bool:
-    """False for files in a data folder that are not tank data (README.md, .stamp, .gitkeep, dotfiles)."""
-    return not (path.name.startswith(".") or path.suffix.lower() in SKIP_SUFFIXES)
+def _notice(line: str) -> None:
+    print(f"ingest: {line}", file=sys.stderr)
+
+
+def _described(name: str, raw: Path) -> Dataset | None:
+    """The dataset's description when it has one (a dataset.toml, or a built-in one), else None."""
+    try:
+        folder = dataset_folder(name, raw)
+    except InputError:
+        return None
+    if (folder / TOML_NAME).is_file() or name in BUILTIN:
+        return load_dataset(name, raw, write_missing=False)
+    return None
+
+
+def _merge(option, from_toml, what: str, toml_path) -> object:
+    """The option's value, the dataset's, or refuse when they contradict each other."""
+    if option is None:
+        return from_toml
+    if from_toml is not None and option != from_toml and toml_path is not None:
+        raise InputError(f"{what} {option} contradicts {what} {from_toml} in the dataset description",
+                         file=toml_path)
+    return option
 
 
 def _run(args) -> int:
     config = with_dt(IngestConfig(), args.dt)
+    ds: Dataset | None = None
+    if args.dataset:
+        if args.files:
+            ds = _described(args.dataset, args.raw)
+        else:
+            ds = load_dataset(args.dataset, args.raw, notice=_notice)
+    elif not args.files:
+        raise InputError("give raw files, or --dataset NAME (`python -m pipeline datasets` lists them)")
+    if args.out is None:
+        if not args.dataset:
+            raise InputError("--out DIR is required when files are given without --dataset")
+        args.out = args.root / args.dataset / "runs"
+        from pipeline.cli._common import check_output_location
+
+        check_output_location(args.out)
+    toml = ds.toml_path if ds is not None else None
+    scale = _merge(args.scale, ds.scale if ds is not None and ds.toml_path else None, "scale", toml)
+    fmt = _merge(args.fmt, ds.format if ds is not None else None, "format", toml)
+    sign = args.rudder_sign if args.rudder_sign is not None else (ds.rudder_sign if ds is not None else 1)
+    if args.files:
+        candidates = list(args.files)
+    else:
+        candidates = ds.raw_files()
+        if not candidates:
+            raise InputError(f"no tank files in dataset {args.dataset!r}"
+                             + (" (run `python -m pipeline tank --out data/raw/virtual` first)"
+                                if args.dataset == "virtual" else ""), file=ds.files_dir)
     files = []
-    for f in args.files:
+    for f in candidates:
         if is_tank_file(f):
             files.append(f)
         else:
@@ -53,29 +127,48 @@ def _run(args) -> int:
         raise InputError("no tank files given")
     ids: dict[str, Path] = {}
     for f in files:
-        if f.stem in ids:
-            raise InputError(f"two files give the same run id {f.stem!r} (also {ids[f.stem]})", file=f.name)
-        ids[f.stem] = f
-    runs = [ingest_file(f, fmt=args.fmt, scale=args.scale, config=config, rudder_sign=args.rudder_sign)
-            for f in files]
+        rid = run_id_of(f)
+        if rid in ids:
+            raise InputError(f"two files give the same run id {rid!r} (also {ids[rid]})", file=f.name)
+        ids[rid] = f
+    runs = []
+    for f in files:
+        rid = run_id_of(f)
+        over = ds.runs.get(rid) if ds is not None else None
+        kw = {"rudder_sign": (over.rudder_sign if over and over.rudder_sign is not None else sign)}
+        if over and over.test_name is not None:
+            kw["test_name"] = over.test_name
+        if ds is not None and ds.toml_path is not None:
+            kw.update(ship=ds.ship.name, lpp_full=ds.ship.lpp_m, model_scale=ds.model_scale)
+        runs.append(ingest_file(f, fmt=fmt, scale=scale, config=config, **kw))
     dataset = args.dataset or args.out.resolve().parent.name
     provs = {r.meta.get("provenance") for r in runs}
     index = {
         "dataset": dataset,
         "provenance": provs.pop() if len(provs) == 1 else "mixed",
-        "runs": [],
     }
+    if ds is not None:
+        index["ship"] = ds.particulars()
+        index["roles"] = {"identify": ds.roles.identify, "train": list(ds.roles.train),
+                          "validate": list(ds.roles.validate), "test": list(ds.roles.test)}
+    index["runs"] = []
     with atomic_dir(args.out) as tmp:
         for f, run in zip(files, runs, strict=True):
-            run_id = f.stem
+            run_id = run_id_of(f)
             run.meta["run_id"] = run_id
             run.meta["dataset"] = dataset
+            if ds is not None:
+                for k, v in ds.particulars().items():
+                    if v is not None:
+                        run.meta.setdefault(k, v)
+                if ds.provenance:
+                    run.meta["provenance"] = ds.provenance
             write_run(tmp / f"{run_id}.parquet", run)
             index["runs"].append({"run_id": run_id, "file": f"{run_id}.parquet", **run.meta})
         write_json(tmp / "index.json", index)
     for run in runs:
         m = run.meta
         print(f"ingest: {m['run_id']}: {m['source_format']} {m['test_name']!r}, {m['samples']} samples at "
-              f"{m['dt']:g} s, {m['duration']:.1f} s")
+              f"{m['dt']:g} s, {m['duration']:.1f} s, scale {m['scale_factor']:g}")
     print(f"written {len(runs)} runs and index.json to {args.out}")
     return 0

@@ -298,7 +298,8 @@ def check_scale(meta: dict, frame: pd.DataFrame, name: str, scale: float, lpp_mo
     elif {"x0", "y0"} <= set(frame.columns) and sel.sum() >= 3:
         x, y = frame["x0"].to_numpy(dtype=float), frame["y0"].to_numpy(dtype=float)
         u = float(np.mean(np.hypot(np.gradient(x, t), np.gradient(y, t))[sel]))
-    hint_full = "the files look full scale: give the scale (--scale, or [data] scale in dataset.toml)"
+    hint_full = ("the files look full scale: give the scale (--scale, or [data] scale in dataset.toml; "
+                 "for model-scale files give [data] model_scale)")
     hint_twice = ("the files look scaled twice: they may already be model scale (drop --scale, or "
                   "[data] scale = 1)" if scale != 1.0 else "check the speed column's units")
     if lpp_model is not None:

@@ -48,7 +48,8 @@ def _sha256(data: bytes) -> str:
 
 def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = None,
              config: IngestConfig = DEFAULT_CONFIG, *, rudder_sign: int = 1, ship: str | None = None,
-             lpp_full: float | None = None, test_name: str | None = None) -> Run:
+             lpp_full: float | None = None, model_scale: float | None = None,
+             test_name: str | None = None) -> Run:
     """Read one raw tank file into a :class:`Run` at its original sampling.
 
     Parameters
@@ -61,7 +62,9 @@ def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = Non
     rudder_sign : +1, or -1 for files whose rudder is positive to port (beyond what the format's
         reader already converts); applied before the sign check.
     ship, lpp_full : ship name and full-scale Lpp (m) from the dataset description, used for the
-        scale check and recorded (model Lpp = lpp_full / scale).
+        scale check and recorded (model Lpp = lpp_full / model_scale).
+    model_scale : full/model of the tank model (default: ``scale``); with model-scale files
+        (scale 1) it is what makes a full-scale Lpp a model Lpp.
     test_name : overrides the test title of the file (dataset.toml per-run override).
 
     Returns a Run in canonical units and signs, model scale, original (possibly non-uniform) time
@@ -79,12 +82,13 @@ def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = Non
     except OSError as exc:
         raise InputError(f"cannot read file ({exc.strerror})", file=name) from None
     return parse_raw(data, name=name, fmt=fmt, scale=scale, config=config, rudder_sign=rudder_sign,
-                     ship=ship, lpp_full=lpp_full, test_name=test_name)
+                     ship=ship, lpp_full=lpp_full, model_scale=model_scale, test_name=test_name)
 
 
 def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None, scale: float | None = None,
               config: IngestConfig = DEFAULT_CONFIG, rudder_sign: int = 1, ship: str | None = None,
-              lpp_full: float | None = None, test_name: str | None = None) -> Run:
+              lpp_full: float | None = None, model_scale: float | None = None,
+              test_name: str | None = None) -> Run:
     """:func:`read_raw` on the file's content (bytes or text); ``name`` is used in messages."""
     raw_bytes = data.encode("utf-8") if isinstance(data, str) else bytes(data)
     content, notes = unpack(raw_bytes, file=name)
@@ -113,7 +117,9 @@ def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None
     meta = _base_meta(table, name, raw_bytes, scale, frame)
     if ship:
         meta["ship"] = ship
-    lpp_model, lpp_source = _model_lpp(meta, scale, lpp_full)
+    if model_scale:
+        meta["model_scale"] = float(model_scale)
+    lpp_model, lpp_source = _model_lpp(meta, scale, lpp_full, model_scale)
     if lpp_model is not None:
         meta["lpp"] = lpp_model
         meta["lpp_source"] = lpp_source
@@ -135,11 +141,13 @@ def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None
     return Run(frame=frame, meta=meta)
 
 
-def _model_lpp(meta: dict, scale: float, lpp_full: float | None) -> tuple[float | None, str | None]:
-    """Model Lpp (m) and where it came from: the dataset's full-scale Lpp over the scale, the file's
-    own Lpp (at the file's scale), or a known ship's full-scale Lpp over the scale."""
+def _model_lpp(meta: dict, scale: float, lpp_full: float | None,
+               model_scale: float | None = None) -> tuple[float | None, str | None]:
+    """Model Lpp (m) and where it came from: the dataset's full-scale Lpp over the model scale, the
+    file's own Lpp (at the file's scale), or a known ship's full-scale Lpp over the scale."""
     if lpp_full:
-        return float(lpp_full) / scale, f"dataset Lpp {lpp_full:g} m / scale {scale:g}"
+        ms = model_scale or scale
+        return float(lpp_full) / ms, f"dataset Lpp {lpp_full:g} m / model scale {ms:g}"
     if meta.get("lpp"):
         return float(meta["lpp"]), meta.get("lpp_source", "the file's header")
     ship = str(meta.get("ship", "")).upper()
