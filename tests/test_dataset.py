@@ -1,0 +1,171 @@
+"""Dataset descriptions (SPEC section 9, issue 13 items 1 and 2): dataset.toml, discovery, scale."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from pipeline.cli import main
+from pipeline.dataset import BUILTIN, dataset_names, load_dataset, parse_dataset_toml
+from pipeline.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[1]
+PROBES = ROOT / "tests" / "data" / "probes"
+MARIN = ROOT / "tests" / "data" / "marin_zigzag_fullscale.dat"
+
+EXAMPLE = """
+[ship]
+name = "KVLCC2"
+lpp_m = 320.0
+beam_m = 58.0
+draught_m = 20.8
+design_speed_kn = 15.5
+
+[data]
+scale = 45.7
+tank = "MARIN"
+source = "SIMMAN 2008 free-running tests"
+
+[roles]
+identify = "zz_20_s"
+train = ["zz_20_s", "zz_10_s"]
+validate = ["zz_20_p", "zz_10_p"]
+test = []
+
+[runs.zz_20_p]
+rudder_sign = -1
+test_name = "zigzag 20/20 port"
+"""
+
+
+def test_example_parses_into_typed_description(tmp_path):
+    ds = parse_dataset_toml(EXAMPLE, name="marin", folder=tmp_path, path=tmp_path / "dataset.toml")
+    assert ds.ship.name == "KVLCC2" and ds.ship.lpp_m == 320.0 and ds.ship.design_speed_kn == 15.5
+    assert ds.scale == 45.7 and ds.tank == "MARIN"
+    assert ds.lpp_model_m == pytest.approx(320.0 / 45.7)
+    assert ds.roles.identify == "zz_20_s" and ds.roles.validate == ("zz_20_p", "zz_10_p")
+    assert ds.runs["zz_20_p"].rudder_sign == -1 and ds.runs["zz_20_p"].test_name == "zigzag 20/20 port"
+
+
+@pytest.mark.parametrize("text,msg", [
+    ("[ship]\nlpp = 320.0\n", "unknown key 'lpp' in [ship]"),
+    ("[data]\nscale = -1\n", "scale must be positive"),
+    ("[data]\nscale = 'big'\n", "[data] scale must be float"),
+    ("[shipp]\nname = 'x'\n", "unknown section [shipp]"),
+    ("[data\nscale = 1\n", "not valid TOML"),
+    ("[runs.a]\nrudder_sign = 2\n", "rudder_sign must be 1 or -1"),
+])
+def test_bad_description_is_one_line_naming_the_file(tmp_path, text, msg):
+    with pytest.raises(InputError) as err:
+        parse_dataset_toml(text, name="x", folder=tmp_path, path=tmp_path / "dataset.toml")
+    assert msg in str(err.value) and "dataset.toml" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_builtin_descriptions_are_the_committed_files():
+    for name, text in BUILTIN.items():
+        assert (ROOT / "data" / "raw" / name / "dataset.toml").read_text() == text
+
+
+def _ingest(*argv):
+    return main(["ingest", *map(str, argv)])
+
+
+def test_folder_without_toml_runs_with_notice_and_template(tmp_path, capsys):
+    raw = tmp_path / "raw"
+    (raw / "mine").mkdir(parents=True)
+    shutil.copy(PROBES / "clean.csv", raw / "mine" / "zz.csv")
+    (raw / "mine" / "README.md").write_text("notes")
+    rc = _ingest("--dataset", "mine", "--raw", raw, "--root", tmp_path / "proc")
+    cap = capsys.readouterr()
+    assert rc == 0, cap.err
+    notice = [ln for ln in cap.err.splitlines() if "no dataset.toml" in ln]
+    assert len(notice) == 1 and "assumed model-scale files (scale 1)" in notice[0]
+    written = raw / "mine" / "dataset.toml"
+    assert written.is_file()
+    ds = load_dataset("mine", raw)                        # the template is a valid description
+    assert ds.scale == 1.0 and ds.ship.name is None
+    index = json.loads((tmp_path / "proc" / "mine" / "runs" / "index.json").read_text())
+    assert [r["run_id"] for r in index["runs"]] == ["zz"]
+
+
+def test_full_scale_folder_scaled_by_its_toml(tmp_path, capsys):
+    raw = tmp_path / "raw"
+    (raw / "marin").mkdir(parents=True)
+    shutil.copy(MARIN, raw / "marin" / "zz_20_s.dat")
+    # without a description: refused, the ship's length is known (issue 13 blocker)
+    rc = _ingest("--dataset", "marin", "--raw", raw, "--root", tmp_path / "proc")
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert rc == 2 and "look full scale" in err and "zz_20_s.dat" in err
+    assert not (tmp_path / "proc" / "marin").exists()
+    (raw / "marin" / "dataset.toml").write_text(EXAMPLE)
+    rc = _ingest("--dataset", "marin", "--raw", raw, "--root", tmp_path / "proc")
+    assert rc == 0, capsys.readouterr().err
+    index = json.loads((tmp_path / "proc" / "marin" / "runs" / "index.json").read_text())
+    ship = index["ship"]
+    assert (ship["ship"], ship["lpp_m"], ship["scale"], ship["tank"]) == ("KVLCC2", 320.0, 45.7, "MARIN")
+    run = index["runs"][0]
+    assert run["scale_factor"] == 45.7 and run["lpp"] == pytest.approx(7.0022, abs=1e-3)
+    assert 0.13 < run["froude_number"] < 0.16                      # KVLCC2 at Fn 0.142
+    assert run["beam_m"] == 58.0 and run["draught_m"] == 20.8
+    assert index["roles"]["identify"] == "zz_20_s"
+    # an option that contradicts the description is refused
+    rc = _ingest("--dataset", "marin", "--raw", raw, "--root", tmp_path / "proc", "--scale", "1")
+    assert rc == 2 and "contradicts" in capsys.readouterr().err
+
+
+def test_per_run_override_of_rudder_sign(tmp_path, capsys):
+    raw = tmp_path / "raw"
+    (raw / "d").mkdir(parents=True)
+    shutil.copy(PROBES / "rudder_sign_flipped.csv", raw / "d" / "flipped.csv")
+    assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 2
+    assert "--rudder-sign -1" in capsys.readouterr().err
+    (raw / "d" / "dataset.toml").write_text("[data]\nscale = 1\n\n[runs.flipped]\nrudder_sign = -1\n")
+    assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 0
+
+
+def test_dataset_names_and_shell_hostile_folder_names(tmp_path, capsys, monkeypatch):
+    raw = tmp_path / "raw"
+    evil = "x$(touch${IFS}PWNED) and space"
+    (raw / evil).mkdir(parents=True)
+    (raw / "plain").mkdir()
+    shutil.copy(PROBES / "clean.csv", raw / evil / "run one.csv")
+    shutil.copy(PROBES / "clean.csv", raw / "loose.csv")
+    (raw / ".gitkeep").write_text("")
+    monkeypatch.chdir(tmp_path)
+    assert main(["datasets", "--raw", str(raw)]) == 0
+    names = capsys.readouterr().out.split("\n")[:-1]
+    assert names[0] == "virtual" and evil in names and "plain" in names and names[-1] == "local"
+    assert "hsva" not in names                          # no hsva description/files under this root
+    assert main(["datasets", "--raw", str(raw), "-0"]) == 0
+    assert capsys.readouterr().out.split("\0")[:-1] == names
+    rc = _ingest("--dataset", evil, "--raw", raw, "--root", tmp_path / "proc")
+    assert rc == 0, capsys.readouterr().err
+    assert (tmp_path / "proc" / evil / "runs" / "run one.parquet").is_file()
+    assert not list(tmp_path.rglob("PWNED"))
+    rc = _ingest("--dataset", "local", "--raw", raw, "--root", tmp_path / "proc")
+    assert rc == 0 and (tmp_path / "proc" / "local" / "runs" / "loose.parquet").is_file()
+
+
+def test_dataset_name_must_be_one_folder(tmp_path, capsys):
+    assert _ingest("--dataset", "../etc", "--raw", tmp_path, "--root", tmp_path / "p") == 2
+    assert "not a single folder name" in capsys.readouterr().err
+
+
+def test_hsva_dataset_by_description(hsva_dir, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    assert "hsva" in dataset_names()
+    rc = _ingest("--dataset", "hsva", "--root", tmp_path / "proc")
+    assert rc == 0, capsys.readouterr().err
+    index = json.loads((tmp_path / "proc" / "hsva" / "runs" / "index.json").read_text())
+    assert len(index["runs"]) == len(list(hsva_dir.glob("*.dat")))
+    assert index["ship"]["ship"] == "KVLCC2" and index["ship"]["model_scale"] == 45.7
+    assert {round(r["lpp"], 3) for r in index["runs"]} == {7.002}
+    # double scaling is refused, from the description and from the file's own statement
+    rc = _ingest("--dataset", "hsva", "--root", tmp_path / "proc2", "--scale", "45.7")
+    assert rc == 2 and "contradicts" in capsys.readouterr().err
+    one = sorted(hsva_dir.glob("*.dat"))[0]
+    rc = _ingest(one, "--out", tmp_path / "x", "--scale", "45.7")
+    assert rc == 2 and "scale it twice" in capsys.readouterr().err
