@@ -69,7 +69,21 @@ class FilterConfig:
     """
 
     algorithm: str = "srukf-ffm"         # 'srukf-ffm' or 'ffm-ukf'
-    samples: int = 585                   # identification window (first N samples)
+    samples: int = 585                   # identification window (first N samples): the paper's setting
+    # Scale-free identification window (issue 13): when set, it replaces ``samples``.  A duration in
+    # seconds at the run's (model) scale, or a number of zigzag half-periods (intervals between
+    # rudder executes) counted from the first execute; 585 samples at 0.08 s (46.8 s) is the paper case.
+    window_s: float | None = None
+    window_half_periods: float | None = None
+    # What identify refuses or flags (issue 14 item 6):
+    min_samples: int = 50                # fewer cannot fix 9 unknowns (3 states, 6 parameters) with
+                                         # several samples each; the filter would return its prior
+    min_rudder_range: float = 1.0        # deg; a rudder moving less than this within the window gives
+                                         # a rudder moment within the neutral-rudder offset and logging
+                                         # noise: b11, b21 (and K) cannot be learnt
+    nis_flag_factor: float = 3.0         # mean NIS beyond [m / f, m f] (m measured channels): the noise
+                                         # settings misstate the innovations by more than sqrt(f) in
+                                         # standard deviation, so estimates and their std are not trusted
     dt: float = 0.08                     # s, model step h
     q_std: tuple[float, ...] = (0.02, 0.02, 0.01, 0, 0, 0, 0, 0, 0)   # process noise std, Q = diag(q)^2
     r_std: tuple[float, float, float] = (0.02, 0.02, 0.01)              # measurement noise std, R = diag(r)^2

@@ -25,6 +25,10 @@ def register(sub) -> None:
     p.add_argument("--algorithm", choices=("srukf-ffm", "ffm-ukf"),
                    help="filter (default: srukf-ffm for one run, both in catalog mode)")
     p.add_argument("--samples", type=int, default=None, help="identification window (default 585)")
+    p.add_argument("--window-s", type=float, default=None,
+                   help="identification window as a duration in s at the run's scale (scale-free)")
+    p.add_argument("--half-periods", type=float, default=None,
+                   help="identification window as a number of zigzag half-periods after the first execute")
     p.add_argument("--scale", type=float, default=None, help="scale factor of a full-scale raw file")
     p.add_argument("--run-id", default=None, help="catalog mode: identify this run instead of the default")
     p.add_argument("--reference", action="store_true", help="SR-UKF: numpy reference path instead of numba")
@@ -61,9 +65,12 @@ def _summary(ident, where: Path) -> str:
     kt = (f"K {ident.indices['K']:.4g} T {ident.indices['T']:.4g}" if ident.indices
           else f"indices n/a ({ident.indices_error})")
     t = ident.timing
-    return (f"{ident.algorithm}: {ident.samples} samples, {p}; {kt}; loop {t['seconds_total'] * 1e3:.2f} ms "
+    line = (f"{ident.algorithm}: {ident.samples} samples, {p}; {kt}; loop {t['seconds_total'] * 1e3:.2f} ms "
             f"({t['seconds_per_step'] * 1e6:.1f} us/step); "
             f"mean NIS {ident.consistency['nis_mean']:.2f} -> {where}")
+    for f in ident.flags:
+        line += f"\nwarning: {ident.algorithm}: flagged {f['check']}: {f['reason']}"
+    return line
 
 
 def _run(args) -> int:
@@ -71,6 +78,16 @@ def _run(args) -> int:
     from pipeline.runinfo import choose_runs
 
     cfg = FilterConfig()
+    if sum(x is not None for x in (args.samples, args.window_s, args.half_periods)) > 1:
+        raise InputError("give one of --samples, --window-s, --half-periods")
+    if args.window_s is not None:
+        if not args.window_s > 0:
+            raise InputError(f"--window-s must be positive, got {args.window_s}")
+        cfg = dataclasses.replace(cfg, window_s=args.window_s)
+    if args.half_periods is not None:
+        if not args.half_periods > 0:
+            raise InputError(f"--half-periods must be positive, got {args.half_periods}")
+        cfg = dataclasses.replace(cfg, window_half_periods=args.half_periods)
     if args.reference:
         cfg = dataclasses.replace(cfg, fast=False)
     if args.samples is not None and args.samples < 10:

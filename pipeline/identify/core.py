@@ -183,6 +183,8 @@ class Identification:
     measured: list[str]
     consistency: dict[str, Any] = field(default_factory=dict)
     filterpy_failures: int | None = None
+    flags: list[dict[str, Any]] = field(default_factory=list)
+    window: str | None = None
 
 
 def _arrays(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -219,6 +221,13 @@ def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: Fi
     h = float(time[1] - time[0])
     if not h > 0:
         raise InputError("time step is not positive", file=name, column="time")
+    v = Y3[:, 0]
+    fin = np.isfinite(v)
+    if fin.any() and not fin.all():
+        k = int(np.flatnonzero(~fin)[0])
+        raise InputError(f"sway velocity has NaN or infinite values ({int((~fin).sum())} of {n} in the "
+                         "window): refused rather than silently identified from r and psi only",
+                         file=name, row=k + 1, column="v")
     meas_idx = measured_indices(Y3[:, 0])
     x0, P0 = initial_state(Y3[0], meas_idx, cfg)
     out = run_filter(algorithm, x0, P0, Y3[1:], delta[:-1], h, cfg, meas_idx)
@@ -239,6 +248,8 @@ def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: Fi
         "innovation_rms": {STATE_NAMES[i]: float(np.sqrt(np.mean(out.innov[:, i] ** 2))) for i in meas_idx},
         "f_mean": float(np.mean(out.f)), "f_min": float(np.min(out.f)),
     }
+    consistency["nis_flag_band"] = [m / cfg.nis_flag_factor, m * cfg.nis_flag_factor]
+    flags = trust_flags(consistency, idx, idx_err, delta, cfg)
     fails = int(out.chol_failures[-1]) if out.chol_failures is not None and steps else None
     return Identification(
         algorithm=algorithm, samples=n, dt=h,
@@ -246,7 +257,76 @@ def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: Fi
         covariance=cov, indices=idx, indices_error=idx_err,
         timing={"seconds_total": out.seconds, "seconds_per_step": out.seconds / max(steps, 1)},
         trace=trace, x_final=out.x_final, P_final=out.P_final,
-        measured=[STATE_NAMES[i] for i in meas_idx], consistency=consistency, filterpy_failures=fails)
+        measured=[STATE_NAMES[i] for i in meas_idx], consistency=consistency, filterpy_failures=fails,
+        flags=flags)
+
+
+def trust_flags(consistency: dict[str, Any], indices: dict[str, float] | None, indices_error: str | None,
+                delta: np.ndarray, cfg: FilterConfig) -> list[dict[str, Any]]:
+    """Checks an identification result fails, each ``{"check", "value", "band", "reason"}``.
+
+    - ``nis_mean``: mean NIS outside ``consistency["nis_flag_band"]`` (FilterConfig.nis_flag_factor).
+    - ``nomoto_K``: K <= 0 (SPEC section 2: positive delta makes r positive, so K > 0 for any ship
+      logged in the canonical sign): the run taught the filter nothing true about the rudder.
+    - ``nomoto_indices``: no real positive time constants (indices_error).
+    - ``rudder_range``: the rudder moved less than FilterConfig.min_rudder_range in the window
+      (identify_run refuses this; identify_arrays only flags it).
+    """
+    flags: list[dict[str, Any]] = []
+    nis = consistency.get("nis_mean")
+    lo, hi = consistency["nis_flag_band"]
+    if nis is None or not np.isfinite(nis) or not lo <= nis <= hi:
+        flags.append({"check": "nis_mean", "value": nis, "band": [lo, hi],
+                      "reason": f"mean NIS {nis:.3g} where {consistency['nis_expected']:g} is expected: the "
+                                "filter's noise settings do not describe this run's innovations (model "
+                                "mismatch, wrong units or unmodelled effects); estimates and their "
+                                "uncertainties are not to be trusted"})
+    if indices is not None and not indices.get("K", 0) > 0:
+        flags.append({"check": "nomoto_K", "value": indices.get("K"), "band": [0.0, None],
+                      "reason": "K <= 0: positive rudder must make the yaw rate positive (SPEC section 2); "
+                                "the run did not identify the rudder's effect (too little excitation, noise, "
+                                "or a reversed rudder sign)"})
+    if indices_error:
+        flags.append({"check": "nomoto_indices", "value": None, "band": None,
+                      "reason": f"no Nomoto indices: {indices_error}"})
+    rng = float(np.ptp(delta)) if len(delta) else 0.0
+    if rng < cfg.min_rudder_range:
+        flags.append({"check": "rudder_range", "value": rng, "band": [cfg.min_rudder_range, None],
+                      "reason": "the rudder hardly moves in the identification window: the rudder "
+                                "coefficients are the prior's"})
+    return flags
+
+
+def identification_window(run: Run, cfg: FilterConfig, samples: int | None = None) -> tuple[int, str]:
+    """Number of samples to identify from, and how it was chosen (scale-free when configured).
+
+    ``samples`` (the --samples option) wins; else ``cfg.window_s`` seconds; else
+    ``cfg.window_half_periods`` zigzag half-periods after the first rudder execute (executes: the
+    rudder crossing half its largest angle toward the new side); else ``cfg.samples`` (585, the
+    paper's setting: 46.8 s at 0.08 s, about 2.5 half-periods of the KCS 20/20 zigzag at model scale).
+    """
+    t = run.col("time")
+    dt = float(t[1] - t[0]) if len(t) > 1 else cfg.dt
+    if samples is not None:
+        return int(samples), f"{int(samples)} samples (option)"
+    if cfg.window_s is not None:
+        n = int(round(cfg.window_s / dt)) + 1
+        return n, f"{cfg.window_s:g} s at the run's scale ({n} samples)"
+    if cfg.window_half_periods is not None:
+        from pipeline.ingest.checks import rudder_phases
+
+        ph = rudder_phases(t, run.col("delta"))
+        starts = [a for a, _, _ in ph]
+        k = int(np.ceil(cfg.window_half_periods))
+        if len(starts) < k + 1:
+            raise InputError(f"the run has {max(len(starts) - 1, 0)} zigzag half-periods after its first "
+                             f"execute, the identification window needs {cfg.window_half_periods:g}",
+                             file=run.name, column="delta")
+        frac = cfg.window_half_periods - (k - 1)
+        t_end = t[starts[k - 1]] + frac * (t[starts[k]] - t[starts[k - 1]])
+        n = int(np.searchsorted(t, t_end)) + 1
+        return n, f"{cfg.window_half_periods:g} zigzag half-periods ({n} samples, {t[n - 1]:.3g} s)"
+    return int(cfg.samples), f"{int(cfg.samples)} samples (paper setting)"
 
 
 def _chi2_95(m: int) -> float:
@@ -288,10 +368,28 @@ def make_trace(time, delta, Y3, x0, std0, out: FilterOutput) -> pd.DataFrame:
 
 def identify_run(run: Run, cfg: FilterConfig | None = None, algorithm: str | None = None,
                  samples: int | None = None) -> Identification:
-    """Identify a processed run (SPEC section 2 columns) from its first ``samples`` samples."""
+    """Identify a processed run (SPEC section 2 columns) from its identification window.
+
+    The window: :func:`identification_window`.  Refused (one line, issue 14 item 6): a window of
+    fewer than ``cfg.min_samples`` samples, a rudder that moves less than ``cfg.min_rudder_range``
+    deg in it (nothing to learn the rudder coefficients from), a sway velocity with NaN values.
+    Results that fail a check carry ``flags`` (:func:`trust_flags`).
+    """
     cfg = cfg or FilterConfig()
     t, d, Y3 = _arrays(run)
-    return identify_arrays(t, d, Y3, cfg, algorithm, samples, name=run.name)
+    n, how = identification_window(run, cfg, samples)
+    n_eff = min(n, len(t))
+    if n_eff < cfg.min_samples:
+        raise InputError(f"too few samples to identify from: {n_eff} (need at least {cfg.min_samples}: "
+                         "3 states and 6 parameters cannot be fixed by fewer)", file=run.name)
+    rng = float(np.ptp(d[:n_eff]))
+    if rng < cfg.min_rudder_range:
+        raise InputError(f"no rudder excitation: the rudder moves {rng:.3g} deg within the identification "
+                         f"window (at least {cfg.min_rudder_range:g} deg needed to learn its effect)",
+                         file=run.name, column="delta")
+    ident = identify_arrays(t, d, Y3, cfg, algorithm, n, name=run.name)
+    ident.window = how
+    return ident
 
 
 def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfig,
@@ -327,6 +425,9 @@ def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfi
     }
     if ident.indices_error:
         doc["indices_error"] = ident.indices_error
+    doc["flags"] = ident.flags
+    if ident.window:
+        doc["window"] = ident.window
     if ident.filterpy_failures is not None:
         doc["filterpy_failures"] = ident.filterpy_failures
     if "v" not in ident.measured:

@@ -1,0 +1,94 @@
+"""identify refuses or flags data it cannot learn from (issue 14 item 6, issue 13 code review and
+item 2: scale-free identification window)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from pipeline.cli import main
+from pipeline.config import FilterConfig
+from pipeline.errors import InputError
+from pipeline.identify import identify_run, synthetic
+from pipeline.identify.core import identification_window
+from pipeline.io import Run, write_run
+
+
+def _run(n=700, **kw):
+    return synthetic.zigzag_run("zz", n=n, seed=3, **kw)
+
+
+def test_no_rudder_excitation_refused(tmp_path, capsys):
+    run = _run()
+    run.frame["delta"] = 0.3                          # a held rudder: nothing to learn its effect from
+    write_run(tmp_path / "flat.parquet", run)
+    assert main(["identify", str(tmp_path / "flat.parquet"), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "no rudder excitation" in err and "column 'delta'" in err and "\n" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_too_short_window_refused(tmp_path, capsys):
+    write_run(tmp_path / "zz.parquet", _run())
+    assert main(["identify", str(tmp_path / "zz.parquet"), "--out", str(tmp_path / "o"),
+                 "--samples", "20"]) == 2
+    assert "too few samples to identify from: 20" in capsys.readouterr().err
+
+
+def test_sway_velocity_with_nan_refused_not_dropped():
+    run = _run()
+    run.frame.loc[123, "v"] = np.nan
+    with pytest.raises(InputError, match=r"row 124, column 'v'.*NaN"):
+        identify_run(run, FilterConfig())
+
+
+def test_run_without_v_column_still_identified_with_note():
+    ident = identify_run(_run(with_v=False), FilterConfig())
+    assert ident.measured == ["r", "psi"]
+
+
+def test_nis_far_outside_its_band_is_flagged_with_reason(tmp_path):
+    # r and psi in data units but the filter told they are 100 times more precise than they are:
+    # innovations far larger than the stated noise -> mean NIS far above 3
+    run = synthetic.zigzag_run("noisy", n=700, seed=5, noise=(0.2, 0.5, 0.3))
+    write_run(tmp_path / "n.parquet", run)
+    assert main(["identify", str(tmp_path / "n.parquet"), "--out", str(tmp_path / "o")]) == 0
+    est = json.loads((tmp_path / "o" / "estimates.json").read_text())
+    nis = [f for f in est["flags"] if f["check"] == "nis_mean"]
+    assert nis and nis[0]["value"] > 9 and nis[0]["band"] == [1.0, 9.0] and "not to be trusted" in nis[0]["reason"]
+
+
+def test_clean_run_carries_no_flags(tmp_path):
+    write_run(tmp_path / "c.parquet", _run())
+    assert main(["identify", str(tmp_path / "c.parquet"), "--out", str(tmp_path / "o")]) == 0
+    est = json.loads((tmp_path / "o" / "estimates.json").read_text())
+    assert est["flags"] == [] and est["window"] == "585 samples (paper setting)"
+
+
+def test_pure_noise_is_flagged():
+    rng = np.random.default_rng(0)
+    run = _run()
+    run.frame["r"] = rng.standard_normal(len(run.frame))
+    run.frame["psi"] = np.cumsum(run.frame["r"]) * 0.08
+    run.frame["v"] = 0.01 * rng.standard_normal(len(run.frame))
+    ident = identify_run(run, FilterConfig())
+    assert {f["check"] for f in ident.flags} & {"nis_mean", "nomoto_K", "nomoto_indices"}
+
+
+def test_window_scale_free_duration_and_half_periods():
+    """The same zigzag at model and at full scale (Froude time) gets the same window in half-periods,
+    and a duration scaled by sqrt(scale) gives the same share of the run."""
+    run = _run(n=1200)
+    lam = 45.7
+    full = Run(run.frame.assign(time=run.frame["time"] * np.sqrt(lam)), dict(run.meta))
+    cfg = FilterConfig(window_half_periods=2.5)
+    n_model, how = identification_window(run, cfg)
+    n_full, _ = identification_window(full, cfg)
+    assert n_model == n_full and "half-periods" in how
+    n_dur, _ = identification_window(run, FilterConfig(window_s=46.8))
+    assert n_dur == 586                                             # 46.8 s at 0.08 s
+    assert identification_window(run, FilterConfig())[0] == 585     # the paper setting stays
+    with pytest.raises(InputError, match="half-periods"):
+        identification_window(run, FilterConfig(window_half_periods=50))
