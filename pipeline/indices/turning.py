@@ -4,9 +4,11 @@ From the execute (start of the rudder ramp, as for zigzags), with the position a
 origin: advance = distance along the original heading when the heading has changed by 90 deg;
 transfer = distance across it (to the side of the turn) at 90 deg; tactical diameter = distance
 across at 180 deg; steady turning diameter = diameter of the circle fitted (algebraic least squares,
-Kasa) to the track over the steady part (heading change from ``steady_from`` deg, 180 deg for short
-runs); steady speed ratio = mean sqrt(u^2 + v^2) there over the approach speed (mean over the 3 s
-before the execute; speed from the track when u is absent).  Lengths also in ship lengths with
+Kasa) to the track over the steady part: rudder still held (a pull-out phase, the rudder returned
+after the turn, is excluded), heading change from ``steady_from`` deg (180 deg for short runs),
+and yaw rate settled (:func:`_steady_mask`); steady speed ratio = mean sqrt(u^2 + v^2) there
+over the approach speed (mean over the 3 s before the execute; speed from the track when u is
+absent).  Lengths also in ship lengths with
 ``run.meta["lpp"]``.
 """
 
@@ -38,6 +40,53 @@ def fit_circle(x, y) -> tuple[float, float, float]:
     (c1, c2, c3), *_ = np.linalg.lstsq(a, b, rcond=None)
     xc, yc = c1 / 2, c2 / 2
     return float(xc), float(yc), float(np.sqrt(c3 + xc * xc + yc * yc))
+
+
+def _held_end(delta: np.ndarray, i_e: int, level: float) -> int:
+    """Last sample of the held-rudder phase: before the rudder leaves its plateau (pull-out)."""
+    off = np.flatnonzero(np.abs(delta[i_e:] - level) > 0.5 * abs(level))
+    # the ramp up after the execute is below the plateau too: look only after the plateau is reached
+    reached = np.flatnonzero(np.abs(delta[i_e:] - level) <= 0.1 * abs(level))
+    if reached.size == 0:
+        return delta.size - 1
+    first = int(reached[0])
+    off = off[off > first]
+    return i_e + int(off[0]) - 1 if off.size else delta.size - 1
+
+
+def _steady_mask(t, change, r, i_e: int, held_end: int, total_held: float, cfg: IndicesConfig):
+    """Samples of the steady turn (ITTC 7.5-04-02-01), or (None, start) when there are too few.
+
+    Steady: the rudder still held (pull-out excluded), the heading changed by at least ``start``
+    (``cfg.steady_from``, 270 deg, or 180 deg for shorter runs), and the yaw rate settled: within
+    ``STEADY_R_BAND`` (5 %) of its median over the last third of the held phase, or within three
+    times its sample-to-sample noise for a slow turn (a turning ship's yaw rate settles within a few
+    per cent once the speed loss is over).  At least ``cfg.steady_min_span`` deg of it is needed.
+    """
+    start = cfg.steady_from if total_held >= cfg.steady_from + cfg.steady_min_span else 180.0
+    idx = np.arange(t.size)
+    held = (idx >= i_e) & (idx <= held_end)
+    steady = held & (change >= start)
+    if r is not None and steady.sum() >= 10:
+        tail = np.flatnonzero(held)
+        tail = tail[int(2 * tail.size / 3):]
+        r_ref = float(np.median(r[tail]))
+        noise = float(np.median(np.abs(np.diff(r[tail])))) * 1.4826 / np.sqrt(2) if tail.size > 2 else 0.0
+        band = max(STEADY_R_BAND * abs(r_ref), 3.0 * noise)
+        settled = np.abs(r - r_ref) <= band
+        # steady from the first sample after which r stays settled to the end of the held phase
+        bad = np.flatnonzero(steady & ~settled)
+        if bad.size:
+            steady &= idx > bad[-1]
+    if steady.sum() < 10:
+        return None, start
+    span = float(change[steady].max() - change[steady].min())
+    if span < cfg.steady_min_span:
+        return None, start
+    return steady, start
+
+
+STEADY_R_BAND = 0.05
 
 
 def turning_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]:
@@ -76,11 +125,13 @@ def turning_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, 
         f = (level - change[j - 1]) / (change[j] - change[j - 1])
         return float(arr[j - 1] + f * (arr[j] - arr[j - 1]))
 
+    held_end = _held_end(delta, i_e, float(ex.levels[0]))
     total = float(np.max(change[i_e:]))
-    start = cfg.steady_from if total >= cfg.steady_from + cfg.steady_min_span else 180.0
-    steady = (change >= start) & (np.arange(t.size) >= i_e)
+    total_held = float(np.max(change[i_e:held_end + 1]))
+    steady, start = _steady_mask(t, change, run.col("r") if "r" in run.frame.columns else None,
+                                 i_e, held_end, total_held, cfg)
     d_steady = ratio = r_steady = None
-    if total >= start + cfg.steady_min_span and steady.sum() >= 10:
+    if steady is not None:
         _, _, rad = fit_circle(x[steady], y[steady])
         d_steady = 2.0 * rad
         ratio = float(np.mean(speed[steady]) / u0) if u0 > 0 else None
@@ -91,7 +142,9 @@ def turning_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, 
            "approach_speed_m_s": u0, "heading_change_deg": total, "lpp_m": lpp,
            "advance_m": at(90.0, along), "transfer_m": at(90.0, across),
            "tactical_diameter_m": at(180.0, across), "steady_diameter_m": d_steady,
-           "steady_speed_ratio": ratio, "steady_yaw_rate_deg_s": r_steady}
+           "steady_speed_ratio": ratio, "steady_yaw_rate_deg_s": r_steady,
+           "steady_from_deg": start, "steady_samples": int(steady.sum()) if steady is not None else 0,
+           "pull_out_s": float(t[held_end + 1]) if held_end + 1 < t.size else None}
     for key in ("advance", "transfer", "tactical_diameter", "steady_diameter"):
         v = out[f"{key}_m"]
         out[f"{key}_L"] = v / lpp if (v is not None and lpp) else None

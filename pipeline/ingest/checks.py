@@ -118,7 +118,7 @@ def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray) ->
 
     Zigzag: at least two held phases of alternating side; rudder = median of their largest angles;
     heading trigger = median heading change from the start at the executes after the first.
-    Turning: one held phase (or phases of one side) covering most of the run after the execute.
+    Turning: rudder held to one side only while the heading turns through 90 deg or more.
     Returns ``{"kind", "rudder_deg", "heading_deg", "first_side"}`` (kind 'other' when neither).
     """
     out: dict[str, Any] = {"kind": "other", "rudder_deg": None, "heading_deg": None, "first_side": None}
@@ -136,8 +136,8 @@ def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray) ->
         psi0 = psi[ph[0][0]]
         trig = [abs(psi[a] - psi0) for a, _, _ in ph[1:]]
         out["heading_deg"] = float(np.round(np.median(trig))) if trig else None
-    elif len(set(signs)) == 1 and t[ph[-1][1]] - t[ph[0][0]] >= 0.5 * (t[-1] - t[ph[0][0]]):
-        out["kind"] = "turning"
+    elif len(set(signs)) == 1 and np.ptp(psi[ph[0][0]:ph[-1][1] + 1]) >= 90.0:
+        out["kind"] = "turning"         # one side held while the ship turns through 90 deg or more
     return out
 
 
