@@ -8,10 +8,17 @@ The contracts between stages (what each file holds; JSON written with :func:`pip
 Parquet with :func:`pipeline.io.write_frame`, both atomic):
 
 ``runs/<run_id>.parquet``  processed run, SPEC section 2 (``pipeline.io.Run``).
-``runs/index.json``        ``{"dataset", "provenance": "virtual"|"measured"|"mixed", "runs": [entry...]}``,
+``runs/index.json``        ``{"dataset", "provenance": "virtual"|"measured"|"mixed", "ship": {...}, "roles": {...},
+                           "runs": [entry...]}``; ``ship`` (when the dataset has a description,
+                           pipeline.dataset.Dataset.particulars): ship, lpp_m, beam_m, draught_m,
+                           design_speed_kn (full scale), scale, model_scale, lpp_model_m, tank, source,
+                           dataset_toml; ``roles``: identify, train, validate, test (run ids);
                            entry = ``{"run_id", "file"}`` + the run's metadata (source_file, source_sha256,
                            source_format, provenance, test_name, kind, rudder_deg, heading_deg, first_side,
-                           dt, original_dt, scale_factor, duration, samples, ship, lpp, ...).
+                           dt, original_dt, scale_factor, duration, samples, ship, lpp (model, m),
+                           lpp_source, froude_number, rudder_sign, ingest_notes, the particulars, ...).
+Every stage directory is written as one set (pipeline.io.atomic_dir); its manifest is
+``.<dir>.set.json`` beside it.
 ``identify/<alg>/estimates.json``  SPEC section 5, plus ``run_id``, ``dataset``, ``provenance``.
 ``identify/<alg>/trace.parquet``   per step: time, delta, v, r, psi (measured); v_pred, r_pred, psi_pred
                            (one-step prediction made before the sample); v_est, r_est, psi_est (posterior);

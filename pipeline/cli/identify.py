@@ -105,7 +105,7 @@ def _run(args) -> int:
     index = read_json(cat.runs_index)
     entries = index.get("runs") or []
     try:
-        ident_id, _ = choose_runs(entries, args.run_id)
+        ident_id, _ = choose_runs(entries, args.run_id or (index.get("roles") or {}).get("identify"))
     except ValueError as exc:
         raise InputError(str(exc), file=cat.runs_index) from None
     entry = next(e for e in entries if e["run_id"] == ident_id)
