@@ -8,7 +8,7 @@ The contracts between stages (what each file holds; JSON written with :func:`pip
 Parquet with :func:`pipeline.io.write_frame`, both atomic):
 
 ``runs/<run_id>.parquet``  processed run, SPEC section 2 (``pipeline.io.Run``).
-``runs/index.json``        ``{"dataset", "provenance": "virtual"|"measured"|"mixed", "ship": {...}, "roles": {...},
+``runs/index.json``        ``{"dataset", "provenance": "virtual"|"measured"|"mixed", "ship", "roles",
                            "runs": [entry...]}``; ``ship`` (when the dataset has a description,
                            pipeline.dataset.Dataset.particulars): ship, lpp_m, beam_m, draught_m,
                            design_speed_kn (full scale), scale, model_scale, lpp_model_m, tank, source,
