@@ -91,18 +91,11 @@ def rudder_phases(t: np.ndarray, delta: np.ndarray, level: float = 0.5) -> list[
         return []
     on = np.abs(delta) >= level * peak
     sgn = np.where(on, np.sign(delta), 0).astype(int)
-    phases = []
-    k = 0
-    n = len(delta)
-    while k < n:
-        if sgn[k] == 0:
-            k += 1
-            continue
-        j = k
-        while j + 1 < n and sgn[j + 1] == sgn[k]:
-            j += 1
-        phases.append((k, j, int(sgn[k])))
-        k = j + 1
+    # runs of equal non-zero sign, found with array operations (runs are long: a held rudder)
+    edges = np.flatnonzero(np.diff(sgn)) + 1
+    starts = np.concatenate([[0], edges])
+    ends = np.concatenate([edges - 1, [len(sgn) - 1]])
+    phases = [(int(a), int(b), int(sgn[a])) for a, b in zip(starts, ends, strict=True) if sgn[a] != 0]
     # merge flickers of the same sign split by a sample or two below the level
     merged: list[tuple[int, int, int]] = []
     for ph in phases:

@@ -281,7 +281,10 @@ def _numeric_block(rows: list[str], linenos: np.ndarray, names: tuple[str, ...],
     instead of refusing the file; text in any other column is refused, naming row and column.
     """
     n = len(names)
-    counts = np.fromiter((len(_tokens(r, sep)) for r in rows), dtype=np.int64, count=len(rows))
+    if sep in (" ", "ws"):
+        counts = np.fromiter((len(r.split()) for r in rows), dtype=np.int64, count=len(rows))
+    else:
+        counts = np.fromiter((r.count(sep) + 1 for r in rows), dtype=np.int64, count=len(rows))
     bad = np.flatnonzero(counts != n)
     if bad.size:
         k = int(bad[0])
