@@ -205,6 +205,9 @@ def _owned(dest: Path) -> bool:
         return True
     if not dest.is_dir():
         return False
+    here = Path.cwd().resolve()
+    if dest.resolve() == here or dest.resolve() in here.parents:
+        return False                             # never swap away the working directory or its parents
     present = _listing(dest)
     dirs_only = not present and not any(dest.iterdir())
     if dirs_only:
@@ -232,7 +235,7 @@ def atomic_dir(dest: str | Path) -> Iterator[Path]:
       previous set that the new set does not have are removed, and the manifest is written last.
     - Temporaries of killed runs beside ``dest`` are removed first (:func:`clean_stale_temporaries`).
     """
-    dest = Path(dest)
+    dest = Path(os.path.abspath(dest))          # '.' has no name to put a temporary beside
     dest.parent.mkdir(parents=True, exist_ok=True)
     clean_stale_temporaries(dest)
     tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.out.{os.getpid()}.", dir=dest.parent))

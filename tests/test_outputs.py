@@ -151,3 +151,12 @@ def test_live_process_temporary_is_kept(tmp_path):
 def test_fallback_swap_without_renameat2(tmp_path, monkeypatch):
     monkeypatch.setattr("pipeline.io._exchange", lambda a, b: False)
     test_directory_set_replaced_whole_stale_files_gone(tmp_path)
+
+
+def test_out_is_the_working_directory(tmp_path, monkeypatch):
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    with atomic_dir(".") as tmp:
+        (tmp / "estimates.json").write_text("1")
+    assert (work / "estimates.json").read_text() == "1" and Path.cwd() == work
