@@ -16,7 +16,7 @@ U0, LPP = 1.2, 7.0
 K, T = 0.25, 8.0                # 1/s, s: first-order yaw response at model scale (not the filter's model)
 
 
-def turning_truth(pull_out_after_deg: float | None = 540.0, side: float = 1.0, h: float = 0.005,
+def turning_truth(pull_out_after_deg: float | None = 540.0, side: float = 1.0, h: float = 0.01,
                   dt: float = 0.1, duration: float = 260.0):
     """A 35 deg turning circle with speed loss to 70 % and an optional pull-out (rudder back to 0 once
     the heading has turned ``pull_out_after_deg``).  Continuous integration at step h, logged at dt.
