@@ -131,7 +131,8 @@ def test_reports_from_the_real_stages(tmp_path):
     (The diagnosis report is covered by the catalog-schema test above; running the diagnose stage
     here would double this test's time.)
     """
-    tank = pytest.importorskip("pipeline.tank")
+    from pipeline import tank
+
     raw, root, out = tmp_path / "raw", tmp_path / "proc", tmp_path / "reports"
     raw.mkdir()
     for rud, side, tag in ((20, "starboard", "20_20_S"), (10, "starboard", "10_10_S")):
