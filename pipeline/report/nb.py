@@ -161,6 +161,12 @@ class Data:
         return f"{entry['rudder_deg']:g}/{entry.get('heading_deg') or 0:g}"
 
 
+    def sort_key(self, run_id: str) -> tuple:
+        """Table order of a run (:func:`run_sort_key`)."""
+        entry = next((r for r in self.index.get("runs", []) if r.get("run_id") == run_id), {"run_id": run_id})
+        return run_sort_key(entry)
+
+
 # ----------------------------------------------------------------------------------------- banner
 def _kv_table(rows: list[tuple[str, Any]]) -> str:
     cells = "".join(f"<tr><th style='text-align:left'>{esc(k)}</th>"
@@ -279,6 +285,9 @@ def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True
     styler = Styler(df, uuid=f"tab{_TAB['n']}", cell_ids=False).format(fmt)
     styler = styler.format_index(fmt_label, axis=0).format_index(fmt_label, axis=1)
     styler = styler.set_caption(f"Table {_TAB['n']}. {esc(caption)}")
+    text_cols = [c for c in df.columns if df[c].dtype == object]
+    if text_cols:      # words read left to right; numbers stay right-aligned
+        styler = styler.set_properties(subset=text_cols, **{"text-align": "left"})
     styler = styler.set_table_styles([{"selector": "caption", "props": "caption-side: top; "
                                        "text-align: left; font-weight: bold; padding: 4px 0;"}])
     if not index:
@@ -330,3 +339,70 @@ def records(obj: Any, key: str = "run_id") -> list[dict]:
                 out.append({key: k, **v})
         return out
     return []
+
+
+# ------------------------------------------------------------------------- reviewer-facing helpers
+def legend_outside(ax, **kw) -> None:
+    """Legend to the right of the axes, never over the curves."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0,
+                  frameon=False, **kw)
+
+
+def num(x: Any, digits: int = 3, unit: str = "") -> str:
+    """A number as plain text for sentences ('n/a' for None/NaN), with its unit."""
+    if x is None or isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)):
+        return "n/a" if x is None else str(x)
+    if not math.isfinite(float(x)):
+        return "n/a"
+    return f"{float(x):.{digits}g}" + (f" {unit}" if unit else "")
+
+
+CHECK_LABEL = {"relative_uncertainty": "uncertain", "invalid_draws": "invalid draws", "nis": "NIS",
+               "sign": "sign", "ill_conditioned": "ill-conditioned", "prime_unavailable": "no K', T'",
+               "excitation": "excitation"}
+
+
+def flag_marks(flags: list[dict] | None, subject: str | None = None) -> str:
+    """Short text for a table cell: the checks that failed (for ``subject``, or the whole set)."""
+    out = []
+    for f in flags or []:
+        subj = str(f.get("subject", ""))
+        if subject is None or subj == subject or subj == "filter" or "," in subj:
+            lab = CHECK_LABEL.get(str(f.get("check")), str(f.get("check")).replace("_", " "))
+            if lab not in out:
+                out.append(lab)
+    return ", ".join(out)
+
+
+def flags_table(groups: list[tuple[str, list[dict] | None]], caption: str) -> int:
+    """One table of every flag: which number set, which check, about what, the reason.  Returns the
+    number of flags (0: a note says that no check failed)."""
+    rows = [{"set": name, "check": CHECK_LABEL.get(str(f.get("check")), str(f.get("check"))),
+             "about": f.get("subject", ""), "reason": f.get("reason", "")}
+            for name, flags in groups for f in flags or []]
+    if rows:
+        table(pd.DataFrame(rows).set_index(["set", "check"]), caption)
+    else:
+        note("No trust check failed for the numbers in this report.")
+    return len(rows)
+
+
+def conclusion(points: list[str]) -> None:
+    """The short conclusion that ends every report (escaped plain-text points)."""
+    from IPython.display import HTML, display
+
+    items = "".join(f"<li>{esc(p)}</li>" for p in points if p)
+    display(HTML("<div style='border-left:4px solid #555;padding:4px 12px;margin:12px 0'>"
+                 f"<b>Conclusion</b><ul style='margin:4px 0'>{items}</ul></div>"))
+
+
+def run_sort_key(entry: dict) -> tuple:
+    """Order of runs in tables: zigzags by rudder angle then heading trigger then side, then turning
+    circles by rudder angle, then the rest by run id."""
+    kind = {"zigzag": 0, "turning": 1}.get(entry.get("kind") or "", 2)
+    rud = entry.get("rudder_deg") or 0.0
+    head = entry.get("heading_deg") or 0.0
+    side = {"starboard": 0, "port": 1}.get(entry.get("first_side") or "", 2)
+    return (kind, float(rud), float(head), side, str(entry.get("run_id")))

@@ -46,7 +46,7 @@ def notebook_dir() -> Path:
     """The folder holding the notebook sources (installed package data first, then the source tree)."""
     for d in _NOTEBOOK_DIRS:
         if (d / f"{NOTEBOOKS[0]}.py").is_file():
-            return d
+            return d.resolve()
     raise InputError("notebook sources not found (looked in "
                      + ", ".join(str(d) for d in _NOTEBOOK_DIRS) + ")")
 
