@@ -285,11 +285,13 @@ def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True
     styler = Styler(df, uuid=f"tab{_TAB['n']}", cell_ids=False).format(fmt)
     styler = styler.format_index(fmt_label, axis=0).format_index(fmt_label, axis=1)
     styler = styler.set_caption(f"Table {_TAB['n']}. {esc(caption)}")
-    text_cols = [c for c in df.columns if df[c].dtype == object]
-    if text_cols:      # words read left to right; numbers stay right-aligned
-        styler = styler.set_properties(subset=text_cols, **{"text-align": "left"})
     styler = styler.set_table_styles([{"selector": "caption", "props": "caption-side: top; "
                                        "text-align: left; font-weight: bold; padding: 4px 0;"}])
+    # words read left to right, numbers stay right-aligned (class selectors: no cell ids needed)
+    text = {c: [{"selector": "td", "props": "text-align: left;"}]
+            for c in df.columns if df[c].dtype == object}
+    if text:
+        styler = styler.set_table_styles(text, overwrite=False)
     if not index:
         styler = styler.hide(axis="index")
     display(HTML(styler.to_html()))
