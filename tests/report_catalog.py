@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.catalog import Catalog
-from pipeline.io import Run, write_frame, write_json, write_run
+from pipeline.io import Run, read_json, write_frame, write_json, write_run
 from pipeline.model import PAPER_TABLE4, PARAM_NAMES, nomoto_indices, simulate
 
 DT = 0.08
@@ -51,10 +51,12 @@ def _zigzag(rudder: float, heading: float, n: int, seed: int) -> pd.DataFrame:
 
 def make_catalog(root: Path, dataset: str = "tiny", provenance: str = "virtual",
                  ids: tuple[str, str] = ("zz20", "zz10"), ship: str = "KCS",
-                 test_names: tuple[str, str] | None = None) -> Catalog:
+                 test_names: tuple[str, str] | None = None, rich_diagnosis: bool = False) -> Catalog:
     """Write every stage output of a tiny dataset (two zigzags) in the catalog.py schemas.
 
-    ``ids``: run ids of the 20/20 and the 10/10 zigzag; ``ship``, ``test_names``: header text.
+    ``ids``: run ids of the 20/20 and the 10/10 zigzag; ``ship``, ``test_names``: header text;
+    ``rich_diagnosis``: diagnosis.json also holds the model ladder, each finding's physical sentence,
+    material flag and stability, and the gain's interval and measured_on runs (issue 11's keys).
     """
     id20, id10 = ids
     cat = Catalog(root=Path(root), dataset=dataset)
@@ -181,5 +183,18 @@ def make_catalog(root: Path, dataset: str = "tiny", provenance: str = "virtual",
         "extended": {"effects": ["rudder_offset"],
                      "validation": {"mae_psi_deg": 1.6, "mse_r": 0.2, "mse_v": 0.001}},
         "gain": {"mae_psi_relative_reduction": 0.61}})
+    if rich_diagnosis:
+        doc = read_json(cat.diagnose_dir / "diagnosis.json")
+        doc["findings"][0].update(physical="the rudder's neutral angle is 1.5 deg to port of the logged zero",
+                                  material=True, stability={"folds_agreeing": 2, "folds": 2})
+        doc["findings"][1].update(physical="no measurable steering-gear delay", material=False,
+                                  stability={"folds_agreeing": 0, "folds": 2})
+        doc["gain"].update(interval_95=[0.48, 0.70], measured_on=[id10 + "-test"])
+        doc["ladder"] = [
+            {"model": "linear", "effects": [], "validation_mae_psi_deg": 4.1, "test_mae_psi_deg": 4.3,
+             "test_interval_95": [3.9, 4.8]},
+            {"model": "linear + offset", "effects": ["rudder_offset"], "validation_mae_psi_deg": 1.6,
+             "test_mae_psi_deg": 1.7, "test_interval_95": [1.4, 2.1]}]
+        write_json(cat.diagnose_dir / "diagnosis.json", doc)
     return cat
 

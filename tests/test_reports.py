@@ -157,3 +157,20 @@ def test_reports_from_the_real_stages(tmp_path):
         assert "kcs_zigzag_20_20_S.csv" in page
     ident = (out / "identification-e2e.html").read_text(encoding="utf-8")
     assert "Table 5" in ident and "Table 6" in ident and "paper Table 4" in ident
+
+
+@pytest.mark.slow
+def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
+    """Issue 11's keys, when present, are rendered; today's diagnosis.json (without them) renders too
+    (the catalog test above)."""
+    root = tmp_path / "proc"
+    make_catalog(root, "tiny", "virtual", rich_diagnosis=True)
+    out = tmp_path / "reports"
+    assert main(["report", "--datasets", "tiny", "--root", str(root), "--out", str(out),
+                 "--notebooks", "diagnosis"]) == 0
+    page = (out / "diagnosis-tiny.html").read_text(encoding="utf-8")
+    for text in ("model ladder", "linear + offset", "[1.4, 2.1]", "95 % interval [48 %, 70 %]",
+                 "zz10-test", "neutral angle is 1.5 deg to port", "material", "stability across folds",
+                 "folds agreeing: 2", "Conclusion"):
+        assert text in page, text
+    assert "{&#x27;" not in page and "None" not in page.split("Conclusion")[1]   # no raw dicts, no None
