@@ -79,7 +79,8 @@ if not g.empty and "run_id" in g:
              "ship is not linear.")
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     ids = list(dict.fromkeys(g.run_id))
-    for ax, q in zip(axes, ("K_prime", "T_prime"), strict=True):
+    primed = "K_prime" in g and g["K_prime"].notna().any()
+    for ax, q in zip(axes, ("K_prime", "T_prime") if primed else ("K", "T"), strict=True):
         for meth, sub in g.groupby("method"):
             ax.plot([ids.index(r) for r in sub.run_id], sub[q], "o", label=meth)
         bad = g[[bool(f) for f in g["flags"]]]
@@ -91,9 +92,10 @@ if not g.empty and "run_id" in g:
         cm_v = (ind.get("control_model") or {}).get(q)
         if cm_v is not None:
             ax.axhline(cm_v, color="tab:red", ls=":", lw=1.0, label="autopilot design")
-        ax.set_ylabel(f"{q[0]}' (-)")
+        ax.set_ylabel(f"{q[0]}' (-)" if primed else f"{q} ({'1/s' if q == 'K' else 's'})")
     nb.legend_outside(axes[1])
-    nb.show(fig, "Non-dimensional K' and T' per run and method (crosses: flagged values), with the "
+    nb.show(fig, ("Non-dimensional K' and T'" if primed else "K and T (no Lpp or speed for K', T')")
+            + " per run and method (crosses: flagged values), with the "
             "values the autopilot is designed from. The spread between runs shows how amplitude-specific "
             "the first-order indices are.")
 

@@ -27,11 +27,12 @@ IMG = re.compile(r"<img[^>]+src=\"data:image/png;base64,")
 
 
 CONTENT = {   # notebook: (least number of embedded PNG figures, texts the page must hold)
-    "identification": (6, ["MSE v paper", "MAE psi", "Table 5", "Table 6", "paper Table 4",
-                           "per step (us)", "forgetting factor"]),
-    "indices": (3, ["K (1/s)", "T1 (s)", "1st overshoot (deg)", "period (s)", "first overshoot"]),
-    "control": (1, ["Kp", "rise_time (s)", "paper", "wave seed"]),
-    "diagnosis": (1, ["validation_gain", "rudder_offset", "61 %", "extended: rudder_offset"]),
+    "identification": (6, ["paper MSE v", "MAE psi", "Table 5", "Table 6", "paper Table 4",
+                           "per step (us)", "forgetting factor", "residual", "Conclusion"]),
+    "indices": (2, ["K (1/s)", "T1 (s)", "K' (-)", "T' (-)", "1st overshoot (deg)", "period (s)",
+                    "first overshoot", "Autopilot designed from", "Conclusion"]),
+    "control": (1, ["Kp", "rise time (s)", "paper", "wave seed", "Designed from", "Conclusion"]),
+    "diagnosis": (1, ["held-out gain", "rudder offset", "61 %", "extended: rudder offset", "Conclusion"]),
 }
 
 
