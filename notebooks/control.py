@@ -70,12 +70,16 @@ for name, d in designs.items():
                    ("Ms", "Ms (-)")):
         if k in loop:
             row[lab] = loop[k] if loop[k] is not None else np.inf
+    row["flags"] = nb.flag_marks(d.get("flags"))
     rows.append(row)
 if rows:
     nb.table(pd.DataFrame(rows).set_index("design"),
              "CGSA designs (Kp deg of rudder per deg of heading error, Kd deg per deg/s) and the loop "
              "figures on the Nomoto plant the design is for: gain and phase margins, crossover, "
              "closed-loop bandwidth, sensitivity peak Ms (inf: the phase never reaches -180 deg).")
+dflags = [(f"design {n}", d.get("flags")) for n, d in designs.items() if d.get("flags")]
+if dflags:
+    n_flags += nb.flags_table(dflags, "Designs whose loop fails a robustness check, with the reason.")
 bode = {n: d["bode_nomoto_plant"] for n, d in designs.items()
         if isinstance(d.get("bode_nomoto_plant"), dict)}
 if bode:

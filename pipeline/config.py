@@ -123,6 +123,9 @@ class ControlConfig:
     """CGSA course keeping (paper section 4, ALGORITHMS.md)."""
 
     tw: float = 3.0                      # s, closed-loop time constant Tw
+    # A design whose loop on the Nomoto plant has less phase margin than this is flagged: below
+    # about 30 deg a loop rings and amplifies disturbances (Ms > 2), the usual robustness floor.
+    min_phase_margin: float = 30.0       # deg
     setpoint: float = 60.0               # deg, course step 0 -> setpoint
     duration: float = 200.0              # s
     dt: float = 0.08                     # s, simulation step

@@ -176,3 +176,13 @@ def test_control_says_what_it_was_designed_from():
     assert doc["design_basis"]["source"].startswith("first-order graphical")
     assert any(n.startswith("designed from: first-order graphical") for n in doc["notes"])
     assert np.isfinite(doc["results"][0]["stats"]["rise_time"]["mean"])
+
+
+def test_phase_margin_below_the_floor_is_flagged():
+    from pipeline.control.stage import loop_flags
+
+    cfg = ControlConfig()
+    (f,) = loop_flags({"phase_margin_deg": 20.0}, cfg)
+    assert f["check"] == "phase_margin" and "20 deg below 30 deg" in f["reason"]
+    assert loop_flags({"phase_margin_deg": 45.0}, cfg) == []
+    assert loop_flags({"phase_margin_deg": None}, cfg) == []

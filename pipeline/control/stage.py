@@ -117,6 +117,17 @@ def refused_document(indices: dict, cfg: ControlConfig) -> tuple[dict, pd.DataFr
     return doc, ts
 
 
+def loop_flags(loop: dict, cfg: ControlConfig) -> list[dict]:
+    """Control-side trust flag: a phase margin below ``cfg.min_phase_margin`` (see its comment)."""
+    pm = loop.get("phase_margin_deg")
+    if pm is None or not np.isfinite(pm) or pm >= cfg.min_phase_margin:
+        return []
+    return [{"check": "phase_margin", "subject": "loop", "value": float(pm),
+             "band": [cfg.min_phase_margin, 180.0],
+             "reason": f"phase margin {pm:.3g} deg below {cfg.min_phase_margin:g} deg on the Nomoto plant: "
+                       "the loop rings and amplifies disturbances"}]
+
+
 def design_table(designs: dict[str, CGSADesign], control_model: dict, cfg: ControlConfig) -> dict:
     """Gains and loop figures of each design, on its own model and on the identified Nomoto plant."""
     cm = control_model
@@ -132,6 +143,7 @@ def design_table(designs: dict[str, CGSADesign], control_model: dict, cfg: Contr
             "setpoint_dc_gain_nomoto": float(np.real(step_tf(0.0))) if np.isfinite(step_tf(1e-9)) else None,
             "bode_nomoto_plant": bode_data(loop_plant, n=cfg.bode_points),
         }
+        out[name]["flags"] = loop_flags(out[name]["loop_nomoto_plant"], cfg)
     return out
 
 

@@ -363,7 +363,7 @@ def num(x: Any, digits: int = 3, unit: str = "") -> str:
 
 CHECK_LABEL = {"relative_uncertainty": "uncertain", "invalid_draws": "invalid draws", "nis": "NIS",
                "sign": "sign", "ill_conditioned": "ill-conditioned", "prime_unavailable": "no K', T'",
-               "excitation": "excitation"}
+               "excitation": "excitation", "phase_margin": "phase margin", "rejected": "not used"}
 
 
 def flag_marks(flags: list[dict] | None, subject: str | None = None) -> str:
