@@ -67,11 +67,23 @@ if dg.get("summary"):
 # ## Every effect tried
 
 # %%
+UNIT_SUFFIX = (("_s_per_deg2", "s/deg^2"), ("_deg_s", "deg/s"), ("_m_s", "m/s"), ("_deg", "deg"),
+               ("_s", "s"), ("_m", "m"))
+
+
+def param_name(key):
+    """'n_rrr_s_per_deg2' -> 'n_rrr (s/deg^2)': the unit suffix of a diagnosis key as a unit."""
+    for suffix, unit in UNIT_SUFFIX:
+        if key.endswith(suffix):
+            return f"{key[: -len(suffix)]} ({unit})"
+    return key
+
+
 def estimate_text(f):
     est, unc = f.get("estimate") or {}, f.get("uncertainty") or {}
     parts = []
     for k, v in est.items():
-        name = k.replace("_", " ")
+        name = param_name(k)
         if isinstance(v, (int, float)) and not isinstance(v, bool):
             u = unc.get(k)
             pm = f" +- {nb.num(u, 2)}" if isinstance(u, (int, float)) else ""
@@ -98,9 +110,10 @@ for f in findings:
     row = {"effect": effect_name(f.get("effect")), "significant": bool(f.get("significant"))}
     if has["material"]:
         row["material"] = bool(f.get("material"))
-    row["held-out gain"] = f.get("validation_gain")
+    pct = (lambda x: 100 * x if isinstance(x, (int, float)) else None)  # noqa: E731
+    row["held-out gain (%)"] = pct(f.get("validation_gain"))
     if has["validation_gain_in_extended"]:
-        row["worth in extended model"] = f.get("validation_gain_in_extended")
+        row["worth in extended model (%)"] = pct(f.get("validation_gain_in_extended"))
     if has["stability"]:
         row["stability across folds"] = stability_text(f.get("stability"))
     row["estimate (+- 1 sigma)"] = estimate_text(f)
@@ -142,11 +155,16 @@ for label_, key in (("baseline (linear)", "baseline"), (ext_name, "extended")):
         vrows.append({"run": rid, "model": label_, **{k: x for k, x in p_.items()
                                                       if k not in ("run_id", "run") and
                                                       not isinstance(x, (list, dict))}})
-vt = pd.DataFrame(vrows).rename(columns={"mae_psi_deg": "MAE psi (deg)", "mse_r": "MSE r ((deg/s)^2)",
+vt = pd.DataFrame(vrows)
+ALL = "all validation runs"
+vt["_o"] = [(r != ALL, data.sort_key(r) if r != ALL else (), m != "baseline (linear)")
+            for r, m in zip(vt["run"], vt["model"], strict=True)]
+vt = vt.sort_values("_o").drop(columns="_o")
+vt = vt.rename(columns={"mae_psi_deg": "MAE psi (deg)", "mse_r": "MSE r ((deg/s)^2)",
                                          "mse_v": "MSE v ((m/s)^2)"})
 nb.table(vt.set_index(["run", "model"]),
-         "Free-run errors of the baseline and the extended model on the validation runs, all together "
-         "and run by run.")
+         "Free-run errors of the baseline and the extended model on the validation runs: all together "
+         "first, then run by run in rudder-angle order, baseline above extended.")
 
 # %% [markdown]
 # ## Measured against baseline and extended model, free-run

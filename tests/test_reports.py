@@ -32,7 +32,7 @@ CONTENT = {   # notebook: (least number of embedded PNG figures, texts the page 
     "indices": (2, ["K (1/s)", "T1 (s)", "K' (-)", "T' (-)", "1st overshoot (deg)", "period (s)",
                     "first overshoot", "Autopilot designed from", "Conclusion"]),
     "control": (1, ["Kp", "rise time (s)", "paper", "wave seed", "Designed from", "Conclusion"]),
-    "diagnosis": (1, ["held-out gain", "rudder offset", "61 %", "extended: rudder offset", "Conclusion"]),
+    "diagnosis": (1, ["held-out gain (%)", "rudder offset", "61 %", "extended: rudder offset", "Conclusion"]),
 }
 
 

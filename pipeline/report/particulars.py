@@ -91,8 +91,8 @@ def particulars(index: dict) -> dict[str, Any]:
 def _range(rng: tuple[float, float] | None, fmt: str) -> str:
     if rng is None:
         return NOT_GIVEN
-    lo, hi = rng
-    return format(lo, fmt) if abs(hi - lo) <= 1e-9 * max(1.0, abs(hi)) else f"{lo:{fmt}} to {hi:{fmt}}"
+    a, b = format(rng[0], fmt), format(rng[1], fmt)
+    return a if a == b else f"{a} to {b}"
 
 
 def rows(index: dict) -> list[tuple[str, str]]:
