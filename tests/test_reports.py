@@ -175,3 +175,38 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
                  "folds agreeing: 2", "Conclusion"):
         assert text in page, text
     assert "{&#x27;" not in page and "None" not in page.split("Conclusion")[1]   # no raw dicts, no None
+
+
+def test_reports_rerender_only_what_changed(tmp_path, monkeypatch):
+    """`report --changed` (make reports): a page is rendered again only when a stage output it reads,
+    its notebook or the report code changed (fingerprint in reports.json)."""
+    import importlib
+
+    rr = importlib.import_module("pipeline.report.render")   # the module (the package exports a function)
+    root, out = tmp_path / "proc", tmp_path / "reports"
+    cat = make_catalog(root, "tiny", "virtual")
+    fp = rr.fingerprint("indices", cat)
+    write_json_path = cat.diagnose_dir / "diagnosis.json"
+    write_json_path.write_text(write_json_path.read_text().replace("rudder_offset", "rudder_delay"))
+    assert rr.fingerprint("indices", cat) == fp              # the indices page does not read diagnose/
+    calls = []
+
+    def fake_render(nb, c, out_dir, kernel=rr.KERNEL_NAME):
+        calls.append(nb)
+        dest = Path(out_dir) / f"{nb}-{c.dataset}.html"
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        dest.write_text("page")
+        return rr.Report(nb, c.dataset, dest, 0.1, "virtual", 2, "KCS", rr.fingerprint(nb, c))
+
+    monkeypatch.setattr(rr, "render", fake_render)
+    monkeypatch.setattr(rr, "ensure_kernel", lambda kernel: None)
+    rr.render_all(["tiny"], ["indices", "diagnosis"], out, root=root, force=False)
+    assert calls == ["indices", "diagnosis"]                   # nothing rendered yet: both
+    calls.clear()
+    reports, _ = rr.render_all(["tiny"], ["indices", "diagnosis"], out, root=root, force=False)
+    assert calls == [] and all(r.skipped for r in reports)     # nothing changed: nothing rendered
+    idx = cat.indices_dir / "indices.json"
+    idx.write_text(idx.read_text().replace("0.3867", "0.3868"))
+    rr.render_all(["tiny"], ["indices", "diagnosis"], out, root=root, force=False)
+    assert calls == ["indices"]                                # only the page that reads it
+    assert "indices-tiny.html" in (out / "index.html").read_text()
