@@ -260,6 +260,17 @@ if len(algorithms) == 2 and all(est[a].get("timing", {}).get("seconds_per_step")
             f"{nb.ALG_LABEL.get(algorithms[1])} on the same samples.")
 
 # %% [markdown]
+# ## Which numbers can be trusted
+
+# %%
+from pipeline.indices.trust import identify_side_flags
+n_flags = nb.flags_table([(nb.ALG_LABEL.get(a, a),
+                           (metrics.get("flags") or {}).get(a, identify_side_flags(est[a])))
+                          for a in algorithms],
+                         "Trust checks of the identification that failed, with the reason (the validation "
+                         "errors above come from these estimates).")
+
+# %% [markdown]
 # ## Conclusion
 
 # %%
