@@ -174,7 +174,8 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
                  "zz10-test", "neutral angle is 1.5 deg to port", "material", "stability across folds",
                  "folds agreeing: 2", "Conclusion"):
         assert text in page, text
-    assert "{&#x27;" not in page and "None" not in page.split("Conclusion")[1]   # no raw dicts, no None
+    (concl,) = re.findall(r"class=.conclusion.[^>]*>(.*?)</div>", page, flags=re.S)
+    assert "gain" in concl and "None" not in concl and "{" not in concl          # no raw dicts, no None
 
 
 def test_reports_rerender_only_what_changed(tmp_path, monkeypatch):

@@ -176,6 +176,14 @@ def test_control_says_what_it_was_designed_from():
     assert doc["design_basis"]["source"].startswith("first-order graphical")
     assert any(n.startswith("designed from: first-order graphical") for n in doc["notes"])
     assert np.isfinite(doc["results"][0]["stats"]["rise_time"]["mean"])
+    # with the flagged identified indices at hand they are simulated beside it, labelled as such
+    ident = {"srukf-ffm": {"K": {"value": 0.38, "std": 0.6}, "T": {"value": 25.0, "std": 49.0}}}
+    doc, _ = run_control({"dataset": "d", "provenance": "measured", "control_model": cm, "identified": ident,
+                          "graphical_model": {"source": "standard", "K": 0.3, "T": 14.0}},
+                         ControlConfig(seeds=1), progress=False)
+    assert set(doc["designs"]) == {"graphical", "identified-flagged"}
+    assert any("for comparison only" in n for n in doc["notes"])
+    assert doc["design_basis"]["source"].startswith("first-order graphical")
 
 
 def test_phase_margin_below_the_floor_is_flagged():

@@ -94,6 +94,16 @@ def primary_name(control_model: dict) -> str:
         else "identified"
 
 
+def _flagged_identified(indices: dict) -> dict | None:
+    """K, T of the SR-UKF-FFM identified indices when usable for a comparison design (K, T > 0)."""
+    block = (indices.get("identified") or {}).get("srukf-ffm") or {}
+    try:
+        k, t = float(block["K"]["value"]), float(block["T"]["value"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    return {"K": k, "T": t} if np.isfinite(k) and np.isfinite(t) and k > 0 and t > 0 else None
+
+
 def design_basis(indices: dict) -> dict:
     """Which indices the autopilot is designed from and why (from indices.json control_model)."""
     cm = indices.get("control_model") or {}
@@ -175,9 +185,18 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                        if indices.get("graphical_model") is not None else None)
     provenance = indices.get("provenance", "unknown")
     designs = build_designs(control_model, graphical_model, cfg)
+    notes = []
+    flagged = _flagged_identified(indices)
+    if primary_name(control_model) == "graphical" and flagged is not None:
+        # shown beside the autopilot for comparison (the paper's identified-vs-graphical figures),
+        # never as the autopilot: its name and the note say so
+        designs["identified-flagged"] = design_first_order(flagged["K"], flagged["T"], cfg.tw,
+                                                           name="identified-flagged")
+        notes.append("identified-flagged: first-order CGSA from the flagged SR-UKF-FFM indices "
+                     f"(K = {flagged['K']:.4g} 1/s, T = {flagged['T']:.4g} s), simulated for comparison "
+                     "only; it is not the autopilot")
     table = design_table(designs, control_model, cfg)
 
-    notes = []
     basis = design_basis(indices)
     if basis["basis"]:
         notes.append(f"designed from: {basis['basis']}")
@@ -231,9 +250,10 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                         "per_seed": rows})
 
     value = {}
-    if "identified" in designs and "graphical" in designs:
+    ident_name = next((n for n in ("identified", "identified-flagged") if n in designs), None)
+    if ident_name and "graphical" in designs:
         for plant in plants:
-            a = {r["seed"]: r for r in per[(plant, "identified")]}
+            a = {r["seed"]: r for r in per[(plant, ident_name)]}
             b = {r["seed"]: r for r in per[(plant, "graphical")]}
             diff = {}
             for name in WORST:
@@ -241,7 +261,7 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                 d = d[np.isfinite(d)]
                 diff[name] = {"mean": float(np.mean(d)) if d.size else float("nan"),
                               "std": float(np.std(d, ddof=1)) if d.size > 1 else 0.0}
-            value[plant] = {"difference": "identified minus graphical, paired over seeds", "metrics": diff}
+            value[plant] = {"difference": f"{ident_name} minus graphical, paired over seeds", "metrics": diff}
 
     doc = {
         "dataset": indices.get("dataset"),

@@ -396,8 +396,8 @@ def conclusion(points: list[str]) -> None:
     from IPython.display import HTML, display
 
     items = "".join(f"<li>{esc(p)}</li>" for p in points if p)
-    display(HTML("<div style='border-left:4px solid #555;padding:4px 12px;margin:12px 0'>"
-                 f"<b>Conclusion</b><ul style='margin:4px 0'>{items}</ul></div>"))
+    display(HTML("<div class='conclusion' style='border-left:4px solid #555;padding:4px 12px;margin:12px 0'>"
+                 f"<ul style='margin:4px 0'>{items}</ul></div>"))
 
 
 def run_sort_key(entry: dict) -> tuple:
