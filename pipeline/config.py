@@ -125,6 +125,11 @@ class IndicesConfig:
     # IMO check: model scale factor by ship, used when the run's metadata does not give it
     # (L/U is a full-scale time; KVLCC2 HSVA 1:45.7 from the data README, KCS SIMMAN 1:37.89).
     ship_scales: dict[str, float] = field(default_factory=lambda: {"KVLCC2": 45.7, "KCS": 37.89})
+    # Trust flags (pipeline/indices/trust.py says why): relative one-sigma uncertainty above which an
+    # index's 95 % interval reaches zero; share of Monte Carlo draws without real positive time
+    # constants above which the Gaussian bounds are local only.
+    max_rel_std: float = 0.5
+    max_invalid_fraction: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -132,6 +137,9 @@ class ControlConfig:
     """CGSA course keeping (paper section 4, ALGORITHMS.md)."""
 
     tw: float = 3.0                      # s, closed-loop time constant Tw
+    # A design whose loop on the Nomoto plant has less phase margin than this is flagged: below
+    # about 30 deg a loop rings and amplifies disturbances (Ms > 2), the usual robustness floor.
+    min_phase_margin: float = 30.0       # deg
     setpoint: float = 60.0               # deg, course step 0 -> setpoint
     duration: float = 200.0              # s
     dt: float = 0.08                     # s, simulation step

@@ -30,7 +30,7 @@ from pipeline.control.disturbance import (
     wind_from_config,
 )
 from pipeline.control.metrics import course_metrics, rudder_reversals, seed_statistics
-from pipeline.control.simulate import NomotoShip, kcs_available, make_kcs_ship, simulate_course
+from pipeline.control.simulate import NomotoShip, make_kcs_ship, simulate_course
 from pipeline.control.stage import run_control
 from pipeline.errors import InputError, ModelError
 from pipeline.io import read_frame, read_json, write_json
@@ -240,7 +240,6 @@ def test_rudder_saturation_and_rate_limit_nomoto():
     assert np.max(np.abs(free["delta"])) > 50
 
 
-@pytest.mark.skipif(not kcs_available(), reason="pipeline.tank.KCSShip not available yet")
 def test_rudder_limits_kcs():
     d = design_first_order(K, T, TW)
     fr = simulate_course(d, make_kcs_ship(35.0, 14.28), setpoint=60.0, duration=20.0, dt=0.08, wind=2.0)
@@ -371,7 +370,6 @@ def test_negative_t3_skips_second_order_design():
     assert np.all(np.isfinite(ts["psi"]))
 
 
-@pytest.mark.skipif(not kcs_available(), reason="pipeline.tank.KCSShip not available yet")
 def test_virtual_dataset_uses_the_kcs_plant():
     doc, ts = run_control(_indices("virtual"), replace(FAST, seeds=1), progress=False)
     assert doc["virtual"] is True and doc["plants"]["kcs"]["used"] is True
@@ -392,3 +390,22 @@ def test_first_order_fallback_control_model():
     a = ts[ts.design == "identified"]["psi"].to_numpy()
     b = ts[ts.design == "graphical"]["psi"].to_numpy()
     np.testing.assert_allclose(a, b, rtol=1e-12)
+
+
+def test_kcs_available_only_for_an_absent_tank(monkeypatch):
+    """Absent tank package: False.  A tank package that breaks on import: the error, not a skip."""
+    import sys as _sys
+
+    from pipeline.control import simulate as sim
+
+    assert sim.kcs_available() is True
+    monkeypatch.setitem(_sys.modules, "pipeline.tank", None)       # as if not installed
+    assert sim.kcs_available() is False
+    monkeypatch.undo()
+
+    def broken():
+        raise ModuleNotFoundError("No module named 'numba_missing'", name="numba_missing")
+
+    monkeypatch.setattr(sim, "_kcs_class", broken)
+    with pytest.raises(ModuleNotFoundError, match="numba_missing"):
+        sim.kcs_available()

@@ -311,7 +311,8 @@ def test_measured_hsva_zigzags_are_read_consistently(hsva_dir, stem, side, trig)
     detected from the logged rudder is the one in the file name; every counter-rudder execute comes
     just after the heading deviation reaches the trigger (a short operator/servo delay, never
     before); overshoots are positive; the 10/10 IMO limits use the full-scale L/V (>= 30 s here)."""
-    ingest = pytest.importorskip("pipeline.ingest")
+    from pipeline import ingest
+
     run = ingest.ingest_file(hsva_dir / f"{stem}.dat")
     zz = zigzag_metrics(run)
     assert zz["first_side"] == side

@@ -7,6 +7,7 @@ Table 7 and graphical K, T instead) and writes ``control/metrics.json`` and
 
 from __future__ import annotations
 
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -76,7 +77,10 @@ def _run(args) -> int:
                     meta={"dataset": metrics["dataset"], "provenance": metrics["provenance"],
                           "units": {"time": "s", "psi_ref": "deg", "psi": "deg", "r": "deg/s",
                                     "delta_cmd": "deg", "delta": "deg", "wave": "deg", "wind": "deg"}})
-    _print_summary(metrics)
+    if metrics.get("refused"):
+        print(f"control: autopilot not designed: {metrics['reason']}", file=sys.stderr)
+    else:
+        _print_summary(metrics)
     print(f"written {Path(out) / 'metrics.json'} and {Path(out) / 'timeseries.parquet'}")
     return 0
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 from pipeline.cli._common import add_dataset_args, catalog
 from pipeline.config import FilterConfig
 from pipeline.errors import InputError
+from pipeline.indices.trust import identify_side_flags
 from pipeline.io import atomic_dir, read_json, read_run, write_frame, write_json
 
 
@@ -60,6 +61,8 @@ def _run(args) -> int:
                "free-run": "pipeline.model.simulate with the identified parameters from the measured "
                            "initial state, driven by the measured rudder alone",
                "units": "mse_v (m/s)^2, mse_r (deg/s)^2, mae_psi deg"}}
+    # the identify-side trust flags of each estimate travel with the errors computed from it
+    doc["flags"] = {alg: identify_side_flags(est) for alg, est in estimates.items()}
     if index.get("provenance") == "virtual":
         doc["virtual_tank"] = "made from virtual-tank (simulated KCS) data, not from measurements"
     with atomic_dir(cat.validate_dir) as tmp:

@@ -96,20 +96,25 @@ class NomotoShip:
 
 
 def _kcs_class():
-    """pipeline.tank.KCSShip (or pipeline.tank.kcs.KCSShip while the package has no re-export)."""
-    try:
-        from pipeline.tank import KCSShip
-    except ImportError:
-        from pipeline.tank.kcs import KCSShip
+    """pipeline.tank.KCSShip (the virtual tank's stepping KCS simulator)."""
+    from pipeline.tank import KCSShip
+
     return KCSShip
 
 
 def kcs_available() -> bool:
-    """True when the virtual-tank package with its stepping KCS simulator can be imported."""
+    """True when the virtual-tank package (an optional part of a slimmed install) is present.
+
+    Only the absence of ``pipeline.tank`` itself counts as "not available"; a tank package that is
+    there but fails to import (a bug, a missing dependency of it) raises, so it is never mistaken
+    for an optional part that is simply not installed.
+    """
     try:
         _kcs_class()
-    except Exception:  # noqa: BLE001 - any import failure means: not available
-        return False
+    except ModuleNotFoundError as exc:
+        if exc.name in ("pipeline.tank",):
+            return False
+        raise
     return True
 
 

@@ -75,14 +75,67 @@ def build_designs(control_model: dict, graphical_model: dict | None,
     """First-order identified (always), second-order identified (when T3 > 0, else the controller
     would be unstable: skipped), graphical (when given)."""
     cm = control_model
+    if primary_name(cm) == "graphical":        # the indices stage fell back: one design, named so
+        return {"graphical": design_first_order(cm["K"], cm["T"], cfg.tw, name="graphical")}
     designs = {"identified": design_first_order(cm["K"], cm["T"], cfg.tw, name="identified")}
-    if cm["T3"] > 0:
+    second_ok = (cm.get("second_order") or {}).get("ok", True)
+    if cm["T3"] > 0 and second_ok:
         designs["identified-2nd"] = design_second_order(cm["K"], cm["T1"], cm["T2"], cm["T3"], cfg.tw,
                                                         cfg.filter_tau, name="identified-2nd")
     if graphical_model is not None:
         designs["graphical"] = design_first_order(graphical_model["K"], graphical_model["T"], cfg.tw,
                                                   name="graphical")
     return designs
+
+
+def primary_name(control_model: dict) -> str:
+    """'identified' unless the indices stage chose the graphical model (its source says so)."""
+    return "graphical" if str(control_model.get("source", "")).startswith("first-order graphical") \
+        else "identified"
+
+
+def _flagged_identified(indices: dict) -> dict | None:
+    """K, T of the SR-UKF-FFM identified indices when usable for a comparison design (K, T > 0)."""
+    block = (indices.get("identified") or {}).get("srukf-ffm") or {}
+    try:
+        k, t = float(block["K"]["value"]), float(block["T"]["value"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    return {"K": k, "T": t} if np.isfinite(k) and np.isfinite(t) and k > 0 and t > 0 else None
+
+
+def design_basis(indices: dict) -> dict:
+    """Which indices the autopilot is designed from and why (from indices.json control_model)."""
+    cm = indices.get("control_model") or {}
+    return {"source": cm.get("source"), "basis": cm.get("basis") or cm.get("source"),
+            "flags": cm.get("flags") or [], "rejected": cm.get("rejected") or [],
+            "second_order": cm.get("second_order"), "refused": bool(cm.get("refused")),
+            "reason": cm.get("reason")}
+
+
+def refused_document(indices: dict, cfg: ControlConfig) -> tuple[dict, pd.DataFrame]:
+    """The control outputs when no index set can be trusted: no design, the reason, nothing simulated."""
+    basis = design_basis(indices)
+    doc = {"dataset": indices.get("dataset"), "provenance": indices.get("provenance", "unknown"),
+           "virtual": indices.get("provenance") == "virtual", "refused": True, "reason": basis["reason"],
+           "design_basis": basis, "notes": [f"autopilot not designed: {basis['reason']}"],
+           "config": asdict(cfg), "designs": {}, "results": [], "identification_value": {},
+           "paper": PAPER_CONTROL, "plants": {}, "seeds": []}
+    cols = ["plant", "design", "seed", "time", "psi_ref", "psi", "r", "delta_cmd", "delta", "wave", "wind"]
+    ts = pd.DataFrame({c: pd.Series(dtype="object" if c in ("plant", "design") else "float64")
+                       for c in cols})
+    return doc, ts
+
+
+def loop_flags(loop: dict, cfg: ControlConfig) -> list[dict]:
+    """Control-side trust flag: a phase margin below ``cfg.min_phase_margin`` (see its comment)."""
+    pm = loop.get("phase_margin_deg")
+    if pm is None or not np.isfinite(pm) or pm >= cfg.min_phase_margin:
+        return []
+    return [{"check": "phase_margin", "subject": "loop", "value": float(pm),
+             "band": [cfg.min_phase_margin, 180.0],
+             "reason": f"phase margin {pm:.3g} deg below {cfg.min_phase_margin:g} deg on the Nomoto plant: "
+                       "the loop rings and amplifies disturbances"}]
 
 
 def design_table(designs: dict[str, CGSADesign], control_model: dict, cfg: ControlConfig) -> dict:
@@ -100,6 +153,7 @@ def design_table(designs: dict[str, CGSADesign], control_model: dict, cfg: Contr
             "setpoint_dc_gain_nomoto": float(np.real(step_tf(0.0))) if np.isfinite(step_tf(1e-9)) else None,
             "bode_nomoto_plant": bode_data(loop_plant, n=cfg.bode_points),
         }
+        out[name]["flags"] = loop_flags(out[name]["loop_nomoto_plant"], cfg)
     return out
 
 
@@ -123,15 +177,33 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
     cfg = ControlConfig() if cfg is None else cfg
     if not isinstance(indices, dict):
         raise InputError("indices document is not a JSON object", file=source)
+    if (indices.get("control_model") or {}).get("refused"):
+        return refused_document(indices, cfg)
     control_model = _model(indices, "control_model", ("K", "T1", "T2", "T3", "T"), source)
+    control_model["second_order"] = (indices.get("control_model") or {}).get("second_order")
     graphical_model = (_model(indices, "graphical_model", ("K", "T"), source)
                        if indices.get("graphical_model") is not None else None)
     provenance = indices.get("provenance", "unknown")
     designs = build_designs(control_model, graphical_model, cfg)
+    notes = []
+    flagged = _flagged_identified(indices)
+    if primary_name(control_model) == "graphical" and flagged is not None:
+        # shown beside the autopilot for comparison (the paper's identified-vs-graphical figures),
+        # never as the autopilot: its name and the note say so
+        designs["identified-flagged"] = design_first_order(flagged["K"], flagged["T"], cfg.tw,
+                                                           name="identified-flagged")
+        notes.append("identified-flagged: first-order CGSA from the flagged SR-UKF-FFM indices "
+                     f"(K = {flagged['K']:.4g} 1/s, T = {flagged['T']:.4g} s), simulated for comparison "
+                     "only; it is not the autopilot")
     table = design_table(designs, control_model, cfg)
 
-    notes = []
-    if "identified-2nd" not in designs:
+    basis = design_basis(indices)
+    if basis["basis"]:
+        notes.append(f"designed from: {basis['basis']}")
+    so = control_model.get("second_order") or {}
+    if primary_name(control_model) != "graphical" and not so.get("ok", True):
+        notes.append(f"second-order CGSA skipped: T1, T2, T3 flagged ({so.get('reason')})")
+    elif primary_name(control_model) != "graphical" and "identified-2nd" not in designs:
         why = ("the control model is first order (T2 = T3 = 0)" if control_model["T2"] == 0
                else "its controller would be unstable")
         notes.append(f"T3 = {control_model['T3']:.4g} s <= 0: second-order CGSA skipped ({why})")
@@ -178,9 +250,10 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                         "per_seed": rows})
 
     value = {}
-    if graphical_model is not None:
+    ident_name = next((n for n in ("identified", "identified-flagged") if n in designs), None)
+    if ident_name and "graphical" in designs:
         for plant in plants:
-            a = {r["seed"]: r for r in per[(plant, "identified")]}
+            a = {r["seed"]: r for r in per[(plant, ident_name)]}
             b = {r["seed"]: r for r in per[(plant, "graphical")]}
             diff = {}
             for name in WORST:
@@ -188,7 +261,7 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                 d = d[np.isfinite(d)]
                 diff[name] = {"mean": float(np.mean(d)) if d.size else float("nan"),
                               "std": float(np.std(d, ddof=1)) if d.size > 1 else 0.0}
-            value[plant] = {"difference": "identified minus graphical, paired over seeds", "metrics": diff}
+            value[plant] = {"difference": f"{ident_name} minus graphical, paired over seeds", "metrics": diff}
 
     doc = {
         "dataset": indices.get("dataset"),
@@ -203,6 +276,7 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                                    "used only for virtual-tank data"},
         },
         "notes": notes,
+        "design_basis": basis,
         "config": asdict(cfg),
         "wind_rudder_deg": wind,
         "wave_variance_theory_deg2": wave_variance_theory(cfg.wave_num, cfg.wave_den),

@@ -27,6 +27,7 @@ from tqdm import tqdm
 
 from pipeline.config import IndicesConfig
 from pipeline.errors import InputError, PipelineError
+from pipeline.indices import trust
 from pipeline.indices.imo import imo_check
 from pipeline.indices.nomoto_kt import graphical_kt, integral_kt
 from pipeline.indices.turning import turning_metrics
@@ -98,6 +99,57 @@ def identified(estimates: dict[str, Any], config: IndicesConfig | None = None) -
     return {"indices": vals, "method": used, "check": check}
 
 
+def choose_control_model(ident_out: dict[str, Any], ident_flags: dict[str, list], failures: dict[str, str],
+                         graphical_model: dict[str, Any], estimates: dict[str, dict], ident: str,
+                         lpp: float | None, u: float | None) -> dict[str, Any]:
+    """The indices the autopilot is designed from, and why (never a flagged set without saying so).
+
+    Candidates in order: SR-UKF-FFM identified, FFM-UKF identified, the first-order graphical model.
+    The first whose K and T (what the first-order CGSA design uses) carry no blocking flag
+    (:func:`pipeline.indices.trust.blocking`) is taken; ``basis`` says which and why the others were
+    not.  ``second_order`` says whether T1, T2, T3 are trustworthy enough for the second-order design.
+    When every candidate is flagged the model is ``"refused": true`` with the reasons, and the control
+    stage designs nothing from it.
+    """
+    rejected = []
+    for alg in ("srukf-ffm", "ffm-ukf"):
+        if alg not in ident_out:
+            if alg in failures:
+                rejected.append({"candidate": f"identified {alg}", "reasons": failures[alg]})
+            continue
+        block = trust.blocking(ident_flags.get(alg, []), ("K", "T"))
+        if block:
+            rejected.append({"candidate": f"identified {alg}", "reasons": trust.reasons(block)})
+            continue
+        est_run = estimates[alg].get("run_id", ident)
+        vals = {n: ident_out[alg][n]["value"] for n in INDEX_NAMES}
+        second = trust.blocking(ident_flags.get(alg, []), ("T1", "T2", "T3"))
+        basis = f"identified {alg} indices (Eq. 6 on run {est_run}): K and T carry no flag"
+        if rejected:
+            basis += "; not used: " + "; ".join(f"{r['candidate']} ({r['reasons']})" for r in rejected)
+        return {"source": f"identified {alg}, Eq. 6 on run {est_run}", **vals,
+                **trust.primes(vals, lpp, u), "basis": basis, "rejected": rejected,
+                "flags": ident_flags.get(alg, []),
+                "second_order": {"ok": not second, "reason": trust.reasons(second) if second else None}}
+    gm = graphical_model
+    block = trust.blocking(gm.get("flags", []), ("K", "T"))
+    vals = {"K": gm["K"], "T1": gm["T"], "T2": 0.0, "T3": 0.0, "T": gm["T"]}
+    if not block:
+        basis = (f"first-order graphical model (standard method on run {gm.get('run_id')}), because "
+                 + "; ".join(f"{r['candidate']} is not usable: {r['reasons']}" for r in rejected))
+        return {"source": f"first-order graphical model, standard method on run {gm.get('run_id')} "
+                          "(identified indices flagged, see basis)",
+                **vals, **trust.primes(vals, lpp, u), "basis": basis, "rejected": rejected,
+                "flags": gm.get("flags", []), "second_order": {"ok": False, "reason": "first-order model"}}
+    rejected.append({"candidate": "graphical (standard method)", "reasons": trust.reasons(block)})
+    reason = "no trustworthy indices to design an autopilot from: " + "; ".join(
+        f"{r['candidate']}: {r['reasons']}" for r in rejected)
+    best = next((a for a in ("srukf-ffm", "ffm-ukf") if a in ident_out), None)
+    shown = {n: ident_out[best][n]["value"] for n in INDEX_NAMES} if best else vals
+    return {"source": "refused", "refused": True, "reason": reason, **shown, "basis": reason,
+            "rejected": rejected, "flags": [], "second_order": {"ok": False, "reason": "refused"}}
+
+
 def _amplitude_label(res: dict[str, Any]) -> str:
     """'20/20' from the nominal test (metadata), else from the measured rudder and trigger."""
     m = res["metrics"] or {}
@@ -140,28 +192,37 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
     methods: dict[str, str] = {}
     failures: dict[str, str] = {}
     checks: dict[str, Any] = {}
+    ident_flags: dict[str, list] = {}
+    nondim: dict[str, Any] = {}
+    entry_by_id = {e["run_id"]: e for e in entries}
     for alg, est in estimates.items():
         try:
             got = identified(est, cfg)
         except PipelineError as exc:
             failures[alg] = str(exc)
             continue
-        ident_out[alg] = got["indices"]
+        vals = got["indices"]
+        rid = est.get("run_id", ident)
+        lpp, u, why = trust.length_and_speed(entry_by_id.get(rid, {}), index)
+        pv = trust.primes({n: vals[n]["value"] for n in INDEX_NAMES}, lpp, u)
+        ps = trust.primes({n: vals[n]["std"] for n in INDEX_NAMES}, lpp, u)
+        for n in INDEX_NAMES:
+            key = trust.PRIME[n]
+            vals[key] = {"value": pv[key], "std": None if ps[key] is None else abs(ps[key])}
+        ident_out[alg] = vals
         methods[alg] = got["method"]
         checks[alg] = got["check"]
-    control_model = None
-    for alg in ("srukf-ffm", "ffm-ukf"):
-        if alg in ident_out:
-            src = est_run = estimates[alg].get("run_id", ident)
-            src = f"identified {alg}, Eq. 6 on run {est_run}"
-            if alg != "srukf-ffm":
-                src += f" (srukf-ffm unusable: {failures.get('srukf-ffm', 'missing')})"
-            control_model = {"source": src, **{n: ident_out[alg][n]["value"] for n in INDEX_NAMES}}
-            break
-    if control_model is None:
-        control_model = {"source": "first-order graphical model (no usable identified model: "
-                                   + "; ".join(f"{a}: {m}" for a, m in failures.items()) + ")",
-                         "K": gm["K"], "T1": gm["T"], "T2": 0.0, "T3": 0.0, "T": gm["T"]}
+        ident_flags[alg] = trust.identified_flags({n: vals[n] for n in INDEX_NAMES}, got["check"], est, cfg) \
+            + trust.prime_flags(why)
+        nondim[alg] = {"run_id": rid, "lpp_m": lpp, "approach_speed_m_s": u}
+
+    period = {r["run_id"]: (r["metrics"] or {}).get("period_s") for r in results}
+    lpp_g, u_g, why_g = trust.length_and_speed(entry_by_id.get(ident, {}), index)
+    gm_flags = trust.graphical_flags(gm, period.get(ident)) + trust.prime_flags(why_g)
+    graphical_model = {**graphical_model, **trust.primes({"K": gm["K"], "T": gm["T"]}, lpp_g, u_g),
+                       "flags": gm_flags}
+    control_model = choose_control_model(ident_out, ident_flags, failures, graphical_model, estimates,
+                                         ident, lpp_g, u_g)
 
     graphical = []
     for r in results:
@@ -172,9 +233,14 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
             row = {"run_id": r["run_id"], "method": meth, "K": kt["K"], "T": kt["T"],
                    "test": _amplitude_label(r), "test_name": r["test_name"],
                    "first_side": (r["metrics"] or {}).get("first_side")}
+            lpp, u, why = trust.length_and_speed(entry_by_id.get(r["run_id"], {}), index)
+            row.update(trust.primes({"K": kt["K"], "T": kt["T"]}, lpp, u))
+            flags = trust.graphical_flags(row, period.get(r["run_id"]))
             if meth == "integral":
                 row.update({"K_std": kt["K_std"], "T_std": kt["T_std"],
                             "rudder_offset_deg": kt["rudder_offset_deg"]})
+                flags += trust.integral_uncertainty_flags(row, cfg)
+            row["flags"] = flags + trust.prime_flags(why)
             graphical.append(row)
     by_amp: dict[str, dict[str, Any]] = {}
     for g in graphical:
@@ -187,11 +253,15 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
     prov = index.get("provenance")
     indices_doc = {
         "dataset": index.get("dataset"), "provenance": prov, "identification_run": ident,
-        "identified": ident_out, "uncertainty_method": methods,
+        "identified": ident_out, "identified_flags": ident_flags, "nondimensional": nondim,
+        "uncertainty_method": methods,
         "uncertainty_check": checks, "identified_failures": failures,
         "graphical": graphical, "graphical_by_amplitude": amp_summary,
         "control_model": control_model, "graphical_model": graphical_model, "paper": PAPER,
-        "units": {"K": "1/s", "T1": "s", "T2": "s", "T3": "s", "T": "s"},
+        "units": {"K": "1/s", "T1": "s", "T2": "s", "T3": "s", "T": "s", "K_prime": "-", "T_prime": "-",
+                  "T1_prime": "-", "T2_prime": "-", "T3_prime": "-"},
+        "nondimensional_definition": "K' = K Lpp/U, T' = T U/Lpp (Lpp model m, U approach speed m/s of "
+                                     "the run the indices come from)",
     }
     zig_doc = {"dataset": index.get("dataset"), "provenance": prov,
                "runs": [{"run_id": r["run_id"], "test_name": r["test_name"], "kind": r["kind"],

@@ -1,5 +1,5 @@
-"""Reports: parameterised notebooks (``notebooks/*.ipynb``) executed with papermill on the
-``tanktest`` kernel and rendered to self-contained HTML in ``reports/``.
+"""Reports: parameterised notebooks (``notebooks/*.py``, jupytext percent format) executed with
+papermill on the ``tanktest`` kernel and rendered to self-contained HTML in ``reports/``.
 
 :mod:`pipeline.report.render` runs and converts the notebooks; :mod:`pipeline.report.nb` holds the
 helpers the notebooks import (loading stage outputs, the provenance banner, tables, plot defaults),

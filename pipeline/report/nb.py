@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
-import html
+import html as _html
 import math
 from pathlib import Path
 from typing import Any
@@ -22,6 +22,7 @@ import pandas as pd
 from pipeline.catalog import Catalog
 from pipeline.errors import InputError
 from pipeline.io import read_frame, read_json
+from pipeline.report import particulars
 
 # The paper's figures (SPEC section 6), shown beside ours.  Tables 5 (20/20) and 6 (10/10).
 PAPER_TABLES_5_6 = {
@@ -160,10 +161,16 @@ class Data:
         return f"{entry['rudder_deg']:g}/{entry.get('heading_deg') or 0:g}"
 
 
+    def sort_key(self, run_id: str) -> tuple:
+        """Table order of a run (:func:`run_sort_key`)."""
+        entry = next((r for r in self.index.get("runs", []) if r.get("run_id") == run_id), {"run_id": run_id})
+        return run_sort_key(entry)
+
+
 # ----------------------------------------------------------------------------------------- banner
 def _kv_table(rows: list[tuple[str, Any]]) -> str:
-    cells = "".join(f"<tr><th style='text-align:left'>{html.escape(str(k))}</th>"
-                    f"<td style='text-align:left'>{html.escape(_fmt(v))}</td></tr>" for k, v in rows)
+    cells = "".join(f"<tr><th style='text-align:left'>{esc(k)}</th>"
+                    f"<td style='text-align:left'>{esc(v)}</td></tr>" for k, v in rows)
     return f"<table>{cells}</table>"
 
 
@@ -208,25 +215,31 @@ def banner(data: Data, title: str, settings: dict[str, Any] | None = None):
     runs = data.runs()
     cols = [c for c in ("run_id", "test_name", "provenance", "source_file", "source_format",
                         "source_sha256", "dt", "duration", "samples") if c in runs.columns]
-    run_rows = "".join("<tr>" + "".join(f"<td style='text-align:left'>{html.escape(_fmt(r[c]))}</td>"
+    run_rows = "".join("<tr>" + "".join(f"<td style='text-align:left'>{esc(r[c])}</td>"
                                         for c in cols) + "</tr>" for _, r in runs.iterrows())
-    run_head = "".join(f"<th style='text-align:left'>{html.escape(c)}</th>" for c in cols)
+    run_head = "".join(f"<th style='text-align:left'>{esc(c)}</th>" for c in cols)
     files = [(str(p.relative_to(data.cat.base)), _sha256(p)) for p in data.used]
-    file_rows = "".join(f"<tr><td style='text-align:left'>{html.escape(f)}</td>"
-                        f"<td style='text-align:left'><code>{s}</code></td></tr>" for f, s in files)
+    file_rows = "".join(f"<tr><td style='text-align:left'>{esc(f)}</td>"
+                        f"<td style='text-align:left'><code>{esc(s)}</code></td></tr>" for f, s in files)
     flat = flatten(settings or {})
+    # The one wall-clock value in a report (its own line, class provenance-time): everything else
+    # is a function of the inputs, so two renders differ only here.
     now = _dt.datetime.now().strftime("%Y-%m-%d %H:%M")
+    ship = esc(particulars.summary(data.index))
+    ship_rows = _kv_table(particulars.rows(data.index))
     text = f"""
 <div style="border:3px solid {box[0]};border-radius:6px;padding:10px 14px;margin:4px 0 12px 0">
-<div style="font-size:1.8em;font-weight:bold;color:{box[0]}">{html.escape(box[1])}</div>
-<div style="margin:4px 0 8px 0">{html.escape(box[2])}</div>
-<div><b>{html.escape(title)}</b> &middot; dataset <code>{html.escape(data.dataset)}</code> &middot;
-{len(runs)} runs &middot; rendered {now} &middot; reproduces and extends Meng et al., Ocean
-Engineering 294 (2024) 116853</div>
+<div style="font-size:1.8em;font-weight:bold;color:{box[0]}">{esc(box[1])}</div>
+<div style="margin:4px 0 8px 0">{esc(box[2])}</div>
+<div><b>{esc(title)}</b> &middot; dataset <code>{esc(data.dataset)}</code> &middot;
+{len(runs)} runs &middot; reproduces and extends Meng et al., Ocean Engineering 294 (2024) 116853</div>
+<div class="provenance-time">rendered {now}</div>
+<div style="margin:6px 0 2px 0;font-size:1.1em"><b>Ship and scale:</b> {ship}</div>
+<details><summary>Particulars (from runs/index.json)</summary>{ship_rows}</details>
 <details><summary>Runs: source files and SHA-256</summary>
 <table><tr>{run_head}</tr>{run_rows}</table></details>
 <details><summary>Stage outputs this report read ({len(files)} files, SHA-256)</summary>
-<table><tr><th style='text-align:left'>file (under {html.escape(str(data.cat.base))})</th>
+<table><tr><th style='text-align:left'>file (under {esc(str(data.cat.base))})</th>
 <th style='text-align:left'>SHA-256</th></tr>{file_rows}</table></details>
 <details><summary>Settings</summary>{_kv_table(list(flat.items()))}</details>
 </div>"""
@@ -234,8 +247,23 @@ Engineering 294 (2024) 116853</div>
 
 
 # ---------------------------------------------------------------------------------- tables, figs
+def esc(value: Any) -> str:
+    """THE escaping path for data-derived text in the reports: any value to HTML-safe text.
+
+    Run ids come from file names and test/ship names from file headers, so they may hold markup;
+    everything a report writes as HTML from data goes through here (tables, captions, notes,
+    figure captions, the banner).  Quotes are escaped too, so the result is safe in attributes.
+    """
+    return _html.escape(_fmt(value) if not isinstance(value, str) else value, quote=True)
+
+
 def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True):
-    """Display ``df`` as a numbered, captioned HTML table (numbers to ``precision`` significant digits)."""
+    """Display ``df`` as a numbered, captioned HTML table (numbers to ``precision`` significant digits).
+
+    Every cell, index label, column label and the caption go through :func:`esc` (data-derived
+    strings never become markup).  The table id is fixed (``tab<N>``, N = table number in the
+    report) and cells carry no ids, so the same inputs give the same bytes.
+    """
     from IPython.display import HTML, display
 
     _TAB["n"] += 1
@@ -245,11 +273,25 @@ def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True
             if not math.isfinite(x):
                 return "–"
             return f"{x:.{precision}g}"
-        return "–" if x is None else str(x)
+        if isinstance(x, (bool, np.bool_)):
+            return "yes" if x else "no"
+        return "–" if x is None else esc(x)
 
-    styler = df.style.format(fmt).set_caption(f"Table {_TAB['n']}. {caption}")
+    def fmt_label(x):
+        return esc("" if x is None else x)
+
+    from pandas.io.formats.style import Styler
+
+    styler = Styler(df, uuid=f"tab{_TAB['n']}", cell_ids=False).format(fmt)
+    styler = styler.format_index(fmt_label, axis=0).format_index(fmt_label, axis=1)
+    styler = styler.set_caption(f"Table {_TAB['n']}. {esc(caption)}")
     styler = styler.set_table_styles([{"selector": "caption", "props": "caption-side: top; "
                                        "text-align: left; font-weight: bold; padding: 4px 0;"}])
+    # words read left to right, numbers stay right-aligned (class selectors: no cell ids needed)
+    text = {c: [{"selector": "td", "props": "text-align: left;"}]
+            for c in df.columns if not pd.api.types.is_numeric_dtype(df[c])}
+    if text:
+        styler = styler.set_table_styles(text, overwrite=False)
     if not index:
         styler = styler.hide(axis="index")
     display(HTML(styler.to_html()))
@@ -263,14 +305,14 @@ def show(fig, caption: str) -> None:
     _FIG["n"] += 1
     display(fig)
     plt.close(fig)
-    display(HTML(f"<p style='margin:0 0 1.2em 0'><b>Figure {_FIG['n']}.</b> {html.escape(caption)}</p>"))
+    display(HTML(f"<p style='margin:0 0 1.2em 0'><b>Figure {_FIG['n']}.</b> {esc(caption)}</p>"))
 
 
 def note(text: str) -> None:
     """A short paragraph of HTML-escaped text (e.g. what is absent and why)."""
     from IPython.display import HTML, display
 
-    display(HTML(f"<p><i>{html.escape(text)}</i></p>"))
+    display(HTML(f"<p><i>{esc(text)}</i></p>"))
 
 
 def label(name: str) -> str:
@@ -299,3 +341,70 @@ def records(obj: Any, key: str = "run_id") -> list[dict]:
                 out.append({key: k, **v})
         return out
     return []
+
+
+# ------------------------------------------------------------------------- reviewer-facing helpers
+def legend_outside(ax, **kw) -> None:
+    """Legend to the right of the axes, never over the curves."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0,
+                  frameon=False, **kw)
+
+
+def num(x: Any, digits: int = 3, unit: str = "") -> str:
+    """A number as plain text for sentences ('n/a' for None/NaN), with its unit."""
+    if x is None or isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)):
+        return "n/a" if x is None else str(x)
+    if not math.isfinite(float(x)):
+        return "n/a"
+    return f"{float(x):.{digits}g}" + (f" {unit}" if unit else "")
+
+
+CHECK_LABEL = {"relative_uncertainty": "uncertain", "invalid_draws": "invalid draws", "nis": "NIS",
+               "sign": "sign", "ill_conditioned": "ill-conditioned", "prime_unavailable": "no K', T'",
+               "excitation": "excitation", "phase_margin": "phase margin", "rejected": "not used"}
+
+
+def flag_marks(flags: list[dict] | None, subject: str | None = None) -> str:
+    """Short text for a table cell: the checks that failed (for ``subject``, or the whole set)."""
+    out = []
+    for f in flags or []:
+        subj = str(f.get("subject", ""))
+        if subject is None or subj == subject or subj == "filter" or "," in subj:
+            lab = CHECK_LABEL.get(str(f.get("check")), str(f.get("check")).replace("_", " "))
+            if lab not in out:
+                out.append(lab)
+    return ", ".join(out)
+
+
+def flags_table(groups: list[tuple[str, list[dict] | None]], caption: str) -> int:
+    """One table of every flag: which number set, which check, about what, the reason.  Returns the
+    number of flags (0: a note says that no check failed)."""
+    rows = [{"set": name, "check": CHECK_LABEL.get(str(f.get("check")), str(f.get("check"))),
+             "about": f.get("subject", ""), "reason": f.get("reason", "")}
+            for name, flags in groups for f in flags or []]
+    if rows:
+        table(pd.DataFrame(rows).set_index(["set", "check"]), caption)
+    else:
+        note("No trust check failed for the numbers in this report.")
+    return len(rows)
+
+
+def conclusion(points: list[str]) -> None:
+    """The short conclusion that ends every report (escaped plain-text points)."""
+    from IPython.display import HTML, display
+
+    items = "".join(f"<li>{esc(p)}</li>" for p in points if p)
+    display(HTML("<div class='conclusion' style='border-left:4px solid #555;padding:4px 12px;margin:12px 0'>"
+                 f"<ul style='margin:4px 0'>{items}</ul></div>"))
+
+
+def run_sort_key(entry: dict) -> tuple:
+    """Order of runs in tables: zigzags by rudder angle then heading trigger then side, then turning
+    circles by rudder angle, then the rest by run id."""
+    kind = {"zigzag": 0, "turning": 1}.get(entry.get("kind") or "", 2)
+    rud = entry.get("rudder_deg") or 0.0
+    head = entry.get("heading_deg") or 0.0
+    side = {"starboard": 0, "port": 1}.get(entry.get("first_side") or "", 2)
+    return (kind, float(rud), float(head), side, str(entry.get("run_id")))

@@ -1,6 +1,7 @@
 """Execute the parameterised notebooks with papermill and render them to self-contained HTML.
 
-One report = one notebook (``notebooks/<name>.ipynb``) executed for one dataset on the Jupyter
+One report = one notebook (jupytext percent-format source ``notebooks/<name>.py``, reviewed and linted
+as code) converted in memory to .ipynb (stable cell ids), executed for one dataset on the Jupyter
 kernel named ``tanktest`` (the project's .venv Python), then converted by nbconvert to a single
 HTML file: figures embedded as base64 PNG, no external scripts (require.js, MathJax and mermaid are
 left out), code cells hidden behind a "show code" toggle (hidden also when scripts are disabled).
@@ -14,6 +15,7 @@ written atomically (:func:`pipeline.io.atomic_path`).
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import html
 import json
 import os
@@ -29,11 +31,45 @@ from pathlib import Path
 from pipeline.catalog import Catalog
 from pipeline.errors import InputError, PipelineError
 from pipeline.io import atomic_path, read_json, write_json
+from pipeline.report import particulars
 
 KERNEL_NAME = "tanktest"
-NOTEBOOK_DIR = Path(__file__).resolve().parents[2] / "notebooks"
+# The notebook sources: ``notebooks/*.py`` in the source tree; in an installed (non-editable) package
+# the same files are package data at ``pipeline/notebooks/`` (pyproject.toml maps the folder there).
+_NOTEBOOK_DIRS = (Path(__file__).resolve().parents[1] / "notebooks",     # installed: pipeline/notebooks
+                  Path(__file__).resolve().parents[2] / "notebooks")     # source tree: <repo>/notebooks
 NOTEBOOKS = ("identification", "indices", "control", "diagnosis")
 ALGORITHMS = ("srukf-ffm", "ffm-ukf")
+
+
+def notebook_dir() -> Path:
+    """The folder holding the notebook sources (installed package data first, then the source tree)."""
+    for d in _NOTEBOOK_DIRS:
+        if (d / f"{NOTEBOOKS[0]}.py").is_file():
+            return d.resolve()
+    raise InputError("notebook sources not found (looked in "
+                     + ", ".join(str(d) for d in _NOTEBOOK_DIRS) + ")")
+
+
+def notebook_source(notebook: str) -> Path:
+    return notebook_dir() / f"{notebook}.py"
+
+
+def load_notebook(notebook: str):
+    """The jupytext percent source as a notebook node: kernel ``tanktest``, stable cell ids."""
+    import jupytext
+
+    src = notebook_source(notebook)
+    if not src.is_file():
+        raise InputError("notebook not found", file=src)
+    book = jupytext.read(str(src), fmt="py:percent")
+    for i, cell in enumerate(book.cells):      # stable ids: the same source gives the same notebook
+        cell["id"] = f"cell-{i:02d}"
+    book.metadata["kernelspec"] = {"name": KERNEL_NAME, "display_name": f"{KERNEL_NAME} (.venv)",
+                                   "language": "python"}
+    book.metadata["language_info"] = {"name": "python"}
+    book.metadata.pop("jupytext", None)
+    return book
 
 
 def required_inputs(notebook: str, cat: Catalog) -> list[Path]:
@@ -167,26 +203,55 @@ class Report:
     seconds: float
     provenance: str
     runs: int
+    ship: str = ""            # one-line ship and scale summary (pipeline.report.particulars.summary)
+    fingerprint: str = ""     # SHA-256 of everything the page depends on (see fingerprint())
+    skipped: bool = False     # True: the page was up to date and not rendered again
+
+
+# Stage folders each notebook reads (every file in them counts for "changed").
+READS = {"identification": ("runs", "identify", "validate"), "indices": ("runs", "indices"),
+         "control": ("runs", "indices", "control"), "diagnosis": ("runs", "diagnose")}
+
+
+def fingerprint(notebook: str, cat: Catalog) -> str:
+    """SHA-256 over the notebook source, the report code and every file of the stage folders the
+    notebook reads (relative path and content).  Same fingerprint = same page (byte-reproducible)."""
+    h = hashlib.sha256()
+    code = [notebook_source(notebook)] + sorted(Path(__file__).parent.glob("*.py"))
+    files = [(f"code/{p.name}", p) for p in code]
+    for stage in READS.get(notebook, ()):
+        d = cat.base / stage
+        if d.is_dir():
+            files += [(str(p.relative_to(cat.base)), p) for p in sorted(d.rglob("*"))
+                      if p.is_file() and not p.name.startswith(".")]
+    for rel, path in files:
+        h.update(rel.encode() + b"\0")
+        with open(path, "rb") as fh:
+            for chunk in iter(lambda fh=fh: fh.read(1 << 20), b""):
+                h.update(chunk)
+        h.update(b"\0")
+    return h.hexdigest()
 
 
 def execute(notebook: str, cat: Catalog, kernel: str = KERNEL_NAME, extra: dict | None = None):
-    """Execute ``notebooks/<notebook>.ipynb`` for ``cat`` with papermill; returns the notebook node."""
+    """Execute ``notebooks/<notebook>.py`` for ``cat`` with papermill; returns the notebook node."""
     import nbformat
     import papermill as pm
     from papermill.exceptions import PapermillExecutionError
 
-    src = NOTEBOOK_DIR / f"{notebook}.ipynb"
-    if not src.is_file():
-        raise InputError("notebook not found", file=src)
+    src = notebook_source(notebook)
+    book = load_notebook(notebook)
     params = {"dataset": cat.dataset, "root": str(Path(cat.root).absolute()), **(extra or {})}
     with tempfile.TemporaryDirectory(prefix="tanktest-report-") as tmpdir:
-        tmp = Path(tmpdir) / f"{notebook}-{cat.dataset}.ipynb"
+        tmp = Path(tmpdir) / f"{notebook}-out.ipynb"
+        source_nb = Path(tmpdir) / f"{notebook}.ipynb"
+        nbformat.write(book, str(source_nb))
         log = Path(tmpdir) / "kernel-stderr.txt"
         try:
             # The kernel inherits file descriptor 2; its start-up/shutdown chatter goes to a log
             # that is only quoted when the kernel itself fails.
             with _stderr_to(log):
-                pm.execute_notebook(str(src), str(tmp), parameters=params, kernel_name=kernel,
+                pm.execute_notebook(str(source_nb), str(tmp), parameters=params, kernel_name=kernel,
                                     progress_bar=False, log_output=False, cwd=os.getcwd())
         except PapermillExecutionError as exc:
             evalue = " ".join(str(exc.evalue).split())
@@ -221,7 +286,10 @@ def render(notebook: str, cat: Catalog, out_dir: Path, kernel: str = KERNEL_NAME
     """Check inputs, execute, convert; write ``out_dir/<notebook>-<dataset>.html`` atomically."""
     check_inputs(notebook, cat)
     t0 = time.perf_counter()
+    fp = fingerprint(notebook, cat)
     nb = execute(notebook, cat, kernel)
+    for i, cell in enumerate(nb.cells):     # papermill's injected-parameters cell has a random id
+        cell["id"] = f"cell-{i:02d}"
     body = to_html(nb, title=f"{notebook} report: {cat.dataset}")
     dest = Path(out_dir) / f"{notebook}-{cat.dataset}.html"
     with atomic_path(dest, suffix=".html") as tmp:
@@ -229,52 +297,67 @@ def render(notebook: str, cat: Catalog, out_dir: Path, kernel: str = KERNEL_NAME
         tmp.chmod(0o644)
     index = read_json(cat.runs_index)
     return Report(notebook, cat.dataset, dest, time.perf_counter() - t0,
-                  str(index.get("provenance", "unknown")), len(index.get("runs", [])))
+                  str(index.get("provenance", "unknown")), len(index.get("runs", [])),
+                  ship=particulars.summary(index), fingerprint=fp)
 
 
 # ------------------------------------------------------------------------------------------ index
+def _manifest(out_dir: Path) -> dict[str, dict]:
+    path = Path(out_dir) / "reports.json"
+    if not path.is_file():
+        return {}
+    try:
+        return {e["file"]: e for e in json.loads(path.read_text()).get("reports", [])}
+    except (json.JSONDecodeError, KeyError, TypeError, AttributeError):
+        return {}
+
+
 def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
     """Merge ``reports`` into ``out_dir/reports.json`` and (re)write ``out_dir/index.html``.
 
-    One line per report: notebook, dataset, provenance (VIRTUAL TANK or measured), runs, when.
-    Entries whose HTML file no longer exists are dropped.
+    One section per dataset: its ship, scale and particulars and its provenance (VIRTUAL TANK or
+    measured), then one line per report.  Entries whose HTML file no longer exists are dropped.
+    The page holds one wall-clock line (class ``provenance-time``); the rest depends only on the
+    manifest, so the same reports give the same bytes.  Render times stay in reports.json.
     """
     out_dir = Path(out_dir)
     manifest_path = out_dir / "reports.json"
-    entries: dict[str, dict] = {}
-    if manifest_path.is_file():
-        try:
-            entries = {e["file"]: e for e in json.loads(manifest_path.read_text()).get("reports", [])}
-        except (json.JSONDecodeError, KeyError, TypeError, AttributeError):
-            entries = {}
+    entries = _manifest(out_dir)
     stamp = time.strftime("%Y-%m-%d %H:%M:%S")
     for r in reports:
+        if r.skipped and r.html.name in entries:
+            continue
         entries[r.html.name] = {"file": r.html.name, "notebook": r.notebook, "dataset": r.dataset,
-                                "provenance": r.provenance, "runs": r.runs,
+                                "provenance": r.provenance, "runs": r.runs, "ship": r.ship,
+                                "fingerprint": r.fingerprint,
                                 "seconds": round(r.seconds, 2), "rendered": stamp}
     order = {n: i for i, n in enumerate(NOTEBOOKS)}
     rows = sorted((e for e in entries.values() if (out_dir / e["file"]).is_file()),
                   key=lambda e: (e["dataset"], order.get(e["notebook"], 99), e["notebook"]))
     write_json(manifest_path, {"reports": rows})
-    lines = []
-    for e in rows:
-        prov = e["provenance"]
+    esc = html.escape
+    sections = []
+    for ds in dict.fromkeys(e["dataset"] for e in rows):
+        group = [e for e in rows if e["dataset"] == ds]
+        prov = group[0]["provenance"]
         label = ("<b class='virtual'>VIRTUAL TANK (simulated, not measured)</b>" if prov == "virtual"
                  else "<b class='measured'>measured tank data</b>" if prov == "measured"
-                 else f"<b class='mixed'>{html.escape(prov)} data</b>")
-        lines.append(f"<li><a href='{html.escape(e['file'])}'>{html.escape(e['notebook'])} &mdash; "
-                     f"{html.escape(e['dataset'])}</a> &middot; {label} &middot; {e['runs']} runs "
-                     f"&middot; rendered {html.escape(e['rendered'])} in {e['seconds']:.1f} s</li>")
+                 else f"<b class='mixed'>{esc(prov)} data</b>")
+        items = "\n".join(f"<li><a href='{esc(e['file'])}'>{esc(e['notebook'])}</a></li>" for e in group)
+        sections.append(f"<h2>Dataset <code>{esc(ds)}</code></h2>\n"
+                        f"<p>{label} &middot; {group[0]['runs']} runs<br>"
+                        f"<b>Ship and scale:</b> {esc(group[0].get('ship') or 'not given')}</p>\n"
+                        f"<ul>\n{items}\n</ul>")
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>tanktest reports</title>
 <style>body{{font-family:sans-serif;max-width:60em;margin:2em auto;line-height:1.6}}
 .virtual{{color:#b00020}} .measured{{color:#1b5e20}} .mixed{{color:#e65100}}</style></head>
 <body><h1>Tank-test pipeline reports</h1>
-<p>Reproduction and extension of Meng et al., Ocean Engineering 294 (2024) 116853. One line per
-report: notebook &mdash; dataset &middot; data provenance &middot; number of runs.</p>
-<ul>
-{chr(10).join(lines) if lines else "<li>no reports rendered yet</li>"}
-</ul></body></html>
+<p>Reproduction and extension of Meng et al., Ocean Engineering 294 (2024) 116853. One section per
+dataset: where its data come from, the ship and its scale, then its reports.</p>
+{chr(10).join(sections) if sections else "<p>no reports rendered yet</p>"}
+<div class="provenance-time">generated {esc(stamp)}</div>
+</body></html>
 """
     dest = out_dir / "index.html"
     with atomic_path(dest, suffix=".html") as tmp:
@@ -285,9 +368,12 @@ report: notebook &mdash; dataset &middot; data provenance &middot; number of run
 
 def render_all(datasets: Sequence[str], notebooks: Sequence[str], out_dir: Path,
                root: Path = Path("data/processed"), kernel: str = KERNEL_NAME,
-               keep_going: bool = False, progress: Callable[[str], None] | None = None
-               ) -> tuple[list[Report], list[str]]:
+               keep_going: bool = False, progress: Callable[[str], None] | None = None,
+               force: bool = True) -> tuple[list[Report], list[str]]:
     """Render every (dataset, notebook) pair; returns (reports, errors).
+
+    ``force=False`` re-renders only what changed: a page whose HTML exists and whose
+    :func:`fingerprint` equals the one recorded in ``reports.json`` is kept (``Report.skipped``).
 
     All inputs are checked before any notebook runs: unless ``keep_going``, the first missing
     stage output raises InputError and nothing is written.  With ``keep_going`` the pairs whose
@@ -307,9 +393,22 @@ def render_all(datasets: Sequence[str], notebooks: Sequence[str], out_dir: Path,
                 if not keep_going:
                     raise
                 errors.append(str(exc))
+    reports = []
+    if not force:
+        known = _manifest(out_dir)
+        todo = []
+        for nb, cat in pairs:
+            dest = Path(out_dir) / f"{nb}-{cat.dataset}.html"
+            entry = known.get(dest.name) or {}
+            if dest.is_file() and entry.get("fingerprint") == fingerprint(nb, cat):
+                reports.append(Report(nb, cat.dataset, dest, 0.0, entry.get("provenance", "unknown"),
+                                      entry.get("runs", 0), entry.get("ship", ""), entry["fingerprint"],
+                                      skipped=True))
+            else:
+                todo.append((nb, cat))
+        pairs = todo
     if pairs:
         ensure_kernel(kernel)
-    reports = []
     for nb, cat in pairs:
         if progress:
             progress(f"{nb}-{cat.dataset}")
@@ -323,3 +422,11 @@ def render_all(datasets: Sequence[str], notebooks: Sequence[str], out_dir: Path,
             errors.append(str(exc))
     write_index(out_dir, reports)
     return reports, errors
+
+
+def datasets_under(root: Path) -> list[str]:
+    """Every dataset with processed runs under ``root`` (folders holding runs/index.json), sorted."""
+    root = Path(root)
+    if not root.is_dir():
+        return []
+    return sorted(p.name for p in root.iterdir() if (p / "runs" / "index.json").is_file())

@@ -1,0 +1,259 @@
+"""Build every dataset stage by stage, rerunning only what is out of date (what ``make pipeline`` runs).
+
+Why in Python and not in make: dataset and file names come from the user's folders, and a name
+such as ``x$(touch X)`` or ``my runs`` must never become a word of a shell recipe.  Here names are
+only ever list items (argv lists of :func:`pipeline.cli.main`), never shell text.
+
+Datasets (:func:`discover`): ``virtual`` (the built-in tank, always), ``hsva`` (the measured KVLCC2
+zigzags, when ``<shared>/data/kvlcc2_hsva/*.dat`` exists), every folder ``data/raw/<name>/``, and
+``local`` for tank files dropped straight into ``data/raw/``.
+
+Staleness (:func:`plan`): each stage of a dataset has a stamp ``data/processed/<name>/.stamps/<stage>``
+holding the SHA-256 of (a) the content of every input file (raw files, or the upstream stages'
+output folders) and (b) the source of every ``pipeline`` module the stage's command imports,
+directly or indirectly, found by reading the imports of the code (:func:`import_closure`; function-
+level imports count).  So a change to ``pipeline/config.py``, ``model.py``, ``io.py``, ``cli/`` or any
+module a stage uses reruns that stage and everything downstream; nothing else reruns.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+PACKAGE_DIR = Path(__file__).resolve().parent
+VIRTUAL, HSVA, LOCAL = "virtual", "hsva", "local"
+NOT_TANK_SUFFIXES = {".md", ".stamp", ".gitkeep", ".txt", ".json", ".pdf", ".png", ".toml"}
+
+
+# ------------------------------------------------------------------------------------ datasets
+@dataclass(frozen=True)
+class Dataset:
+    name: str
+    raw: Path              # folder holding the raw files
+
+
+def is_tank_file(path: Path) -> bool:
+    """False for files that are not tank data (README.md, dataset.toml, stamps, hidden files)."""
+    return path.is_file() and not (path.name.startswith(".") or path.suffix.lower() in NOT_TANK_SUFFIXES)
+
+
+def raw_files(ds: Dataset) -> list[Path]:
+    """The dataset's raw tank files, sorted (top level of its folder only)."""
+    if not ds.raw.is_dir():
+        return []
+    return sorted(p for p in ds.raw.iterdir() if is_tank_file(p))
+
+
+def discover(raw_root: Path = Path("data/raw"), shared: Path = Path("../shared")) -> list[Dataset]:
+    """Every dataset the pipeline builds, in order: virtual, hsva (if present), folders, local."""
+    raw_root = Path(raw_root)
+    out = [Dataset(VIRTUAL, raw_root / VIRTUAL)]
+    hsva = Path(shared) / "data" / "kvlcc2_hsva"
+    if hsva.is_dir() and any(hsva.glob("*.dat")):
+        out.append(Dataset(HSVA, hsva))
+    if raw_root.is_dir():
+        for d in sorted(p for p in raw_root.iterdir() if p.is_dir() and not p.name.startswith(".")):
+            if d.name not in (VIRTUAL, HSVA, LOCAL):
+                out.append(Dataset(d.name, d))
+        if any(is_tank_file(p) for p in raw_root.iterdir()):
+            out.append(Dataset(LOCAL, raw_root))
+    return out
+
+
+# ------------------------------------------------------------------------- code the stages import
+def _module_file(name: str) -> Path | None:
+    parts = name.split(".")
+    if parts[0] != "pipeline":
+        return None
+    base = PACKAGE_DIR.joinpath(*parts[1:])
+    for cand in (base.with_suffix(".py"), base / "__init__.py"):
+        if cand.is_file():
+            return cand
+    return None
+
+
+def _imports(path: Path, module: str) -> set[str]:
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            found.add(mod)
+            found.update(f"{mod}.{a.name}" for a in node.names)   # "from pkg import module"
+    return {m for m in found if m.split(".")[0] == "pipeline"}
+
+
+def import_closure(*modules: str) -> list[Path]:
+    """Source files of ``modules`` and of every pipeline module they import, transitively (sorted).
+
+    Parent packages count too (importing ``pipeline.a.b`` runs ``pipeline/__init__.py`` and
+    ``pipeline/a/__init__.py``).
+    """
+    seen: dict[str, Path] = {}
+    todo = list(modules)
+    while todo:
+        name = todo.pop()
+        parts = name.split(".")
+        for k in range(1, len(parts) + 1):
+            sub = ".".join(parts[:k])
+            if sub in seen:
+                continue
+            path = _module_file(sub)
+            if path is None:
+                continue
+            seen[sub] = path
+            todo.extend(_imports(path, sub))
+    return sorted(set(seen.values()))
+
+
+# ------------------------------------------------------------------------------------- stages
+@dataclass(frozen=True)
+class Stage:
+    name: str
+    module: str                      # the CLI module whose import closure the stage depends on
+    after: tuple[str, ...]           # stages whose outputs it reads
+    outputs: tuple[str, ...]         # files (under data/processed/<name>/) that must exist afterwards
+    argv: Callable[[Dataset, Path], list[list[str]]] = field(compare=False)
+
+
+def _ingest_argv(ds: Dataset, root: Path) -> list[list[str]]:
+    files = [str(p) for p in raw_files(ds)]
+    return [["ingest", *files, "--out", str(root / ds.name / "runs"), "--dataset", ds.name]]
+
+
+def _dataset_args(ds: Dataset, root: Path) -> list[str]:
+    return ["--dataset", ds.name, "--root", str(root)]
+
+
+STAGES: tuple[Stage, ...] = (
+    Stage("ingest", "pipeline.cli.ingest", (), ("runs/index.json",), _ingest_argv),
+    Stage("identify", "pipeline.cli.identify", ("ingest",),
+          ("identify/srukf-ffm/estimates.json", "identify/ffm-ukf/estimates.json"),
+          lambda ds, root: [["identify", *_dataset_args(ds, root), "--algorithm", a]
+                            for a in ("srukf-ffm", "ffm-ukf")]),
+    Stage("validate", "pipeline.cli.validate", ("ingest", "identify"), ("validate/metrics.json",),
+          lambda ds, root: [["validate", *_dataset_args(ds, root)]]),
+    Stage("indices", "pipeline.cli.indices", ("ingest", "identify"), ("indices/indices.json",),
+          lambda ds, root: [["indices", *_dataset_args(ds, root)]]),
+    Stage("control", "pipeline.cli.control", ("indices",), ("control/metrics.json",),
+          lambda ds, root: [["control", *_dataset_args(ds, root)]]),
+    Stage("diagnose", "pipeline.cli.diagnose", ("ingest",), ("diagnose/diagnosis.json",),
+          lambda ds, root: [["diagnose", *_dataset_args(ds, root)]]),
+)
+STAGE_DIRS = {"ingest": "runs", "identify": "identify", "validate": "validate", "indices": "indices",
+              "control": "control", "diagnose": "diagnose"}
+
+
+def _hash_files(h, files: Sequence[tuple[str, Path]]) -> None:
+    for rel, path in files:
+        h.update(rel.encode("utf-8", "surrogateescape") + b"\0")
+        with open(path, "rb") as fh:
+            for chunk in iter(lambda fh=fh: fh.read(1 << 20), b""):
+                h.update(chunk)
+        h.update(b"\0")
+
+
+def _code(paths: Sequence[Path]) -> list[tuple[str, Path]]:
+    return [(str(p.relative_to(PACKAGE_DIR)) if PACKAGE_DIR in p.parents else p.name, p) for p in paths]
+
+
+def stage_key(stage: Stage, ds: Dataset, root: Path) -> str:
+    """SHA-256 of everything the stage's output depends on (inputs' content, code, argv)."""
+    h = hashlib.sha256()
+    code = import_closure(stage.module, "pipeline.cli")
+    _hash_files(h, _code(code))
+    if stage.name == "ingest":
+        _hash_files(h, [(p.name, p) for p in raw_files(ds)])
+        toml = ds.raw / "dataset.toml"
+        if toml.is_file():
+            _hash_files(h, [("dataset.toml", toml)])
+    for up in stage.after:
+        d = Path(root) / ds.name / STAGE_DIRS[up]
+        files = sorted(p for p in d.rglob("*") if p.is_file() and not p.name.startswith(".")) \
+            if d.is_dir() else []
+        _hash_files(h, [(str(p.relative_to(d.parent)), p) for p in files])
+    for argv in stage.argv(ds, root):
+        h.update("\0".join(argv).encode("utf-8", "surrogateescape") + b"\n")
+    return h.hexdigest()
+
+
+def _stamp(ds: Dataset, root: Path, stage: Stage) -> Path:
+    return Path(root) / ds.name / ".stamps" / stage.name
+
+
+def up_to_date(stage: Stage, ds: Dataset, root: Path) -> bool:
+    stamp = _stamp(ds, root, stage)
+    if not stamp.is_file() or not all((Path(root) / ds.name / o).is_file() for o in stage.outputs):
+        return False
+    return stamp.read_text().strip() == stage_key(stage, ds, root)
+
+
+def _write_stamp(stage: Stage, ds: Dataset, root: Path) -> None:
+    from pipeline.io import atomic_path
+
+    with atomic_path(_stamp(ds, root, stage)) as tmp:
+        tmp.write_text(stage_key(stage, ds, root) + "\n")
+
+
+def tank_up_to_date(raw: Path) -> bool:
+    stamp = raw / ".stamp"
+    return stamp.is_file() and stamp.read_text().strip() == _tank_key() and any(raw.glob("*.csv"))
+
+
+def _tank_key() -> str:
+    h = hashlib.sha256()
+    _hash_files(h, _code(import_closure("pipeline.cli.tank", "pipeline.tank")))
+    return h.hexdigest()
+
+
+def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str | None = None,
+                  run: Callable[[list[str]], int] | None = None,
+                  say: Callable[[str], None] = print) -> list[str]:
+    """Bring every stage of ``ds`` up to date (up to and including ``until``); returns the stages run.
+
+    ``run`` executes one argv list (default :func:`pipeline.cli.main`); a non-zero code stops the
+    build with :class:`pipeline.errors.PipelineError` naming the dataset and the stage.
+    """
+    from pipeline.errors import InputError, PipelineError
+
+    if run is None:
+        from pipeline.cli import main as run
+    names = [s.name for s in STAGES]
+    if until is not None and until not in names:
+        raise InputError(f"unknown stage {until!r} (known: {', '.join(names)})")
+    stages = STAGES[: names.index(until) + 1] if until else STAGES
+    if ds.name == VIRTUAL and not tank_up_to_date(ds.raw):
+        say(f"[{ds.name}] tank")
+        if run(["tank", "--out", str(ds.raw)]) != 0:
+            raise PipelineError(f"dataset {ds.name!r}: stage tank failed (see above)")
+        from pipeline.io import atomic_path
+
+        with atomic_path(ds.raw / ".stamp") as tmp:
+            tmp.write_text(_tank_key() + "\n")
+    if not raw_files(ds):
+        raise InputError(f"dataset {ds.name!r}: no tank files in {ds.raw}")
+    done = []
+    for stage in stages:
+        if up_to_date(stage, ds, root):
+            continue
+        say(f"[{ds.name}] {stage.name}")
+        for argv in stage.argv(ds, root):
+            code = run(argv)
+            if code != 0:
+                raise PipelineError(f"dataset {ds.name!r}: stage {stage.name} failed "
+                                    f"(exit {code}, see above)")
+        _write_stamp(stage, ds, root)
+        done.append(stage.name)
+    return done

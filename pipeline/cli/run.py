@@ -1,0 +1,53 @@
+"""``python -m pipeline run --all | --dataset NAME [...]``: every stage of the datasets, only what is stale.
+
+What ``make pipeline`` calls.  Dataset names are found here, in Python (pipeline.build.discover), and
+never pass through a shell.  ``--list`` prints the dataset names, one per line.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from pipeline.errors import InputError
+
+
+def register(sub) -> None:
+    from pipeline.build import STAGES
+
+    p = sub.add_parser("run", help="run every stage of the datasets that is out of date (make pipeline)")
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--all", action="store_true", help="every dataset (virtual, hsva, data/raw/*)")
+    which.add_argument("--dataset", nargs="+", metavar="NAME", help="these datasets only")
+    which.add_argument("--list", action="store_true", help="print the dataset names, one per line")
+    p.add_argument("--raw", type=Path, default=Path("data/raw"), help="raw-data root (default: data/raw)")
+    p.add_argument("--root", type=Path, default=Path("data/processed"),
+                   help="processed-data root (default: data/processed)")
+    p.add_argument("--shared", type=Path, default=Path("../shared"),
+                   help="shared data folder with data/kvlcc2_hsva (default: ../shared)")
+    p.add_argument("--until", choices=[s.name for s in STAGES], help="stop after this stage")
+    p.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    from pipeline.build import build_dataset, discover
+
+    found = discover(args.raw, args.shared)
+    if args.list:
+        for d in found:
+            print(d.name)
+        return 0
+    if args.all:
+        chosen = found
+    else:
+        by_name = {d.name: d for d in found}
+        missing = [n for n in args.dataset if n not in by_name]
+        if missing:
+            raise InputError(f"unknown dataset {missing[0]!r} (known: {', '.join(by_name)})")
+        chosen = [by_name[n] for n in args.dataset]
+    t0 = time.perf_counter()
+    for ds in chosen:
+        done = build_dataset(ds, args.root, until=args.until)
+        print(f"[{ds.name}] " + (f"ran {', '.join(done)}" if done else "up to date"), flush=True)
+    print(f"stages finished in {time.perf_counter() - t0:.0f} s")
+    return 0

@@ -1,0 +1,143 @@
+"""make pipeline / pipeline run: names never pass a shell; stages rerun when their inputs or code change.
+
+Issue 14 item 2 (a folder called ``x$(touch${IFS}X)`` ran ``touch`` during ``make reports``; names
+with spaces broke make) and issue 13 (stage targets did not depend on the code they import).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from pipeline import build
+from pipeline.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+HOSTILE = "x$(touch${IFS}X)"
+SPACED = "my runs"
+
+
+def _no_x_anywhere(*dirs: Path) -> None:
+    for d in dirs:
+        assert not [p for p in Path(d).rglob("X")], f"a file X appeared under {d}: a name was executed"
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="GNU make is not installed")
+def test_make_passes_no_dataset_name_to_the_shell(tmp_path):
+    """The real Makefile, run by make in a temporary copy whose Python only records its arguments."""
+    shutil.copy(ROOT / "Makefile", tmp_path / "Makefile")
+    (tmp_path / "pyproject.toml").write_text("")
+    for name in (HOSTILE, SPACED):
+        (tmp_path / "data" / "raw" / name).mkdir(parents=True)
+        (tmp_path / "data" / "raw" / name / "zz 20 $(touch X).csv").write_text("time,psi,r,delta\n")
+    log = tmp_path / "argv.log"
+    py = tmp_path / ".venv" / "bin" / "python"
+    py.parent.mkdir(parents=True)
+    py.write_text(f"#!/bin/sh\nprintf '%s\\n' \"$@\" >> '{log}'\necho '--' >> '{log}'\n")
+    py.chmod(0o755)
+    stamp = tmp_path / ".venv" / ".installed"
+    stamp.write_text("")
+    old = os.path.getmtime(tmp_path / "pyproject.toml") - 10
+    os.utime(tmp_path / "pyproject.toml", (old, old))            # the venv is up to date
+    env = {**os.environ, "MAKEFLAGS": ""}
+    # `make dataset D=...`: shell metacharacters and spaces arrive intact (a `$` is make's own syntax
+    # on its command line; folder names with `$` go through `make pipeline`, which never sees them)
+    by_hand = ("x;touch X", "x`touch X`", SPACED)
+    for target in (["pipeline"], ["reports"], ["datasets"], *(["dataset", f"D={n}"] for n in by_hand)):
+        res = subprocess.run(["make", "--no-print-directory", *target], cwd=tmp_path, env=env,
+                             capture_output=True, text=True, timeout=60)
+        assert res.returncode == 0, (target, res.stdout, res.stderr)
+    _no_x_anywhere(tmp_path)
+    calls = [c.strip("\n").split("\n") for c in log.read_text().split("--\n") if c.strip()]
+    assert ["-m", "pipeline", "run", "--all", "--shared", "../shared"] in calls
+    assert ["-m", "pipeline", "report", "--all", "--changed", "--out", "reports"] in calls
+    # a hostile or spaced name given to `make dataset` arrives as one intact argument
+    for name in by_hand:
+        assert ["-m", "pipeline", "run", "--dataset", name, "--shared", "../shared"] in calls, name
+
+
+def _write_zigzag(folder: Path, stem: str) -> None:
+    from pipeline import tank
+
+    folder.mkdir(parents=True, exist_ok=True)
+    tank.write_csv(folder / f"{stem}.csv", tank.simulate(tank.zigzag(20, 20, "starboard", duration=40.0)))
+
+
+def test_run_ingests_datasets_with_hostile_and_spaced_names(tmp_path, monkeypatch, capsys):
+    raw, root = tmp_path / "raw", tmp_path / "proc"
+    for name in (HOSTILE, SPACED):
+        _write_zigzag(raw / name, "zz 20 $(touch X)")
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "--list", "--raw", str(raw), "--shared", str(tmp_path / "none")]) == 0
+    listed = capsys.readouterr().out.splitlines()
+    assert listed == ["virtual", SPACED, HOSTILE]          # sorted folders after the built-in tank
+    code = main(["run", "--dataset", HOSTILE, SPACED, "--raw", str(raw), "--root", str(root),
+                 "--shared", str(tmp_path / "none"), "--until", "ingest"])
+    assert code == 0
+    for name in (HOSTILE, SPACED):
+        index = root / name / "runs" / "index.json"
+        assert index.is_file(), name
+        assert '"run_id": "zz 20 $(touch X)"' in index.read_text()
+    _no_x_anywhere(tmp_path)
+
+
+def test_unknown_dataset_is_one_line(tmp_path, capsys):
+    code = main(["run", "--dataset", "nope", "--raw", str(tmp_path), "--shared", str(tmp_path)])
+    assert code == 2
+    assert "unknown dataset 'nope'" in capsys.readouterr().err
+
+
+def test_stage_code_dependencies_follow_imports():
+    """A stage depends on every pipeline module it imports, directly or not (issue 13)."""
+    rel = {str(p.relative_to(build.PACKAGE_DIR)) for p in build.import_closure("pipeline.cli.indices")}
+    for f in ("config.py", "model.py", "io.py", "cli/__init__.py", "cli/_common.py", "cli/indices.py",
+              "indices/stage.py", "indices/zigzag.py", "runinfo.py", "errors.py"):
+        assert f in rel, f
+    assert "report/render.py" not in rel and "control/stage.py" not in rel
+    ident = {str(p.relative_to(build.PACKAGE_DIR)) for p in build.import_closure("pipeline.cli.identify")}
+    assert "identify/srukf.py" in ident and "indices/stage.py" not in ident
+
+
+def test_only_stale_stages_rerun(tmp_path, monkeypatch):
+    """Fake stage commands (they write a counter into their outputs): nothing reruns when nothing
+    changed; a changed raw file reruns everything; a changed module of one stage reruns that stage
+    and what reads its outputs, and nothing upstream."""
+    raw, root = tmp_path / "raw", tmp_path / "proc"
+    (raw / "mine").mkdir(parents=True)
+    (raw / "mine" / "a.csv").write_text("time,psi,r,delta\n0,0,0,0\n")
+    ds = build.Dataset("mine", raw / "mine")
+    outputs = {s.name: s.outputs for s in build.STAGES}
+    ran: list[str] = []
+
+    def fake(argv):
+        stage = argv[0]
+        ran.append(stage)
+        for o in outputs[stage]:
+            p = root / "mine" / o
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_text(f"{stage} {len(ran)}")
+        return 0
+
+    everything = ["ingest", "identify", "validate", "indices", "control", "diagnose"]
+    assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == everything
+    assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == []
+    (raw / "mine" / "a.csv").write_text("time,psi,r,delta\n0,0,0,1\n")
+    assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == everything
+
+    extra = tmp_path / "indices_helper.py"
+    extra.write_text("X = 1\n")
+    real = build.import_closure
+
+    def closure(*mods):
+        files = real(*mods)
+        return files + [extra] if "pipeline.cli.indices" in mods else files
+
+    monkeypatch.setattr(build, "import_closure", closure)
+    assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == ["indices", "control"]
+    assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == []
+    extra.write_text("X = 2\n")
+    assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == ["indices", "control"]
