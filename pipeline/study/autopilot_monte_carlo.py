@@ -135,4 +135,5 @@ def summarise(frame: pd.DataFrame, cfg: AutopilotStudyConfig, study_seed: int) -
 
 
 KIND = StudyKind(name="autopilot_monte_carlo", config=AutopilotStudyConfig, cases=cases, run_case=run_case,
-                 summarise=summarise, warm=warm, summary_only=("worst",))
+                 summarise=summarise, warm=warm, summary_only=("worst",),
+                 grid=("plants", "tw", "wind_rudder", "seeds"))

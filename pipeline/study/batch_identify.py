@@ -174,4 +174,5 @@ def summarise(frame: pd.DataFrame, cfg: BatchIdentifyConfig, study_seed: int) ->
 
 
 KIND = StudyKind(name="batch_identify", config=BatchIdentifyConfig, cases=cases, run_case=run_case,
-                 summarise=summarise, warm=warm)
+                 summarise=summarise, warm=warm,
+                 grid=("inputs", "pattern"))

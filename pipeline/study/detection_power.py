@@ -441,4 +441,5 @@ def _page(summary: dict) -> str:
 
 KIND = StudyKind(name="detection_power", config=DetectionPowerConfig, cases=cases, run_case=run_case,
                  summarise=summarise, render=render, warm=warm,
-                 summary_only=("level", "confidence", "bootstrap"))
+                 summary_only=("level", "confidence", "bootstrap"),
+                 grid=("effects", "magnitudes", "plants", "seeds", "clean_seeds"))

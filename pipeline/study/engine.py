@@ -64,7 +64,7 @@ def case_seed(study_seed: int, params: dict[str, Any]) -> int:
 
 def settings_fingerprint(kind, settings) -> dict[str, Any]:
     d = asdict(settings)
-    for k in kind.summary_only:
+    for k in (*kind.summary_only, *kind.grid):
         d.pop(k, None)
     return d
 
@@ -143,7 +143,7 @@ def _client(scheduler: str | None, workers: int, memory_limit: str):
     if address:
         return Client(address, timeout="30s"), None
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, memory_limit=memory_limit,
+                           dashboard_address=":0", memory_limit=memory_limit,
                            env={"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"})
     return Client(cluster), cluster
 

@@ -26,6 +26,9 @@ class StudyKind:
     warm : optional (settings) -> None, compiles the numba kernels a case uses (once per worker).
     summary_only : settings fields that only change the summary (not the cases' results); they are
         left out of the case fingerprint, so changing them reuses the done cases.
+    grid : settings fields that only say which cases exist (ranges, seed counts); every case's
+        parameters carry its own values, so these are left out of the fingerprint too: extending a
+        study's ranges keeps the cases already done.
     """
 
     name: str
@@ -36,3 +39,4 @@ class StudyKind:
     render: Callable[[pd.DataFrame, dict[str, Any], Path], None] | None = None
     warm: Callable[[Any], None] | None = None
     summary_only: tuple[str, ...] = field(default_factory=tuple)
+    grid: tuple[str, ...] = field(default_factory=tuple)

@@ -81,8 +81,6 @@ def build(cls: type, table: dict[str, Any], section: str, file: str) -> Any:
 
 def load_spec(path: str | Path) -> Spec:
     """Read and check a study spec file."""
-    from pipeline.study import get_kind
-
     path = Path(path)
     try:
         doc = tomllib.loads(path.read_text())
@@ -101,7 +99,10 @@ def spec_from_dict(doc: dict[str, Any], file: str = "<spec>") -> Spec:
     study = build(StudyConfig, doc["study"], "study", file)
     if study.workers < 1:
         raise InputError("key 'study.workers': must be at least 1", file=file)
-    kind = get_kind(study.kind)
+    try:
+        kind = get_kind(study.kind)
+    except InputError as exc:
+        raise InputError(f"key 'study.kind': {exc}", file=file) from None
     extra = sorted(set(doc) - {"study", kind.name})
     if extra:
         raise InputError(f"unknown table [{extra[0]}] for a {kind.name} study", file=file)
