@@ -56,7 +56,8 @@ def test_every_registered_kind_has_its_settings_and_functions():
     ({"study": {"kind": "autopilot_monte_carlo", "sede": 1}}, "unknown key 'study.sede'"),
     ({"study": {"kind": "autopilot_monte_carlo"}, "autopilot_monte_carlo": {"tw": 3.0}},
      "autopilot_monte_carlo.tw.*expected a list"),
-    ({"study": {"kind": "autopilot_monte_carlo"}, "detection_power": {}}, r"unknown table \[detection_power\]"),
+    ({"study": {"kind": "autopilot_monte_carlo"}, "detection_power": {}},
+     r"unknown table \[detection_power\]"),
     ({"study": {"kind": "autopilot_monte_carlo", "seed": "x"}}, "study.seed.*integer"),
 ])
 def test_bad_spec_is_refused_with_one_line_naming_the_key(doc, match):

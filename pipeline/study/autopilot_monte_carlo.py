@@ -35,9 +35,11 @@ def _control(cfg: AutopilotStudyConfig) -> ControlConfig:
 def cases(cfg: AutopilotStudyConfig) -> list[dict[str, Any]]:
     for p in cfg.plants:
         if p not in PLANTS:
-            raise InputError(f"unknown plant {p!r} in autopilot_monte_carlo.plants (known: {', '.join(PLANTS)})")
+            raise InputError(f"unknown plant {p!r} in autopilot_monte_carlo.plants "
+                             f"(known: {', '.join(PLANTS)})")
     if cfg.design not in ("first_order", "second_order"):
-        raise InputError(f"autopilot_monte_carlo.design must be first_order or second_order, got {cfg.design!r}")
+        raise InputError("autopilot_monte_carlo.design must be first_order or second_order, "
+                         f"got {cfg.design!r}")
     if cfg.seeds < 1:
         raise InputError("autopilot_monte_carlo.seeds must be at least 1")
     return [{"plant": p, "tw": float(tw), "wind_rudder": float(w), "replicate": k}
@@ -63,7 +65,8 @@ def run_case(params: dict, seed: int, cfg: AutopilotStudyConfig) -> dict[str, An
     wave_seed = int(seed % (2**32))
     wave = wave_sequence(n, ctl.dt, wave_seed, ctl.wave_num, ctl.wave_den) if ctl.wave else np.zeros(n)
     if params["plant"] == "nomoto":
-        ship = NomotoShip(cfg.K, cfg.T1, cfg.T2, cfg.T3, rudder_max=ctl.rudder_max, rudder_rate=ctl.rudder_rate)
+        ship = NomotoShip(cfg.K, cfg.T1, cfg.T2, cfg.T3, rudder_max=ctl.rudder_max,
+                          rudder_rate=ctl.rudder_rate)
     else:
         ship = make_kcs_ship(ctl.rudder_max, ctl.rudder_rate)
     fr = simulate_course(design, ship, setpoint=ctl.setpoint, duration=ctl.duration, dt=ctl.dt,
@@ -102,6 +105,7 @@ def summarise(frame: pd.DataFrame, cfg: AutopilotStudyConfig, study_seed: int) -
             v = pd.to_numeric(g[m], errors="coerce").to_numpy(float)
             fin = v[np.isfinite(v)]
             how = WORST.get(m, "max")
+            pick = {"max": np.max, "min": np.min}.get(how, lambda a: a[np.argmax(np.abs(a))])
             stats[m] = {
                 "n": int(fin.size), "not_finite": int(v.size - fin.size),
                 "mean": float(np.mean(fin)) if fin.size else None,
@@ -109,8 +113,7 @@ def summarise(frame: pd.DataFrame, cfg: AutopilotStudyConfig, study_seed: int) -
                 "q05": float(np.quantile(fin, 0.05)) if fin.size else None,
                 "median": float(np.median(fin)) if fin.size else None,
                 "q95": float(np.quantile(fin, 0.95)) if fin.size else None,
-                "worst": (float({"max": np.max, "min": np.min}.get(how, lambda a: a[np.argmax(np.abs(a))])(fin))
-                          if fin.size else None),
+                "worst": float(pick(fin)) if fin.size else None,
             }
         groups.append({"plant": plant, "tw": float(tw), "wind_rudder": float(wind), "seeds": len(g),
                        "metrics": stats})

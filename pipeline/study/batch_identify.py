@@ -37,8 +37,8 @@ def files(cfg: BatchIdentifyConfig) -> list[Path]:
     for item in cfg.inputs:
         p = Path(item)
         if p.is_dir():
-            out += sorted(f for f in p.glob(cfg.pattern)
-                          if f.is_file() and not f.name.startswith(".") and f.suffix.lower() not in SKIP_SUFFIXES)
+            out += sorted(f for f in p.glob(cfg.pattern) if f.is_file() and not f.name.startswith(".")
+                          and f.suffix.lower() not in SKIP_SUFFIXES)
         elif p.is_file():
             out.append(p)
         else:

@@ -405,7 +405,8 @@ def _page(summary: dict) -> str:
         for plant, fit in entry["min_detectable_90"].items():
             iv = fit.get("interval") or [None, None]
             parts.append(
-                f"<tr><td class=l>{e(effect)}</td><td class=l>{e(plant)}</td><td>{_fmt(fit.get('value'))}</td>"
+                f"<tr><td class=l>{e(effect)}</td><td class=l>{e(plant)}</td>"
+                f"<td>{_fmt(fit.get('value'))}</td>"
                 f"<td>[{_fmt(iv[0])}, {_fmt(iv[1])}]</td><td class=l>{e(entry['magnitude_unit'])}</td>"
                 f"<td class=l>{e(fit.get('note') or '')}</td></tr>")
     parts.append("</table><h2>False positives on clean data</h2><table><tr><th class=l>plant</th>"
@@ -433,7 +434,8 @@ def _page(summary: dict) -> str:
     if summary["failures"]:
         parts.append("<h2>Failed cases</h2><ul>")
         for f in summary["failures"]:
-            parts.append(f"<li><code>{e(f['case_id'])}</code> {e(str(f['params']))}: {e(str(f['error']))}</li>")
+            parts.append(f"<li><code>{e(f['case_id'])}</code> {e(str(f['params']))}: "
+                         f"{e(str(f['error']))}</li>")
         parts.append("</ul>")
     parts.append("</body></html>\n")
     return "\n".join(parts)

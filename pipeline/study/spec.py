@@ -74,7 +74,8 @@ def build(cls: type, table: dict[str, Any], section: str, file: str) -> Any:
     names = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(table) - names)
     if unknown:
-        raise InputError(f"unknown key '{section}.{unknown[0]}' (known: {', '.join(sorted(names))})", file=file)
+        raise InputError(f"unknown key '{section}.{unknown[0]}' (known: {', '.join(sorted(names))})",
+                         file=file)
     kw = {k: _coerce(v, hints[k], f"{section}.{k}", file) for k, v in table.items()}
     return cls(**kw)
 
