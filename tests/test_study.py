@@ -111,6 +111,8 @@ def test_min_detectable_recovers_a_known_power_curve():
     assert out["interval"][0] < true90 < out["interval"][1]
     every = logistic_level(np.array([0.1, 0.2]), np.array([True, True]), 0.9, 0.95, 10, 0)
     assert every["value"] is None and "below the smallest" in every["note"]
+    step = logistic_level(np.repeat([0.2, 0.8], 4), np.repeat([False, True], 4), 0.9, 0.95, 10, 0)
+    assert step["value"] is None and step["interval"] == [0.2, 0.8]
 
 
 # ---------------------------------------------------------------- on a local cluster

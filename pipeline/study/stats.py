@@ -78,6 +78,16 @@ def logistic_level(mag: np.ndarray, detected: np.ndarray, level: float, confiden
         return out
     a, b = _fit(x, y)
     out["intercept"], out["slope"] = a, b
+    levels = np.unique(mag)
+    rate = np.array([y[mag == m].mean() for m in levels])
+    if np.all((rate == 0) | (rate == 1)) and np.all(np.diff(rate) >= 0):
+        # a step: no case between "never" and "always"; the point lies between the two magnitudes and
+        # neither the fit nor a bootstrap of these cases can place it closer (every resample is the same)
+        lo_s, hi_s = float(levels[rate == 0].max()), float(levels[rate == 1].min())
+        out["interval"] = [lo_s, hi_s]
+        out["note"] = (f"detection jumps from none at {lo_s:g} to every case at {hi_s:g}: the {level:.0%} "
+                       "point lies between them (add magnitudes in between to place it)")
+        return out
     xv = _level_x(a, b, level)
     if xv is None:
         out["note"] = "detection does not rise with magnitude in the cases tried"
