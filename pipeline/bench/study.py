@@ -155,13 +155,15 @@ def _separate(spec, n: int) -> dict:
     port = _free_port()
     addr = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                               "--port", str(port), "--no-dashboard"], env=env,
+    exe = Path(sys.executable).with_name("dask")
+    dask = [str(exe)] if exe.exists() else [sys.executable, "-m", "dask"]
+    sched = [*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"]
+    procs = [subprocess.Popen(sched, env=env,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
         for _ in range(2):
-            procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", addr,
-                                           "--nthreads", "1", "--no-dashboard"], env=env,
+            procs.append(subprocess.Popen([*dask, "worker", addr, "--nthreads", "1", "--no-dashboard"],
+                                          env=env,
                                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         client = Client(addr, timeout="60s")
         try:
