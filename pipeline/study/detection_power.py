@@ -361,6 +361,8 @@ def render(frame: pd.DataFrame, summary: dict, out: Path) -> None:
                 ax.plot(xx, yy, color=line[0].get_color(), lw=1)
             if fit.get("value") is not None:
                 ax.axvline(fit["value"], color=line[0].get_color(), ls="--", lw=0.8)
+            elif None not in (fit.get("interval") or [None]):
+                ax.axvspan(*fit["interval"], color=line[0].get_color(), alpha=0.12, lw=0)  # 90 % inside
         ax.axhline(0.9, color="0.6", lw=0.6)
         ax.set_xscale("log")
         ax.set_ylim(-0.03, 1.03)

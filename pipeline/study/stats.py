@@ -76,8 +76,6 @@ def logistic_level(mag: np.ndarray, detected: np.ndarray, level: float, confiden
                        else f"no case detected: above the largest magnitude tried ({hi_m:g})")
         out["interval"] = [None, lo_m] if y[0] == 1 else [hi_m, None]
         return out
-    a, b = _fit(x, y)
-    out["intercept"], out["slope"] = a, b
     levels = np.unique(mag)
     rate = np.array([y[mag == m].mean() for m in levels])
     if np.all((rate == 0) | (rate == 1)) and np.all(np.diff(rate) >= 0):
@@ -88,6 +86,8 @@ def logistic_level(mag: np.ndarray, detected: np.ndarray, level: float, confiden
         out["note"] = (f"detection jumps from none at {lo_s:g} to every case at {hi_s:g}: the {level:.0%} "
                        "point lies between them (add magnitudes in between to place it)")
         return out
+    a, b = _fit(x, y)
+    out["intercept"], out["slope"] = a, b
     xv = _level_x(a, b, level)
     if xv is None:
         out["note"] = "detection does not rise with magnitude in the cases tried"
