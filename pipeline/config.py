@@ -197,7 +197,9 @@ class DetectionPowerConfig:
     rudder_deg: float = 20.0             # zigzag rudder / heading angle of the truth runs, deg
     tank_rudder_deg: float = 10.0        # tank zigzags are smaller (the KCS is near linear there)
     duration_s: float = 60.0             # s, length of each run
-    two_sides: bool = True               # train on the starboard zigzag, validate on the port one
+    runs_per_side: int = 2               # 2: train on R/R starboard + R/2 port, validate on R/R port + R/2
+    #                                      starboard (the crossed design of the catalog; two folds);
+    #                                      1: train on R/R starboard, validate on R/R port (one fold, cheaper)
     tank_own_effects: tuple[str, ...] = ("nonlinear_yaw_damping",)   # the KCS has these itself
     level: float = 0.9                   # detection rate whose magnitude is reported (min_detectable_90)
     confidence: float = 0.95             # of every interval in summary.json

@@ -3,8 +3,10 @@ effect that is not there.
 
 Cases (per plant): every effect of the diagnosis catalogue that this module can inject, at each
 magnitude of the spec times ``seeds`` replicates, plus ``clean_seeds`` clean replicates.  Each case
-simulates a zigzag on the starboard side (training) and one on the port side (validation) and runs
-the full diagnosis (:func:`pipeline.diagnose.diagnose`) on them.
+simulates zigzags and runs the full diagnosis (:func:`pipeline.diagnose.diagnose`) on them: with
+``runs_per_side = 2`` (default) the crossed design of the catalog and of tests/test_diagnose_cases.py
+(train R/R starboard + R/2 port, validate R/R port + R/2 starboard: both sides, two amplitudes, two
+folds); with 1, train on R/R starboard and validate on R/R port (one fold: cheaper, weaker).
 
 Plants:
 
@@ -176,7 +178,11 @@ def cases(cfg: DetectionPowerConfig) -> list[dict[str, Any]]:
 def _runs(params: dict, seed: int, cfg: DetectionPowerConfig):
     rng = np.random.default_rng(seed)
     effect, mag = params["effect"], float(params["magnitude"])
-    sides = ("starboard", "port")
+    if cfg.runs_per_side not in (1, 2):
+        raise InputError(f"detection_power.runs_per_side must be 1 or 2, got {cfg.runs_per_side}")
+    # (amplitude fraction, side): training legs first, then validation legs
+    legs = ([(1.0, "starboard"), (1.0, "port")] if cfg.runs_per_side == 1 else
+            [(1.0, "starboard"), (0.5, "port"), (1.0, "port"), (0.5, "starboard")])
     if params["plant"] == "truth":
         from pipeline.diagnose.truth import TruthConfig, zigzag_truth
         from pipeline.model import PAPER_TABLE4
@@ -189,9 +195,8 @@ def _runs(params: dict, seed: int, cfg: DetectionPowerConfig):
         truth_value = None
         if effect != "none":
             tc, truth_value = _truth_inject(effect, mag, tc)
-        a = cfg.rudder_deg
-        runs = [zigzag_truth(a, a, s, cfg.duration_s, dc.replace(tc, seed=tc.seed + j))
-                for j, s in enumerate(sides)]
+        runs = [zigzag_truth(f * cfg.rudder_deg, f * cfg.rudder_deg, s, cfg.duration_s,
+                             dc.replace(tc, seed=tc.seed + j)) for j, (f, s) in enumerate(legs)]
         return runs, truth_value, {"hull_factor": float(fa), "rudder_factor": float(fb)}
     import pipeline.tank as tank
 
@@ -202,7 +207,8 @@ def _runs(params: dict, seed: int, cfg: DetectionPowerConfig):
     if effect != "none":
         tc, truth_value = _tank_inject(effect, mag, tc)
     a = cfg.tank_rudder_deg
-    runs = [tank.simulate(tank.zigzag(a, a, s, duration=cfg.duration_s), tc, coeffs=coeffs) for s in sides]
+    runs = [tank.simulate(tank.zigzag(f * a, f * a, s, duration=cfg.duration_s), tc, coeffs=coeffs)
+            for f, s in legs]
     return runs, truth_value, {}
 
 
@@ -211,7 +217,8 @@ def run_case(params: dict, seed: int, cfg: DetectionPowerConfig) -> dict[str, An
 
     runs, truth_value, extra = _runs(params, seed, cfg)
     dcfg = dc.replace(DiagnoseConfig(), **cfg.diagnose)
-    rep = diagnose(runs[:1], runs[1:], dcfg).report
+    half = len(runs) // 2
+    rep = diagnose(runs[:half], runs[half:], dcfg).report
     own = set(cfg.tank_own_effects) if params["plant"] == "tank" else set()
     effect = params["effect"]
     sig = sorted(f["effect"] for f in rep["findings"] if f["significant"])
