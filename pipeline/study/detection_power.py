@@ -343,6 +343,7 @@ def render(frame: pd.DataFrame, summary: dict, out: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     from pipeline.io import atomic_path
 
@@ -372,6 +373,9 @@ def render(frame: pd.DataFrame, summary: dict, out: Path) -> None:
                 ax.axvspan(*fit["interval"], color=line[0].get_color(), alpha=0.12, lw=0)  # 90 % inside
         ax.axhline(0.9, color="0.6", lw=0.6)
         ax.set_xscale("log")
+        ticks = sorted({r["magnitude"] for rates in entry["detection"].values() for r in rates})
+        ax.set_xticks(ticks, [f"{t:g}" for t in ticks])
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_ylim(-0.03, 1.03)
         ax.set_xlabel(f"magnitude ({entry['magnitude_unit']})")
         ax.set_ylabel("detection rate")
