@@ -141,7 +141,11 @@ def _client(scheduler: str | None, workers: int, memory_limit: str):
 
     address = scheduler or os.environ.get(ENV_SCHEDULER)
     if address:
-        return Client(address, timeout="30s"), None
+        try:
+            return Client(address, timeout="30s"), None
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"cannot reach the dask scheduler at {address} ({type(exc).__name__}: "
+                             f"{' '.join(str(exc).split())[:200]})") from None
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                            dashboard_address=":0", memory_limit=memory_limit,
                            env={"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"})
@@ -186,7 +190,6 @@ def run_study(spec: Spec, out: str | Path, *, scheduler: str | None = None, work
     kind = get_kind(spec.study.kind)
     out = Path(out)
     cases_dir = out / "cases"
-    cases_dir.mkdir(parents=True, exist_ok=True)
     todo = plan(spec)
     done: dict[str, dict] = {}
     for c in todo:
@@ -203,6 +206,7 @@ def run_study(spec: Spec, out: str | Path, *, scheduler: str | None = None, work
         if own:
             client, cluster = _client(scheduler, n_workers, spec.study.memory_limit)
         try:
+            cases_dir.mkdir(parents=True, exist_ok=True)      # only once there is a cluster to run on
             _register_warm(client, kind, spec.settings)
             done.update(_fan_out(client, kind, spec, pending, cases_dir, lost, progress))
             n_workers = len(client.scheduler_info().get("workers", {})) or n_workers
