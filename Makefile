@@ -67,3 +67,11 @@ lint: $(STAMP)
 clean:
 	rm -rf $(PROC)/* reports/*.html reports/*/ data/raw/virtual
 	@touch $(PROC)/.gitkeep reports/.gitkeep
+
+# ---------------------------------------------------------------- studies on Dask (issue 12)
+# make study                      the full detection-power study (resumable: rerun to continue)
+# make study SPEC=studies/autopilot.toml STUDY_ARGS="--scheduler tcp://host:8786"
+SPEC ?= studies/power-full.toml
+.PHONY: study
+study: $(STAMP)
+	$(PY) -m pipeline study $(SPEC) --out data/studies/$(basename $(notdir $(SPEC))) $(STUDY_ARGS)

@@ -180,6 +180,91 @@ class DiagnoseConfig:
 
 
 @dataclass(frozen=True)
+class StudyConfig:
+    """A study run on Dask (``python -m pipeline study SPEC.toml``): the ``[study]`` table of the spec.
+
+    Every random draw of every case is seeded from ``seed`` and the case's own parameters (never from
+    scheduling), so the outputs are the same bytes whatever the number of workers.
+    """
+
+    kind: str = "detection_power"        # one of pipeline.study.KINDS
+    name: str = "study"
+    seed: int = 20261123                 # root seed of the study (per-case seeds derive from it)
+    workers: int = 2                     # local worker processes (one thread each) when no scheduler given
+    retries: int = 1                     # dask retries of a case whose worker was lost (not of a case error)
+    memory_limit: str = "auto"           # per local worker (dask syntax, e.g. "2GiB")
+
+
+@dataclass(frozen=True)
+class DetectionPowerConfig:
+    """``[detection_power]``: how small an effect the diagnosis finds, and how often it names one that
+    is not there.
+
+    Magnitudes are in each effect's physical terms: rudder_offset deg, rudder_delay s (dead time),
+    nonlinear_yaw_damping the fraction by which the extra damping cuts the 20/20 yaw-rate amplitude,
+    speed_loss the fraction of approach speed lost in the 20/20 zigzag.  An effect of the catalogue
+    with no magnitudes here is listed in summary.json as not studied.
+    """
+
+    effects: tuple[str, ...] = ()        # empty: every effect of the diagnosis catalogue
+    magnitudes: dict[str, tuple[float, ...]] = field(default_factory=lambda: {
+        "rudder_offset": (0.25, 0.5, 1.0, 2.0),
+        "rudder_delay": (0.2, 0.4, 0.7, 1.0),
+        "nonlinear_yaw_damping": (0.05, 0.1, 0.2, 0.3),
+        "speed_loss": (0.04, 0.08, 0.15, 0.25),
+    })
+    plants: tuple[str, ...] = ("truth", "tank")   # linear truth model, virtual KCS tank
+    seeds: int = 5                       # replicates per (plant, effect, magnitude)
+    clean_seeds: int = 20                # clean replicates per plant (false-positive rate)
+    rudder_deg: float = 20.0             # zigzag rudder / heading angle of the truth runs, deg
+    tank_rudder_deg: float = 10.0        # tank zigzags are smaller (the KCS is near linear there)
+    duration_s: float = 60.0             # s, length of each run
+    runs_per_side: int = 2               # 2: train on R/R starboard + R/2 port, validate on R/R port + R/2
+    #                                      starboard (the crossed design of the catalog; two folds);
+    #                                      1: train on R/R starboard, validate on R/R port (one fold, cheaper)
+    tank_own_effects: tuple[str, ...] = ("nonlinear_yaw_damping",)   # the KCS has these itself
+    level: float = 0.9                   # detection rate whose magnitude is reported (min_detectable_90)
+    confidence: float = 0.95             # of every interval in summary.json
+    bootstrap: int = 400                 # resamples of the min-detectable interval
+    diagnose: dict[str, float | int | bool] = field(default_factory=dict)   # DiagnoseConfig overrides
+
+
+@dataclass(frozen=True)
+class AutopilotStudyConfig:
+    """``[autopilot_monte_carlo]``: CGSA course keeping over wave seeds x Tw x wind x plant.
+
+    The autopilot is designed from the Nomoto indices given here (default: the paper's Table 7); the
+    Nomoto plant is that model, the KCS plant the virtual tank's nonlinear ship.
+    """
+
+    plants: tuple[str, ...] = ("nomoto", "kcs")
+    tw: tuple[float, ...] = (2.0, 3.0, 4.0)          # s, closed-loop time constants
+    wind_rudder: tuple[float, ...] = (0.0, 2.0, 4.0)  # deg, wind as constant equivalent rudder
+    seeds: int = 10                      # wave seeds per (plant, Tw, wind)
+    design: str = "first_order"          # 'first_order' (K, T) or 'second_order' (K, T1, T2, T3)
+    K: float = 0.3867                    # 1/s, Nomoto gain (paper Table 7)
+    T1: float = 3.9688                   # s
+    T2: float = 0.4094                   # s
+    T3: float = 0.6960                   # s
+    worst: int = 5                       # worst cases listed per metric in summary.json
+    control: dict[str, float | int | bool | str] = field(default_factory=dict)  # ControlConfig overrides
+
+
+@dataclass(frozen=True)
+class BatchIdentifyConfig:
+    """``[batch_identify]``: identify (and optionally diagnose) every raw file of a folder or list."""
+
+    inputs: tuple[str, ...] = ()         # files or folders (a folder: every file in it, sorted)
+    pattern: str = "*"                   # glob inside folders
+    format: str | None = None            # raw format override (SPEC section 3), None: recognised
+    scale: float | None = None           # full/model scale of the files, None: model scale / metadata
+    samples: int = 585                   # identification window
+    algorithm: str = "srukf-ffm"
+    diagnose: bool = False               # also diagnose each file (train first half, validate second)
+    dt: float = 0.08                     # s, resampling step
+
+
+@dataclass(frozen=True)
 class PipelineConfig:
     ingest: IngestConfig = field(default_factory=IngestConfig)
     tank: TankConfig = field(default_factory=TankConfig)

@@ -18,6 +18,8 @@ def register(sub) -> None:
     p = sub.add_parser("bench", help="run the benchmarks (ingest throughput, filter speed)")
     p.add_argument("--only", nargs="*", help="benchmark modules to run (default: all)")
     p.add_argument("--quick", action="store_true", help="fewer repetitions")
+    p.add_argument("--study", action="store_true",
+                   help="study benchmarks: engine scaling (pipeline/bench/study.py), filter kernel")
     p.add_argument("--out", type=Path, default=Path("data/processed/bench.json"))
     p.set_defaults(func=_run, out_is_file=True)
 
@@ -26,6 +28,8 @@ def _run(args) -> int:
     import pipeline.bench as pkg
 
     rows: list[dict] = []
+    if args.study:
+        args.only = [*(args.only or []), "identify", "study"]
     for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
         if info.name.startswith("_") or (args.only and info.name not in args.only):
             continue

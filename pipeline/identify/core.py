@@ -438,11 +438,13 @@ def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfi
     return doc
 
 
-def identify_batch(Y3: np.ndarray, delta: np.ndarray, h: float, cfg: FilterConfig | None = None):
+def identify_batch(Y3: np.ndarray, delta: np.ndarray, h: float, cfg: FilterConfig | None = None,
+                   parallel: bool = False):
     """SR-UKF-FFM (numba kernel) on R runs of equal length at once.
 
-    Y3 (R, N, 3) measured v, r, psi (all three measured); delta (R, N) deg.  Returns
-    (theta (R, 6), P_theta (R, 6, 6), status (R,) 0 = ok, seconds for the loop alone).
+    Y3 (R, N, 3) measured v, r, psi (all three measured); delta (R, N) deg.  ``parallel``: the runs
+    are split into blocks over numba's threads (every core; each run's numbers are the serial ones).
+    Returns (theta (R, 6), P_theta (R, 6, 6), status (R,) 0 = ok, seconds for the loop alone).
     """
     cfg = cfg or FilterConfig()
     _check_cfg(cfg)
@@ -463,10 +465,19 @@ def identify_batch(Y3: np.ndarray, delta: np.ndarray, h: float, cfg: FilterConfi
     xf = np.empty((nr, 9))
     Sf = np.empty((nr, 9, 9))
     st = np.zeros(nr, dtype=np.int64)
-    fast.srukf_batch_kernel(x0s[:1], S0, Y3[:1, 1:3], delta[:1, :2], h, *args, xf[:1], Sf[:1], st[:1])
-    t0 = _time.perf_counter()
-    fast.srukf_batch_kernel(x0s, S0, np.ascontiguousarray(Y3[:, 1:]), np.ascontiguousarray(delta[:, :-1]),
-                            h, *args, xf, Sf, st)
+    Yk, dk = np.ascontiguousarray(Y3[:, 1:]), np.ascontiguousarray(delta[:, :-1])
+    if parallel:
+        import numba
+
+        chunks = max(1, min(nr, 4 * numba.get_num_threads()))
+        fast.srukf_batch_kernel_parallel(x0s[:1], S0, Y3[:1, 1:3], delta[:1, :2], h, *args, xf[:1], Sf[:1],
+                                         st[:1], 1)
+        t0 = _time.perf_counter()
+        fast.srukf_batch_kernel_parallel(x0s, S0, Yk, dk, h, *args, xf, Sf, st, chunks)
+    else:
+        fast.srukf_batch_kernel(x0s[:1], S0, Y3[:1, 1:3], delta[:1, :2], h, *args, xf[:1], Sf[:1], st[:1])
+        t0 = _time.perf_counter()
+        fast.srukf_batch_kernel(x0s, S0, Yk, dk, h, *args, xf, Sf, st)
     secs = _time.perf_counter() - t0
     P = np.einsum("rij,rkj->rik", Sf, Sf)
     return xf[:, 3:], P[:, 3:, 3:], st, secs

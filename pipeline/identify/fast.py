@@ -1,7 +1,12 @@
-"""Numba kernel of the SR-UKF-FFM: the same maths as :mod:`.srukf`, step by step, without allocations
-in the inner loop.  QR is a Householder triangularisation of the small (2L + L) x L matrix written
-out here (faster than a LAPACK call at this size); everything else mirrors the reference path and
-the tests compare the two to round-off.
+"""Numba kernel of the SR-UKF-FFM: the same maths as :mod:`.srukf`, step by step, allocation-free.
+
+Every work array is allocated once per call (:func:`workspace`), never inside the per-step loop: the
+kernel makes no heap allocation per step (issue 12).  QR is a Householder triangularisation of the
+small (2L + L) x L matrix written out here (faster than a LAPACK call at this size), stored
+transposed so that every inner loop runs along contiguous memory; zero columns of the square root of
+Q (the six parameters have no process noise) are left out of the QR, where they would only add
+zeros.  Everything else mirrors the reference path and the tests compare the two to round-off
+(tests/test_srukf.py, tests/test_identify.py).
 
 Status codes returned by the kernels: 0 ok; 1 time-update downdate failed; 2 innovation-factor
 downdate failed; 3 measurement-update downdate failed; the failing step is returned beside it.
@@ -12,14 +17,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
-from pipeline.identify.fuzzy import fuzzy_factor_nb
+from pipeline.identify.fuzzy import fuzzy_factor_ws
 
 NX = 9
+NPTS = 2 * NX + 1
+_FM = {"reassoc", "contract"}
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _fx(X, npts, delta, h, out):
     for i in range(npts):
         v = X[0, i]
@@ -31,7 +38,7 @@ def _fx(X, npts, delta, h, out):
             out[j, i] = X[j, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cholupdate(L, x, sign):
     """In place: L L^T + sign x x^T (x is overwritten).  Returns False when a downdate fails."""
     n = L.shape[0]
@@ -42,123 +49,156 @@ def _cholupdate(L, x, sign):
             return False
         r = math.sqrt(r2)
         c = r / lkk
+        ic = lkk / r            # 1 / c: one division per column instead of one per entry
         t = x[k] / lkk
+        st = sign * t
         L[k, k] = r
         for i in range(k + 1, n):
-            L[i, k] = (L[i, k] + sign * t * x[i]) / c
-            x[i] = c * x[i] - t * L[i, k]
+            lik = (L[i, k] + st * x[i]) * ic
+            L[i, k] = lik
+            x[i] = c * x[i] - t * lik
     return True
 
 
-@njit(cache=True)
-def _tria(M, n, out):
-    """M (m, n) = A^T, overwritten.  Writes lower S (n, n) with S S^T = M^T M, positive diagonal."""
-    m = M.shape[0]
+@njit(cache=True, error_model="numpy")
+def _dot(A, j, k, lo, hi):
+    """sum_{i=lo}^{hi-1} A[j, i] A[k, i] with four partial sums (breaks the add-latency chain; the
+    order of the additions differs from a plain loop by round-off only)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    i = lo
+    while i + 4 <= hi:
+        s0 += A[j, i] * A[k, i]
+        s1 += A[j, i + 1] * A[k, i + 1]
+        s2 += A[j, i + 2] * A[k, i + 2]
+        s3 += A[j, i + 3] * A[k, i + 3]
+        i += 4
+    while i < hi:
+        s0 += A[j, i] * A[k, i]
+        i += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, error_model="numpy")
+def _tria_t(A, m, out):
+    """A (n, >= m): the first m columns are overwritten.  Writes lower S (n, n) with S S^T = A A^T
+    (over those m columns), positive diagonal: Householder QR of A^T, row j of A = column j of A^T."""
+    n = A.shape[0]
     for j in range(n):
-        norm2 = 0.0
-        for i in range(j, m):
-            norm2 += M[i, j] * M[i, j]
+        norm2 = _dot(A, j, j, j, m)
         norm = math.sqrt(norm2)
         if norm == 0.0:
             continue
-        alpha = -norm if M[j, j] >= 0.0 else norm
-        v0 = M[j, j] - alpha
-        vnorm2 = norm2 - M[j, j] * M[j, j] + v0 * v0
+        ajj = A[j, j]
+        alpha = -norm if ajj >= 0.0 else norm
+        v0 = ajj - alpha
+        vnorm2 = norm2 - ajj * ajj + v0 * v0
         if vnorm2 == 0.0:
             continue
-        M[j, j] = v0            # Householder vector stored in column j (rows j..m-1)
+        A[j, j] = v0            # Householder vector stored in row j (columns j..m-1)
+        two_over = 2.0 / vnorm2
         for k in range(j + 1, n):
-            dot = 0.0
+            s = two_over * _dot(A, j, k, j, m)
             for i in range(j, m):
-                dot += M[i, j] * M[i, k]
-            s = 2.0 * dot / vnorm2
-            for i in range(j, m):
-                M[i, k] -= s * M[i, j]
-        M[j, j] = alpha
+                A[k, i] -= s * A[j, i]
+        A[j, j] = alpha
     for i in range(n):
-        sg = -1.0 if M[i, i] < 0.0 else 1.0
+        sg = -1.0 if A[i, i] < 0.0 else 1.0
         for j in range(n):
-            out[j, i] = sg * M[i, j] if j >= i else 0.0
+            out[j, i] = sg * A[j, i] if j >= i else 0.0
 
 
-@njit(cache=True)
-def _factor(D, npts, sq_noise, wc, M, out):
-    """Lower factor of sum_{i>=1} wc_i D_i D_i^T + N N^T + wc_0 D_0 D_0^T (point 0 by cholupdate)."""
+def _tria(M, n, out):
+    """Lower S (n, n) with S S^T = M^T M for M (m, n) (test helper: the kernel calls :func:`_tria_t`)."""
+    _tria_t(np.ascontiguousarray(np.asarray(M, dtype=float).T), M.shape[0], out)
+
+
+@njit(cache=True, error_model="numpy")
+def _factor(D, npts, sq_noise, noise_cols, wc, A, x, out):
+    """Lower factor of sum_{i>=1} wc_i D_i D_i^T + N N^T + wc_0 D_0 D_0^T.
+
+    ``noise_cols`` lists the non-zero columns of N (the others add nothing).  Point 0 joins the QR as
+    one more column when wc_0 > 0 (the same factor as the reference path's rank-one update, without
+    its n square roots and divisions in a chain); a negative wc_0 is a downdate, done by cholupdate
+    after the QR as in the reference path.  A (n, >= npts + len(noise_cols)) and x (n,) are work
+    arrays."""
     n = D.shape[0]
     s1 = math.sqrt(wc[1])
-    for i in range(1, npts):
-        for j in range(n):
-            M[i - 1, j] = s1 * D[j, i]
-    for i in range(sq_noise.shape[1]):
-        for j in range(n):
-            M[npts - 1 + i, j] = sq_noise[j, i]
-    _tria(M, n, out)
-    if wc[0] != 0.0:
-        s0 = math.sqrt(abs(wc[0]))
-        x = np.empty(n)
+    nc = noise_cols.shape[0]
+    cols = npts - 1 + nc
+    w0 = wc[0]
+    s0 = math.sqrt(abs(w0))
+    for j in range(n):
+        aj = A[j]
+        dj = D[j]
+        for i in range(1, npts):
+            aj[i - 1] = s1 * dj[i]
+        for c in range(nc):
+            aj[npts - 1 + c] = sq_noise[j, noise_cols[c]]
+        if w0 > 0.0:
+            aj[cols] = s0 * dj[0]
+    _tria_t(A, cols + 1 if w0 > 0.0 else cols, out)
+    if w0 < 0.0:
         for j in range(n):
             x[j] = s0 * D[j, 0]
-        return _cholupdate(out, x, 1.0 if wc[0] > 0.0 else -1.0)
+        return _cholupdate(out, x, -1.0)
     return True
 
 
-@njit(cache=True)
-def srukf_kernel(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
-                 use_fuzzy, chan, fz, rules,
-                 x_prior_out, x_out, std_out, innov_out, nis_out, f_out):
-    """Run the SR-UKF-FFM over N samples from posterior (x0, S0).
+def nonzero_columns(M: np.ndarray) -> np.ndarray:
+    """Indices of the columns of M holding a non-zero entry (int64)."""
+    return np.flatnonzero(np.any(np.asarray(M) != 0.0, axis=0)).astype(np.int64)
 
-    Y (N, m) measurements; delta_prev (N,) rudder over the step into each sample, deg; h s;
-    sq_q (9, 9), sq_r (m, m) square roots of Q and R; meas_idx (m,) measured state indices;
-    wm, wc, gamma weights; use_fuzzy; chan = position in meas_idx of the fuzzy channel (-1: none);
-    fz = (e_lo, e_hi, de_lo, de_hi, f_lo, f_hi); rules (5, 5).
-    Outputs (filled in place, N rows): x_prior, x, std (one-sigma of x), innov, nis, f.
-    Returns (status, step, x, S).
+
+@njit(cache=True, error_model="numpy")
+def workspace(m):
+    """Every work array of :func:`srukf_steps` for m measured channels, allocated once."""
+    return (np.empty((NX, NPTS)), np.empty((NX, NPTS)), np.empty(NX), np.empty((NX, NX)),
+            np.empty((NX, NPTS + NX)), np.empty((m, NPTS + m)), np.empty((m, NPTS)),
+            np.empty(m), np.empty((m, m)), np.empty((NX, m)), np.empty((m, NX)), np.empty((NX, m)),
+            np.empty(m), np.empty(NX), np.empty(m), np.empty(NX), np.empty(m), np.empty(5), np.empty(5))
+
+
+@njit(cache=True, error_model="numpy")
+def srukf_steps(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
+                use_fuzzy, chan, fz, rules, ws,
+                x_prior_out, x_out, std_out, innov_out, nis_out, f_out):
+    """Run the SR-UKF-FFM over the N samples of Y, updating the posterior (x, S) in place.
+
+    ``ws`` is :func:`workspace` (m); q_cols / r_cols the non-zero columns of sq_q / sq_r
+    (:func:`nonzero_columns`).  No allocation happens here.  Returns (status, step).
     """
+    X, Xp, xm, Sm, Ax, Ay, DY, ym, Sy, Pxy, Z, K, innov, u, zt, xw, yw, me, md = ws
     n = Y.shape[0]
     m = Y.shape[1]
-    npts = 2 * NX + 1
-    x = x0.copy()
-    S = S0.copy()
-    X = np.empty((NX, npts))
-    Xp = np.empty((NX, npts))
-    xm = np.empty(NX)
-    Sm = np.empty((NX, NX))
-    Mx = np.empty((npts - 1 + NX, NX))
-    My = np.empty((npts - 1 + m, m))
-    DY = np.empty((m, npts))
-    ym = np.empty(m)
-    Sy = np.empty((m, m))
-    Pxy = np.empty((NX, m))
-    Z = np.empty((m, NX))
-    K = np.empty((NX, m))
-    innov = np.empty(m)
-    u = np.empty(NX)
-    zt = np.empty(m)
+    npts = NPTS
     prev_e = 0.0
     for k in range(n):
         # ---- time update
         for i in range(NX):
-            X[i, 0] = x[i]
-        for j in range(NX):
-            for i in range(NX):
-                X[i, 1 + j] = x[i] + gamma * S[i, j]
-                X[i, 1 + NX + j] = x[i] - gamma * S[i, j]
+            xi = x[i]
+            X[i, 0] = xi
+            for j in range(NX):
+                X[i, 1 + j] = xi + gamma * S[i, j]
+                X[i, 1 + NX + j] = xi - gamma * S[i, j]
         _fx(X, npts, delta_prev[k], h, Xp)
-        for i in range(NX):
-            acc = 0.0
-            for p in range(npts):
-                acc += wm[p] * Xp[i, p]
-            xm[i] = acc
+        for i in range(NX):          # xm = Xp wm: the nine sums run side by side, each in point order
+            xm[i] = 0.0
         for p in range(npts):
+            wp = wm[p]
             for i in range(NX):
+                xm[i] += wp * Xp[i, p]
+        for i in range(NX):
+            for p in range(npts):
                 Xp[i, p] -= xm[i]
-        if not _factor(Xp, npts, sq_q, wc, Mx, Sm):
-            return 1, k, x, S
+        if not _factor(Xp, npts, sq_q, q_cols, wc, Ax, xw, Sm):
+            return 1, k
         # ---- measurement update: redraw sigma points from (xm, Sm); DX = X - xm = +-gamma Sm
-        for j in range(NX):
-            for i in range(NX):
-                X[i, 0] = 0.0
+        for i in range(NX):
+            X[i, 0] = 0.0
+            for j in range(NX):
                 X[i, 1 + j] = gamma * Sm[i, j]
                 X[i, 1 + NX + j] = -gamma * Sm[i, j]
         for a in range(m):
@@ -169,14 +209,19 @@ def srukf_kernel(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
             ym[a] = acc
             for p in range(npts):
                 DY[a, p] = xm[idx] + X[idx, p] - acc
-        if not _factor(DY, npts, sq_r, wc, My, Sy):
-            return 2, k, x, S
-        for i in range(NX):
-            for a in range(m):
-                acc = 0.0
-                for p in range(npts):
-                    acc += wc[p] * X[i, p] * DY[a, p]
-                Pxy[i, a] = acc
+        if not _factor(DY, npts, sq_r, r_cols, wc, Ay, yw, Sy):
+            return 2, k
+        # Pxy = sum_p wc_p DX_p DY_p^T with DX_0 = 0, DX_{1+c} = -DX_{1+NX+c} = gamma Sm[:, c] (Sm lower
+        # triangular: c <= i) and equal weights wc_1 = ... = wc_2L
+        for a in range(m):
+            for i in range(NX):
+                Pxy[i, a] = 0.0
+            for c in range(NX):
+                dd = DY[a, 1 + c] - DY[a, 1 + NX + c]
+                for i in range(c, NX):
+                    Pxy[i, a] += Sm[i, c] * dd
+            for i in range(NX):
+                Pxy[i, a] *= wc[1] * gamma
         # K = (Pxy / Sy^T) / Sy: solve Sy Z = Pxy^T (forward), then Sy^T K^T = Z (backward)
         for c in range(NX):
             for a in range(m):
@@ -198,8 +243,8 @@ def srukf_kernel(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
             x_prior_out[k, i] = xm[i]
             x[i] = acc
         # S = downdate of Sm by the columns of U = K Sy
-        for j in range(NX):
-            for i in range(NX):
+        for i in range(NX):
+            for j in range(NX):
                 S[i, j] = Sm[i, j]
         for a in range(m):
             for i in range(NX):
@@ -208,7 +253,7 @@ def srukf_kernel(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
                     acc += K[i, b] * Sy[b, a]
                 u[i] = acc
             if not _cholupdate(S, u, -1.0):
-                return 3, k, x, S
+                return 3, k
         # NIS = |Sy^-1 innov|^2
         nis = 0.0
         for a in range(m):
@@ -221,11 +266,11 @@ def srukf_kernel(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
         f = 1.0
         if use_fuzzy and chan >= 0:
             e = innov[chan]
-            f = fuzzy_factor_nb(e, e - prev_e, fz[0], fz[1], fz[2], fz[3], fz[4], fz[5], rules)
+            f = fuzzy_factor_ws(e, e - prev_e, fz[0], fz[1], fz[2], fz[3], fz[4], fz[5], rules, me, md)
             prev_e = e
             sc = 1.0 / math.sqrt(f)
-            for j in range(NX):
-                for i in range(j, NX):
+            for i in range(NX):
+                for j in range(i + 1):
                     S[i, j] *= sc
         for i in range(NX):
             acc = 0.0
@@ -237,28 +282,100 @@ def srukf_kernel(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
             innov_out[k, a] = innov[a]
         nis_out[k] = nis
         f_out[k] = f
-    return 0, n, x, S
+    return 0, n
 
 
-@njit(cache=True)
-def srukf_batch_kernel(x0s, S0, Ys, deltas_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
-                       use_fuzzy, chan, fz, rules, x_final, S_final, status):
-    """Run the kernel over R runs of equal length: Ys (R, N, m), deltas_prev (R, N), x0s (R, 9).
+@njit(cache=True, error_model="numpy")
+def srukf_kernel(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
+                 use_fuzzy, chan, fz, rules,
+                 x_prior_out, x_out, std_out, innov_out, nis_out, f_out):
+    """Run the SR-UKF-FFM over N samples from posterior (x0, S0).
 
-    Writes the final posterior of each run into x_final (R, 9), S_final (R, 9, 9), and its status.
+    Y (N, m) measurements; delta_prev (N,) rudder over the step into each sample, deg; h s;
+    sq_q (9, 9), sq_r (m, m) square roots of Q and R; meas_idx (m,) measured state indices;
+    wm, wc, gamma weights; use_fuzzy; chan = position in meas_idx of the fuzzy channel (-1: none);
+    fz = (e_lo, e_hi, de_lo, de_hi, f_lo, f_hi); rules (5, 5).
+    Outputs (filled in place, N rows): x_prior, x, std (one-sigma of x), innov, nis, f.
+    Returns (status, step, x, S).  Work arrays are allocated once here, none per step.
     """
-    nr = Ys.shape[0]
+    x = x0.copy()
+    S = S0.copy()
+    ws = workspace(Y.shape[1])
+    q_cols = _nonzero_cols(sq_q)
+    r_cols = _nonzero_cols(sq_r)
+    st, k = srukf_steps(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
+                        use_fuzzy, chan, fz, rules, ws,
+                        x_prior_out, x_out, std_out, innov_out, nis_out, f_out)
+    return st, k, x, S
+
+
+@njit(cache=True, error_model="numpy")
+def _nonzero_cols(M):
+    cnt = 0
+    for j in range(M.shape[1]):
+        for i in range(M.shape[0]):
+            if M[i, j] != 0.0:
+                cnt += 1
+                break
+    out = np.empty(cnt, dtype=np.int64)
+    c = 0
+    for j in range(M.shape[1]):
+        for i in range(M.shape[0]):
+            if M[i, j] != 0.0:
+                out[c] = j
+                c += 1
+                break
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _batch_range(lo, hi, x0s, S0, Ys, deltas_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
+                 use_fuzzy, chan, fz, rules, x_final, S_final, status):
     n = Ys.shape[1]
     m = Ys.shape[2]
+    ws = workspace(m)
     xp = np.empty((n, NX))
     xo = np.empty((n, NX))
     so = np.empty((n, NX))
     io = np.empty((n, m))
     ni = np.empty(n)
     fo = np.empty(n)
-    for r in range(nr):
-        st, _, x, S = srukf_kernel(x0s[r], S0, Ys[r], deltas_prev[r], h, sq_q, sq_r, meas_idx, wm, wc,
-                                   gamma, use_fuzzy, chan, fz, rules, xp, xo, so, io, ni, fo)
+    x = np.empty(NX)
+    S = np.empty((NX, NX))
+    for r in range(lo, hi):
+        x[:] = x0s[r]
+        S[:, :] = S0
+        st, _ = srukf_steps(x, S, Ys[r], deltas_prev[r], h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc,
+                            gamma, use_fuzzy, chan, fz, rules, ws, xp, xo, so, io, ni, fo)
         status[r] = st
         x_final[r] = x
         S_final[r] = S
+
+
+@njit(cache=True, error_model="numpy")
+def srukf_batch_kernel(x0s, S0, Ys, deltas_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
+                       use_fuzzy, chan, fz, rules, x_final, S_final, status):
+    """Run the kernel over R runs of equal length: Ys (R, N, m), deltas_prev (R, N), x0s (R, 9).
+
+    Writes the final posterior of each run into x_final (R, 9), S_final (R, 9, 9), and its status.
+    Serial; one workspace for all runs.
+    """
+    _batch_range(0, Ys.shape[0], x0s, S0, Ys, deltas_prev, h, sq_q, _nonzero_cols(sq_q), sq_r,
+                 _nonzero_cols(sq_r), meas_idx, wm, wc, gamma, use_fuzzy, chan, fz, rules,
+                 x_final, S_final, status)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def srukf_batch_kernel_parallel(x0s, S0, Ys, deltas_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
+                                use_fuzzy, chan, fz, rules, x_final, S_final, status, chunks):
+    """:func:`srukf_batch_kernel` with the runs split into ``chunks`` contiguous blocks run on numba's
+    threads (one workspace per block).  Each run's numbers are those of the serial kernel: runs are
+    independent and each is computed by the same serial code."""
+    nr = Ys.shape[0]
+    q_cols = _nonzero_cols(sq_q)
+    r_cols = _nonzero_cols(sq_r)
+    for c in prange(chunks):
+        lo = (nr * c) // chunks
+        hi = (nr * (c + 1)) // chunks
+        _batch_range(lo, hi, x0s, S0, Ys, deltas_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc,
+                     gamma, use_fuzzy, chan, fz, rules, x_final, S_final, status)

@@ -60,8 +60,13 @@ def _memberships(x, lo, hi, out):
 @njit(cache=True)
 def fuzzy_factor_nb(e, de, e_lo, e_hi, de_lo, de_hi, f_lo, f_hi, rules):
     """Forgetting factor f in [f_lo, f_hi] from e and de (see module docstring).  Numba-compiled."""
-    me = np.empty(5)
-    md = np.empty(5)
+    return fuzzy_factor_ws(e, de, e_lo, e_hi, de_lo, de_hi, f_lo, f_hi, rules, np.empty(5), np.empty(5))
+
+
+@njit(cache=True)
+def fuzzy_factor_ws(e, de, e_lo, e_hi, de_lo, de_hi, f_lo, f_hi, rules, me, md):
+    """:func:`fuzzy_factor_nb` with caller-owned work arrays ``me``, ``md`` (5,): no allocation, for
+    the filter kernel's inner loop (pipeline.identify.fast)."""
     _memberships(e, e_lo, e_hi, me)
     _memberships(de, de_lo, de_hi, md)
     step = (f_hi - f_lo) / 4.0

@@ -1,0 +1,142 @@
+"""Study kind ``autopilot_monte_carlo``: CGSA course keeping over wave seeds x Tw x wind x plant.
+
+Each case designs the CGSA autopilot (:mod:`pipeline.control.design`) from the Nomoto indices of the
+spec for its closed-loop time constant Tw, and simulates the 0 -> setpoint course change and course
+keeping (:func:`pipeline.control.simulate.simulate_course`) with a constant wind (as an equivalent
+rudder, deg) and a wave disturbance (the paper's G(s) driven by white noise, seeded by the case's own
+seed) on one plant: ``nomoto`` (the linear model the autopilot was designed on) or ``kcs`` (the
+virtual tank's nonlinear KCS, noise-free, the autopilot's servo limits).  Results are the control
+metrics of SPEC section 6 (:func:`pipeline.control.metrics.course_metrics`).
+
+Summary: per (plant, Tw, wind) the distribution of every metric over the seeds (mean, std, 5 / 50 /
+95 % quantiles, worst), and for each metric the ``worst`` cases of the whole study (with their
+parameters), "worse" read as in pipeline.control.metrics.WORST.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from pipeline.config import AutopilotStudyConfig, ControlConfig
+from pipeline.errors import InputError
+from pipeline.study.kind import StudyKind
+
+PLANTS = ("nomoto", "kcs")
+
+
+def _control(cfg: AutopilotStudyConfig) -> ControlConfig:
+    return dc.replace(ControlConfig(), **cfg.control)
+
+
+def cases(cfg: AutopilotStudyConfig) -> list[dict[str, Any]]:
+    for p in cfg.plants:
+        if p not in PLANTS:
+            raise InputError(f"unknown plant {p!r} in autopilot_monte_carlo.plants "
+                             f"(known: {', '.join(PLANTS)})")
+    if cfg.design not in ("first_order", "second_order"):
+        raise InputError("autopilot_monte_carlo.design must be first_order or second_order, "
+                         f"got {cfg.design!r}")
+    if cfg.seeds < 1:
+        raise InputError("autopilot_monte_carlo.seeds must be at least 1")
+    return [{"plant": p, "tw": float(tw), "wind_rudder": float(w), "replicate": k}
+            for p in cfg.plants for tw in cfg.tw for w in cfg.wind_rudder for k in range(cfg.seeds)]
+
+
+def _design(cfg: AutopilotStudyConfig, tw: float, ctl: ControlConfig):
+    from pipeline.control.design import design_first_order, design_second_order
+
+    if cfg.design == "first_order":
+        return design_first_order(cfg.K, cfg.T1 + cfg.T2 - cfg.T3, tw)
+    return design_second_order(cfg.K, cfg.T1, cfg.T2, cfg.T3, tw, ctl.filter_tau)
+
+
+def run_case(params: dict, seed: int, cfg: AutopilotStudyConfig) -> dict[str, Any]:
+    from pipeline.control.disturbance import wave_sequence
+    from pipeline.control.metrics import course_metrics
+    from pipeline.control.simulate import NomotoShip, make_kcs_ship, simulate_course
+
+    ctl = _control(cfg)
+    design = _design(cfg, float(params["tw"]), ctl)
+    n = int(round(ctl.duration / ctl.dt)) + 1
+    wave_seed = int(seed % (2**32))
+    wave = wave_sequence(n, ctl.dt, wave_seed, ctl.wave_num, ctl.wave_den) if ctl.wave else np.zeros(n)
+    if params["plant"] == "nomoto":
+        ship = NomotoShip(cfg.K, cfg.T1, cfg.T2, cfg.T3, rudder_max=ctl.rudder_max,
+                          rudder_rate=ctl.rudder_rate)
+    else:
+        ship = make_kcs_ship(ctl.rudder_max, ctl.rudder_rate)
+    fr = simulate_course(design, ship, setpoint=ctl.setpoint, duration=ctl.duration, dt=ctl.dt,
+                         rudder_max=ctl.rudder_max, wind=float(params["wind_rudder"]), wave=wave)
+    m = course_metrics(fr["time"], fr["psi"], fr["delta"], ctl.setpoint, band=ctl.settle_band,
+                       steady_start=ctl.steady_start, reversal_threshold=ctl.reversal_threshold)
+    m["max_rate"] = float(np.max(np.abs(np.diff(fr["delta"].to_numpy(), prepend=0.0))) / ctl.dt)
+    m["wave_seed"] = wave_seed
+    m["Kp"], m["Kd"] = float(design.Kp), float(design.Kd)
+    return m
+
+
+def warm(cfg: AutopilotStudyConfig) -> None:
+    """Compile the KCS kernel on a worker (the Nomoto plant is numpy only)."""
+    if "kcs" in cfg.plants:
+        from pipeline.control.simulate import make_kcs_ship
+
+        ship = make_kcs_ship(35.0, 14.28)
+        ship.reset()
+        ship.step(1.0, 0.08, disturbance_deg=0.0)
+
+
+def _worst_order(how: str, values: pd.Series) -> pd.Series:
+    return {"max": values, "min": -values, "absmax": values.abs()}[how]
+
+
+def summarise(frame: pd.DataFrame, cfg: AutopilotStudyConfig, study_seed: int) -> dict[str, Any]:
+    from pipeline.control.metrics import WORST
+
+    ok = frame[frame["status"] == "ok"]
+    metrics = [m for m in [*WORST, "max_rate"] if m in ok.columns]
+    groups = []
+    for (plant, tw, wind), g in ok.groupby(["plant", "tw", "wind_rudder"], sort=True):
+        stats = {}
+        for m in metrics:
+            v = pd.to_numeric(g[m], errors="coerce").to_numpy(float)
+            fin = v[np.isfinite(v)]
+            how = WORST.get(m, "max")
+            pick = {"max": np.max, "min": np.min}.get(how, lambda a: a[np.argmax(np.abs(a))])
+            stats[m] = {
+                "n": int(fin.size), "not_finite": int(v.size - fin.size),
+                "mean": float(np.mean(fin)) if fin.size else None,
+                "std": float(np.std(fin, ddof=1)) if fin.size > 1 else None,
+                "q05": float(np.quantile(fin, 0.05)) if fin.size else None,
+                "median": float(np.median(fin)) if fin.size else None,
+                "q95": float(np.quantile(fin, 0.95)) if fin.size else None,
+                "worst": float(pick(fin)) if fin.size else None,
+            }
+        groups.append({"plant": plant, "tw": float(tw), "wind_rudder": float(wind), "seeds": len(g),
+                       "metrics": stats})
+    worst = {}
+    for m in metrics:
+        v = pd.to_numeric(ok[m], errors="coerce")
+        order = _worst_order(WORST.get(m, "max"), v).fillna(np.inf)   # never reached (NaN) is worst
+        top = ok.assign(_o=order).sort_values(["_o", "case_id"], ascending=[False, True]).head(cfg.worst)
+        worst[m] = [{"case_id": r["case_id"], "plant": r["plant"], "tw": float(r["tw"]),
+                     "wind_rudder": float(r["wind_rudder"]), "replicate": int(r["replicate"]),
+                     "wave_seed": int(r["wave_seed"]), "value": None if pd.isna(r[m]) else float(r[m])}
+                    for _, r in top.iterrows()]
+    ctl = _control(cfg)
+    return {
+        "design": {"kind": cfg.design, "K": cfg.K, "T1": cfg.T1, "T2": cfg.T2, "T3": cfg.T3},
+        "control": dc.asdict(ctl),
+        "groups": groups,
+        "worst_cases": worst,
+        "definitions": {"worst": "per metric, the cases that are worst in the sense of "
+                                 "pipeline.control.metrics.WORST; a metric never reached (NaN) counts worst"},
+    }
+
+
+KIND = StudyKind(name="autopilot_monte_carlo", config=AutopilotStudyConfig, cases=cases, run_case=run_case,
+                 summarise=summarise, warm=warm, summary_only=("worst",),
+                 grid=("plants", "tw", "wind_rudder", "seeds"))

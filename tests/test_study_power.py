@@ -1,0 +1,75 @@
+"""The flagship study kind, detection_power: studies/power-ci.toml run end to end (as in CI), its
+summary's contract, and its page escaping data text."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.study import load_spec, run_study
+from pipeline.study.detection_power import _page, catalogue_effects, not_studied
+from pipeline.study.spec import spec_from_dict
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_effects_are_read_from_the_diagnosis_catalogue():
+    from pipeline.diagnose.extended import EFFECTS
+
+    cat = catalogue_effects()
+    try:
+        from pipeline.diagnose.effects import CATALOGUE  # the registry, when it exists, wins
+    except ImportError:
+        assert cat == tuple(EFFECTS)
+    else:
+        names = list(CATALOGUE) if isinstance(CATALOGUE, dict) else [getattr(e, "name", e) for e in CATALOGUE]
+        assert cat == tuple(map(str, names))
+    spec = spec_from_dict({"study": {"kind": "detection_power"}, "detection_power": {"plants": ["tank"]}})
+    skipped = not_studied(spec.settings)["tank"]
+    assert "nonlinear_yaw_damping" in skipped and "speed_loss" in skipped   # own effect, not injectable
+
+
+@pytest.mark.slow
+def test_power_ci_study(tmp_path):
+    from distributed import Client, LocalCluster
+
+    spec = load_spec(ROOT / "studies" / "power-ci.toml")
+    with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0") as cluster, \
+            Client(cluster) as client:
+        s = run_study(spec, tmp_path, client=client, progress=False)
+    assert s["study"]["failed"] == 0, s["failures"]
+    frame = pd.read_parquet(tmp_path / "results.parquet")
+    assert {"plant", "effect", "magnitude", "replicate", "detected", "estimate", "truth_value"} <= set(frame)
+    # contract: per effect min_detectable_90 with an interval; clean false_positive_rate with an interval
+    for effect in catalogue_effects():
+        m90 = s["effects"][effect]["min_detectable_90"]["truth"]
+        assert set(m90) >= {"value", "interval", "method", "note"} and len(m90["interval"]) == 2
+    fp = s["clean"]["false_positive_rate"]["truth"]
+    assert fp["n"] == 6 and 0.0 <= fp["interval"][0] <= fp["value"] <= fp["interval"][1] <= 1.0
+    # known answers on the linear truth model (tests/test_diagnose_cases.py finds offsets of 1-3 deg):
+    # a 1 deg rudder offset is found in every case, estimated within 0.1 deg
+    off = frame[(frame["effect"] == "rudder_offset") & (frame["magnitude"] == 1.0)]
+    assert off["detected"].astype(bool).all()
+    assert np.all(np.abs(off["estimate"] - 1.0) < 0.1), off["estimate"].tolist()
+    rates = {r["magnitude"]: r["rate"] for r in s["effects"]["rudder_offset"]["detection"]["truth"]}
+    assert rates[1.0] >= rates[0.1]
+    clean = frame[frame["effect"] == "none"]
+    assert fp["false_positives"] == int((clean["significant_effects"].fillna("") != "").sum())
+    assert (tmp_path / "power_curves.png").stat().st_size > 10_000
+    assert "power_curves.png" in (tmp_path / "index.html").read_text()
+
+
+def test_page_escapes_data_text():
+    evil = "<script>alert(1)</script>"
+    summary = {"study": {"name": evil, "cases": 1, "ok": 0, "failed": 1}, "virtual": "simulated",
+               "effects": {"rudder_offset": {"magnitude_unit": "deg", "detection": {}, "estimate": {},
+                                             "min_detectable_90": {"truth": {"value": None,
+                                                                             "interval": [None, None],
+                                                                             "note": evil}}}},
+               "clean": {"false_positive_rate": {}}, "not_studied": {"tank": {"speed_loss": evil}},
+               "failures": [{"case_id": "x", "params": {"f": evil}, "error": evil}]}
+    page = _page(summary)
+    assert "<script>" not in page and "&lt;script&gt;" in page
