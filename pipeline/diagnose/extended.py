@@ -33,7 +33,7 @@ _CLIP_R = 500.0  # deg/s: a diverging trial model is clipped here so residuals s
 _CLIP_V = 100.0  # m/s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _feature(code, v, r):  # pragma: no cover - compiled; held to effects.base.feature_value by a test
     if code == 0:
         return r * r * r
@@ -52,7 +52,7 @@ def _feature(code, v, r):  # pragma: no cover - compiled; held to effects.base.f
     return v * v * v
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _deriv(v, r, e, a_in, s, th, codes, eqs, coefs, lag, offset, asym, cubic):  # pragma: no cover
     """(dv/dt, dr/dt, dpsi/dt, de/dt) of the extended model (module docstring)."""
     ang = (e if lag > 0.0 else a_in) + offset
@@ -72,14 +72,15 @@ def _deriv(v, r, e, a_in, s, th, codes, eqs, coefs, lag, offset, asym, cubic):  
 
 @njit(cache=True)
 def _run(out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic):  # pragma: no cover
-    """RK4 from sample k0 (state x0, lag state e0) to k1 - 1, writing rows k0 .. k1-1 of ``out``.
+    """RK4 from sample k0 (state x0, lag state e0) to k1 - 1, writing samples k0 .. k1-1 to rows
+    0 .. k1-k0-1 of ``out``.
     ``a_half``/``s_half``: rudder (pre-lag) and speed factor on the half-step grid (index 2k = t_k)."""
     v, r, psi, e = x0[0], x0[1], x0[2], e0
     hs = h / m
     for k in range(k0, k1):
-        out[k, 0] = v
-        out[k, 1] = r
-        out[k, 2] = psi
+        out[k - k0, 0] = v
+        out[k - k0, 1] = r
+        out[k - k0, 2] = psi
         if k == k1 - 1:
             break
         for j in range(m):
@@ -120,19 +121,8 @@ def _segments(out, starts, length, xs, a_half, s_half, h, m, th, codes, eqs, coe
     """Prediction over ``length`` samples from each measured state xs[starts[i]] (rows of out[i])."""
     for i in range(starts.shape[0]):
         k0 = starts[i]
-        seg = out[i]
-        _run_seg(seg, k0, length, xs[k0], a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic)
-
-
-@njit(cache=True)
-def _run_seg(seg, k0, length, x0, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic):  # pragma: no cover
-    tmp = np.empty((k0 + length, 3))
-    _run(tmp, k0, k0 + length, x0, a_half[2 * k0], a_half, s_half, h, m, th, codes, eqs, coefs, lag,
-         offset, asym, cubic)
-    for k in range(length):
-        seg[k, 0] = tmp[k0 + k, 0]
-        seg[k, 1] = tmp[k0 + k, 1]
-        seg[k, 2] = tmp[k0 + k, 2]
+        _run(out[i], k0, k0 + length, xs[k0], a_half[2 * k0], a_half, s_half, h, m, th, codes, eqs, coefs, lag,
+             offset, asym, cubic)
 
 
 def deriv(x, e, a_in, s, theta, terms: Terms) -> np.ndarray:
@@ -159,7 +149,24 @@ def _arrays(terms: Terms):
             np.asarray(terms.feat_coef, dtype=float))
 
 
+_HALF_CACHE: dict = {}
+
+
 def half_grid(t: np.ndarray, y: np.ndarray, shift: float = 0.0) -> np.ndarray:
+    """Cached :func:`_half_grid` (the fit simulates the same logged rudder thousands of times): keyed on
+    the arrays' identity and contents' first/last values, their length and the shift."""
+    key = (id(t), id(y), len(t), float(t[0]), float(y[0]), float(y[-1]), float(shift))
+    hit = _HALF_CACHE.get(key)
+    if hit is not None and hit[0] is t and hit[1] is y:
+        return hit[2]
+    out = _half_grid(t, y, shift)
+    if len(_HALF_CACHE) > 256:
+        _HALF_CACHE.clear()
+    _HALF_CACHE[key] = (t, y, out)
+    return out
+
+
+def _half_grid(t: np.ndarray, y: np.ndarray, shift: float = 0.0) -> np.ndarray:
     """``y`` (logged at times ``t``) on the half-step grid t_0, t_0 + h/2, ..., t_N-1, evaluated at
     (time - shift), linearly interpolated, held at the ends."""
     t = np.asarray(t, dtype=float)
