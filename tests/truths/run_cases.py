@@ -49,10 +49,12 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default="", help="comma-separated case ids")
     ap.add_argument("--no-kvlcc2", action="store_true")
     ap.add_argument("-j", type=int, default=1, help="worker processes")
+    ap.add_argument("--oracle", action="store_true", help="also the independent linear/rich fit on KVLCC2")
+    ap.add_argument("--only-kvlcc2", action="store_true")
     a = ap.parse_args(argv)
     import test_diagnose_generalise as tg
 
-    ids = [c.cid for c in tg.CASES if not a.only or c.cid in a.only.split(",")]
+    ids = [c.cid for c in tg.CASES if (not a.only or c.cid in a.only.split(",")) and not a.only_kvlcc2]
     folder = tempfile.mkdtemp(prefix="gen_cases_")
     jobs = [(cid, folder) for cid in ids]
     if a.j > 1:
@@ -104,6 +106,23 @@ def main(argv=None) -> int:
               f"{rep['cause']}, extended {rep['extended']['effects']}, held-out MAE psi baseline {b:.2f} -> "
               f"extended {e:.2f} deg, reported gain {_fmt(g)} [{'PASS' if ok else 'FAIL'}] "
               f"({time.process_time() - t0:.0f} s)")
+    if a.oracle:
+        from truths import oracle
+
+        for fold in (1, 2):
+            tr, va = ("starboard", "port") if fold == 1 else ("port", "starboard")
+            ftr = [tg.load(files[(amp, tr)], scale=tg.SCALE).frame for amp in (20, 10)]
+            fva = [tg.load(files[(amp, va)], scale=tg.SCALE).frame for amp in (20, 10)]
+            t0 = time.process_time()
+            res = {}
+            lin = oracle.fit(ftr, "linear")
+            for model in ("linear", "rich", "rich+offset"):
+                p = lin if model == "linear" else oracle.fit(ftr, model, start=lin)
+                res[model] = oracle.heldout_mae_psi(p, fva)
+            red = {m: 1 - res[m] / res["linear"] for m in res}
+            print(f"  oracle fold {fold} (independent output-error fit, truths/oracle.py): held-out MAE psi "
+                  + ", ".join(f"{m} {res[m]:.2f} deg ({red[m]:+.0%})" for m in res)
+                  + f" ({time.process_time() - t0:.0f} s)")
     for how in ("model", "unscaled"):
         t0 = time.process_time()
         c = tg.kvlcc2_fold(files, 1, how)["cause"]
