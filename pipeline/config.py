@@ -157,12 +157,12 @@ class DiagnoseConfig:
     # block length in ship time scales T_ship: blocks of 2 T are close to independent (the yaw
     # response forgets its state in ~T) and a zigzag half-period holds about one
     block_T: float = 2.0
-    max_effects: int = 4                 # largest extended model (more would be an Abkowitz fit by another name)
+    max_effects: int = 4  # largest extended model (more would be an Abkowitz fit by another name)
     seed: int = 11                       # bootstrap draws of the reported interval
     n_boot: int = 2000                   # bootstrap resamples of the reported gain's 95 % interval
     max_nfev: int = 200                  # function evaluations per least-squares stage
     structured_r2: float = 0.2           # residuals "stay structured" when signatures explain this share
-    two_fold: bool = True                # also the reverse fold (train on the validation runs) when exchangeable
+    two_fold: bool = True  # also the reverse fold (train on the validation runs) when exchangeable
     # relative: runs whose approach speeds differ by more than this are refused together (Froude
     # number, hence the dimensional coefficients, would differ by as much: 15 % of U is ~30 % of the
     # rudder force)

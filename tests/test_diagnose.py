@@ -16,8 +16,17 @@ from pipeline.errors import InputError
 from pipeline.io import write_run
 from pipeline.model import PAPER_TABLE4, simulate
 
-SPEC_EFFECTS = {"rudder_offset", "nonlinear_yaw_damping", "rudder_delay", "rudder_lag", "speed_loss",
-                "nonlinear_sway_damping", "sway_yaw_coupling", "rudder_saturation", "rudder_asymmetry"}
+SPEC_EFFECTS = {
+    "rudder_offset",
+    "nonlinear_yaw_damping",
+    "rudder_delay",
+    "rudder_lag",
+    "speed_loss",
+    "nonlinear_sway_damping",
+    "sway_yaw_coupling",
+    "rudder_saturation",
+    "rudder_asymmetry",
+}
 
 
 def test_extended_without_effects_is_the_continuous_model():
@@ -35,7 +44,15 @@ def test_extended_without_effects_is_the_continuous_model():
     dd = np.cumsum(rng.normal(0, 1, 300))
     c = simulate_extended(PAPER_TABLE4, (0, 0, 0), dd, 0.08, offset_deg=1.5)
     np.testing.assert_allclose(c, simulate_extended(PAPER_TABLE4, (0, 0, 0), dd + 1.5, 0.08), atol=1e-12)
-    assert np.max(np.abs(simulate(PAPER_TABLE4, (0, 0, 0), dd, 0.08) - simulate_extended(PAPER_TABLE4, (0, 0, 0), dd, 0.08))) > 1e-3
+    assert (
+        np.max(
+            np.abs(
+                simulate(PAPER_TABLE4, (0, 0, 0), dd, 0.08)
+                - simulate_extended(PAPER_TABLE4, (0, 0, 0), dd, 0.08)
+            )
+        )
+        > 1e-3
+    )
 
 
 def test_cubic_damping_cuts_yaw_rate():
@@ -93,8 +110,16 @@ def test_cli_writes_contract_and_leaves_nothing_on_failure(tmp_path, capsys):
     assert [f["effect"] for f in rep["findings"]][0] == "rudder_offset"
     assert {f["effect"] for f in rep["findings"]} == SPEC_EFFECTS
     for f in rep["findings"]:
-        assert {"effect", "significant", "estimate", "validation_gain", "evidence", "physical", "material",
-                "floor"} <= set(f)
+        assert {
+            "effect",
+            "significant",
+            "estimate",
+            "validation_gain",
+            "evidence",
+            "physical",
+            "material",
+            "floor",
+        } <= set(f)
     off = rep["findings"][0]
     assert off["material"] and "deg to starboard" in off["physical"]
     assert off["estimate"]["offset_deg"] == pytest.approx(2.0, rel=0.1)
@@ -176,7 +201,7 @@ def test_block_sandwich_std_matches_monte_carlo_for_correlated_errors():
         e[0] = w[0]
         for k in range(1, n):
             e[k] = rho * e[k - 1] + np.sqrt(1 - rho**2) * w[k]
-        a = float(x @ e / (x @ x))                      # estimate of a (true 0)
+        a = float(x @ e / (x @ x))  # estimate of a (true 0)
         res = e - a * x
         est.append(a)
         sand.append(np.sqrt(sandwich_cov(J, res, clusters)[0, 0]))
@@ -270,5 +295,7 @@ def test_verdict_does_not_depend_on_the_scale_of_the_data():
     b = diagnose([stretch(r) for r in runs[:2]], [stretch(r) for r in runs[2:]]).report
     assert a["cause"] == b["cause"] == "rudder_offset"
     assert b["settings"]["time_scale_s"] == pytest.approx(2.0 * a["settings"]["time_scale_s"], rel=0.05)
-    for x, y in zip(a["findings"][0]["validation_gain_folds"], b["findings"][0]["validation_gain_folds"], strict=True):
+    for x, y in zip(
+        a["findings"][0]["validation_gain_folds"], b["findings"][0]["validation_gain_folds"], strict=True
+    ):
         assert x == pytest.approx(y, abs=0.05)

@@ -78,21 +78,24 @@ def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float) -> float:
     floor), no diagnosis can honestly show that gain.  Measured for case 07 (0.32 s dead time):
     baseline 0.074 deg, the truth model itself 0.087 deg.
     """
-    from pipeline.diagnose.extended import NULL
-    from pipeline.diagnose.fit import FitResult, evaluate, series_from_run
+    from pipeline.diagnose.effects import Terms
+    from pipeline.diagnose.extended import simulate_terms
+    from pipeline.diagnose.fit import series_from_run
 
-    extra = dict(NULL)
-    u_ref = None
+    terms, ratio = Terms(), False
     if kind == "rudder_offset":
-        extra["offset_deg"] = cfg.rudder_offset
+        terms.offset_deg = cfg.rudder_offset
     elif kind == "rudder_delay":
-        extra["delay_s"] = cfg.rudder_delay
+        terms.delay_s = cfg.rudder_delay
     elif kind == "nonlinear_yaw_damping":
-        extra["n_rrr_s_per_deg2"] = cfg.n_rrr
+        terms.feat_code, terms.feat_eq, terms.feat_coef = [0], [1], [cfg.n_rrr]
     elif kind == "speed_loss":
-        extra["speed_exponent"], u_ref = 1.0, cfg.u0
-    oracle = FitResult((), np.array(cfg.theta), extra, {}, np.zeros((0, 0)), [], 0.0, 0.0, u_ref)
-    mae = evaluate(oracle, [series_from_run(r) for r in val_runs])[0]["mae_psi_deg"]
+        terms.speed_exponent, ratio = 1.0, True
+    maes = []
+    for s in (series_from_run(r) for r in val_runs):
+        sim = simulate_terms(np.array(cfg.theta), terms, s.x0, s.t, s.delta, s.u / cfg.u0 if ratio else None)
+        maes.append(float(np.mean(np.abs(sim[:, 2] - s.psi))))
+    mae = float(np.mean(maes))
     return (base_mae - mae) / base_mae
 
 

@@ -14,8 +14,17 @@ from pipeline.diagnose.effects import BY_NAME, CATALOGUE, FEATURES, Context, Ter
 from pipeline.diagnose.extended import simulate_extended, simulate_terms
 from pipeline.model import PAPER_TABLE4
 
-SPEC_NAMES = {"rudder_offset", "nonlinear_yaw_damping", "rudder_delay", "rudder_lag", "speed_loss",
-              "nonlinear_sway_damping", "sway_yaw_coupling", "rudder_saturation", "rudder_asymmetry"}
+SPEC_NAMES = {
+    "rudder_offset",
+    "nonlinear_yaw_damping",
+    "rudder_delay",
+    "rudder_lag",
+    "speed_loss",
+    "nonlinear_sway_damping",
+    "sway_yaw_coupling",
+    "rudder_saturation",
+    "rudder_asymmetry",
+}
 CTX = Context(t_ship=5.0, h=0.08, d_max=20.0, r_max=3.0, v_max=0.1, u_ref=2.0, u_min_ratio=0.85)
 THETA = np.array(list(PAPER_TABLE4.values()))
 T = np.arange(1200) * 0.08
@@ -55,7 +64,9 @@ def test_null_values_give_the_baseline_exactly(effect):
     for form in effect.forms:
         terms = Terms()
         effect.apply(form, {p.name: p.null for p in form.params}, terms)
-        np.testing.assert_allclose(simulate_terms(THETA, terms, (0, 0, 0), T, DELTA, U_RATIO), base, atol=1e-12)
+        np.testing.assert_allclose(
+            simulate_terms(THETA, terms, (0, 0, 0), T, DELTA, U_RATIO), base, atol=1e-12
+        )
 
 
 def test_kernel_features_are_the_definition():
@@ -64,7 +75,9 @@ def test_kernel_features_are_the_definition():
     rng = np.random.default_rng(1)
     for code in FEATURES:
         for v, r in rng.normal(0, [0.2, 3.0], (20, 2)):
-            assert _feature(code, v, r) == pytest.approx(float(feature_value(code, v, r)), rel=1e-14, abs=1e-300)
+            assert _feature(code, v, r) == pytest.approx(
+                float(feature_value(code, v, r)), rel=1e-14, abs=1e-300
+            )
 
 
 def _sim(effect, **vals):
@@ -75,14 +88,18 @@ def _sim(effect, **vals):
 
 
 def test_offset_is_a_constant_added_to_the_rudder():
-    np.testing.assert_allclose(_sim("rudder_offset", offset_deg=1.5),
-                               simulate_terms(THETA, Terms(), (0, 0, 0), T, DELTA + 1.5), atol=1e-12)
+    np.testing.assert_allclose(
+        _sim("rudder_offset", offset_deg=1.5),
+        simulate_terms(THETA, Terms(), (0, 0, 0), T, DELTA + 1.5),
+        atol=1e-12,
+    )
 
 
 def test_delay_shifts_the_rudder():
     shifted = np.interp(T - 0.4, T, DELTA)
-    np.testing.assert_allclose(_sim("rudder_delay", delay_s=0.4),
-                               simulate_terms(THETA, Terms(), (0, 0, 0), T, shifted), atol=2e-3)
+    np.testing.assert_allclose(
+        _sim("rudder_delay", delay_s=0.4), simulate_terms(THETA, Terms(), (0, 0, 0), T, shifted), atol=2e-3
+    )
 
 
 def test_lag_is_a_first_order_filter_of_the_rudder():
@@ -104,11 +121,15 @@ def test_saturation_and_asymmetry_act_on_the_rudder_force():
         assert np.max(np.abs(a - b)) < 2e-3 * np.max(np.abs(b)), np.max(np.abs(a - b))
 
     c = -5e-4
-    close(_sim("rudder_saturation", rudder_cubic_per_deg2=c),
-          simulate_terms(THETA, Terms(), (0, 0, 0), T, DELTA + c * DELTA**3))
+    close(
+        _sim("rudder_saturation", rudder_cubic_per_deg2=c),
+        simulate_terms(THETA, Terms(), (0, 0, 0), T, DELTA + c * DELTA**3),
+    )
     a = 0.1
-    close(_sim("rudder_asymmetry", asymmetry=a),
-          simulate_terms(THETA, Terms(), (0, 0, 0), T, DELTA * (1 + a * np.sign(DELTA))))
+    close(
+        _sim("rudder_asymmetry", asymmetry=a),
+        simulate_terms(THETA, Terms(), (0, 0, 0), T, DELTA * (1 + a * np.sign(DELTA))),
+    )
 
 
 def test_feature_effects_add_their_terms():
@@ -120,11 +141,18 @@ def test_feature_effects_add_their_terms():
     terms = Terms()
     e.apply(e.form("abs"), {"n_rr_per_deg": -0.05}, terms)
     assert terms.feat_code == [1] and terms.feat_eq == [1]
-    assert np.abs(simulate_terms(THETA, terms, (0, 0, 0), T, DELTA)[:, 1]).max() < 0.9 * np.abs(base[:, 1]).max()
+    assert (
+        np.abs(simulate_terms(THETA, terms, (0, 0, 0), T, DELTA)[:, 1]).max() < 0.9 * np.abs(base[:, 1]).max()
+    )
     sway = _sim("nonlinear_sway_damping", y_vv_per_m=-5.0, n_vv_deg_per_m2=0.0)
     assert np.abs(sway[:, 0]).max() < np.abs(base[:, 0]).max()
-    coup = _sim("sway_yaw_coupling", y_vvr_s_per_m_deg=0.0, y_vrr_s2_per_deg2=0.0, n_vvr_s_per_m2=0.0,
-                n_vrr_s_per_m_deg=-2.0)
+    coup = _sim(
+        "sway_yaw_coupling",
+        y_vvr_s_per_m_deg=0.0,
+        y_vrr_s2_per_deg2=0.0,
+        n_vvr_s_per_m2=0.0,
+        n_vrr_s_per_m_deg=-2.0,
+    )
     assert np.max(np.abs(coup - base)[:, 1]) > 0.05
 
 

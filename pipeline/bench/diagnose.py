@@ -23,5 +23,12 @@ def run(quick: bool = False) -> list[dict]:
     t0 = time.perf_counter()
     rep = diagnose(runs[:2], runs[2:]).report
     sec = time.perf_counter() - t0
-    return [{"name": f"diagnosis, 4 runs x 80 s, {len(CATALOGUE)} effects", "value": sec, "unit": "s",
-             "target": "< 30", "note": f"cause {rep['cause']}, extended {'+'.join(rep['extended']['effects'])}"}]
+    return [
+        {
+            "name": f"diagnosis, 4 runs x 80 s, {len(CATALOGUE)} effects",
+            "value": sec,
+            "unit": "s",
+            "target": "< 30",
+            "note": f"cause {rep['cause']}, extended {'+'.join(rep['extended']['effects'])}",
+        }
+    ]

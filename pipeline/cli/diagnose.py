@@ -59,8 +59,10 @@ def pick_catalog_runs(entries: list[dict]) -> tuple[list[str], list[str], list[s
     groups: dict = {}
     for e in zz:
         groups.setdefault(test(e), {})[e.get("first_side")] = e["run_id"]
-    pairs = sorted((k for k, g in groups.items() if "starboard" in g and "port" in g),
-                   key=lambda k: (k[0] or 0, k[1] or 0))
+    pairs = sorted(
+        (k for k, g in groups.items() if "starboard" in g and "port" in g),
+        key=lambda k: (k[0] or 0, k[1] or 0),
+    )
     if len(pairs) >= 2:
         big, small = groups[pairs[-1]], groups[pairs[0]]
         train = [big["starboard"], small["port"]]
@@ -130,8 +132,13 @@ def register(sub) -> None:
     )
     p.add_argument("--train", nargs="+", metavar="RUN", help="training runs (raw file or processed Parquet)")
     p.add_argument("--validate", nargs="+", metavar="RUN", help="validation runs")
-    p.add_argument("--test", nargs="+", metavar="RUN", help="test runs: the gain is reported on them (no choice "
-                   "sees them); without them, nested cross-validation")
+    p.add_argument(
+        "--test",
+        nargs="+",
+        metavar="RUN",
+        help="test runs: the gain is reported on them (no choice "
+        "sees them); without them, nested cross-validation",
+    )
     p.add_argument("--out", type=Path, help="output directory (catalog mode: data/processed/D/diagnose)")
     p.add_argument("--scale", type=float, default=None, help="scale factor of full-scale raw files")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")

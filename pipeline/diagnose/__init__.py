@@ -13,6 +13,20 @@ from pipeline.diagnose.truth import TruthConfig, zigzag_truth
 
 EFFECTS = tuple(e.name for e in CATALOGUE)
 
-__all__ = ["Diagnosis", "diagnose", "residual_structure", "BY_NAME", "CATALOGUE", "EFFECTS", "simulate_extended",
-           "simulate_terms", "FitResult", "Series", "evaluate", "fit_structure", "series_from_run", "TruthConfig",
-           "zigzag_truth"]
+__all__ = [
+    "Diagnosis",
+    "diagnose",
+    "residual_structure",
+    "BY_NAME",
+    "CATALOGUE",
+    "EFFECTS",
+    "simulate_extended",
+    "simulate_terms",
+    "FitResult",
+    "Series",
+    "evaluate",
+    "fit_structure",
+    "series_from_run",
+    "TruthConfig",
+    "zigzag_truth",
+]

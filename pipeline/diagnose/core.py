@@ -37,8 +37,6 @@ from pipeline.diagnose.fit import (
     Series,
     _derivs,
     _u_ratio,
-    evaluate,
-    fit_structure,
     is_stable,
     reference_speed,
     series_from_run,
@@ -71,15 +69,20 @@ def check_runs(series: list[Series], cfg: DiagnoseConfig) -> None:
     differing by more than ``cfg.speed_tolerance``, or different sample steps."""
     ships = {str(s.meta.get("ship")).strip().upper() for s in series if s.meta.get("ship")}
     if len(ships) > 1:
-        raise InputError(f"the runs are of different ships ({', '.join(sorted(ships))}): diagnose one ship at a time",
-                         file=series[0].name)
+        raise InputError(
+            f"the runs are of different ships ({', '.join(sorted(ships))}): diagnose one ship at a time",
+            file=series[0].name,
+        )
     us = [(s.name, s.approach_speed()) for s in series if s.u is not None]
     if len(us) >= 2:
         lo, hi = min(us, key=lambda x: x[1]), max(us, key=lambda x: x[1])
         if hi[1] > (1.0 + cfg.speed_tolerance) * lo[1]:
-            raise InputError(f"approach speed {hi[1]:.3f} m/s differs from {lo[1]:.3f} m/s of {lo[0]} by more than "
-                             f"{cfg.speed_tolerance:.0%}: runs at different speeds do not share one model", file=hi[0],
-                             column="u")
+            raise InputError(
+                f"approach speed {hi[1]:.3f} m/s differs from {lo[1]:.3f} m/s of {lo[0]} by more than "
+                f"{cfg.speed_tolerance:.0%}: runs at different speeds do not share one model",
+                file=hi[0],
+                column="u",
+            )
     steps = {round(s.h, 9) for s in series}
     if len(steps) > 1:
         raise InputError(f"runs have different sample steps {sorted(steps)} s (ingest them with one dt)")
@@ -94,9 +97,16 @@ def _context(series: list[Series]) -> Context:
     if u_ref is not None:
         umin = min(float(np.min(s.u_smooth())) / s.approach_speed() for s in series)
     lpp = next((float(s.meta["lpp"]) for s in series if s.meta.get("lpp")), None)
-    return Context(t_ship=ship_time_scale(series), h=series[0].h, d_max=pct([s.delta for s in series]),
-                   r_max=pct([s.r for s in series]), v_max=pct([s.v for s in series if s.v is not None]),
-                   u_ref=u_ref, u_min_ratio=umin, lpp_m=lpp)
+    return Context(
+        t_ship=ship_time_scale(series),
+        h=series[0].h,
+        d_max=pct([s.delta for s in series]),
+        r_max=pct([s.r for s in series]),
+        v_max=pct([s.v for s in series if s.v is not None]),
+        u_ref=u_ref,
+        u_min_ratio=umin,
+        lpp_m=lpp,
+    )
 
 
 def _exchangeable(a: list[Series], b: list[Series], tol: float = 0.15) -> bool:
@@ -126,14 +136,20 @@ def residual_structure(fit: FitResult, series: list[Series], per: list[dict], ct
         n = s.t.size
         pred = np.empty(n)
         states = np.column_stack([vv, r, s.psi])
-        seg = predict_segments(fit.theta, fit.terms, states, s.t, s.delta, np.arange(n - 1), 2, _u_ratio(s, fit.u_ref))
+        seg = predict_segments(
+            fit.theta, fit.terms, states, s.t, s.delta, np.arange(n - 1), 2, _u_ratio(s, fit.u_ref)
+        )
         pred[:-1] = (seg[:, 1, 1] - seg[:, 0, 1]) / s.h
         pred[-1] = pred[-2]
         e = rd - pred
         errs.append(e)
         win = max(5, int(round(0.2 * ctx.t_ship / s.h)) | 1)
         dd = savgol_filter(s.delta, min(win, n - 1 + n % 2 - 1), 2, deriv=1, delta=s.h)
-        ur = _u_ratio(s, fit.u_ref) if fit.u_ref is not None else (s.u / s.approach_speed() if s.u is not None else None)
+        ur = (
+            _u_ratio(s, fit.u_ref)
+            if fit.u_ref is not None
+            else (s.u / s.approach_speed() if s.u is not None else None)
+        )
         for eff in CATALOGUE:
             x = eff.signature_series(vv, r, s.delta, dd, ur)
             if x is not None:
@@ -195,7 +211,24 @@ def _pair_gain(pairs, cfg, block_s):
         eb += _block_maes(series, pe, block_s)
         bm += [p["mae_psi_deg"] for p in pb]
         em += [p["mae_psi_deg"] for p in pe]
-    return _gain(float(np.mean(bm)), float(np.mean(em))), _interval(bb, eb, cfg), float(np.mean(bm)), float(np.mean(em))
+    return (
+        _gain(float(np.mean(bm)), float(np.mean(em))),
+        _interval(bb, eb, cfg),
+        float(np.mean(bm)),
+        float(np.mean(em)),
+    )
+
+
+def _per_run(series, pb, pe) -> list[dict]:
+    return [
+        {
+            "run_id": s.name,
+            "baseline_mae_psi_deg": b["mae_psi_deg"],
+            "extended_mae_psi_deg": e["mae_psi_deg"],
+            "gain": _gain(b["mae_psi_deg"], e["mae_psi_deg"]),
+        }
+        for s, b, e in zip(series, pb, pe, strict=True)
+    ]
 
 
 def _inner_folds(train: list[Series]) -> list[Fold]:
@@ -215,8 +248,13 @@ def _inner_folds(train: list[Series]) -> list[Fold]:
 # ---------------------------------------------------------------- the diagnosis
 
 
-def diagnose(train: list[Run], validate: list[Run], cfg: DiagnoseConfig | None = None, progress: bool = False,
-             test: list[Run] | None = None) -> Diagnosis:
+def diagnose(
+    train: list[Run],
+    validate: list[Run],
+    cfg: DiagnoseConfig | None = None,
+    progress: bool = False,
+    test: list[Run] | None = None,
+) -> Diagnosis:
     """Run the diagnosis of SPEC section 7 on processed runs; pure (no files)."""
     cfg = cfg if cfg is not None else DiagnoseConfig()
     test = list(test or [])
@@ -230,7 +268,9 @@ def diagnose(train: list[Run], validate: list[Run], cfg: DiagnoseConfig | None =
     names = [s.name for s in tr + va + te]
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
-        raise InputError(f"the same run is given twice (training, validation and test must differ): {', '.join(dup)}")
+        raise InputError(
+            f"the same run is given twice (training, validation and test must differ): {', '.join(dup)}"
+        )
     check_runs(tr + va + te, cfg)
 
     folds = [Fold(tr, va)]
@@ -252,9 +292,16 @@ def diagnose(train: list[Run], validate: list[Run], cfg: DiagnoseConfig | None =
     honest = _honest_gain(search, sel, folds, te, ctx, cfg, noise)
     if bar is not None:
         bar.close()
-    report, base, ext, series = _report(search, sel, per_fold, honest, folds, te, ctx, cfg, noise, train + validate + test)
-    return Diagnosis(report=report, series=series, baseline=base, extended=ext,
-                     fits={f"{k}:{','.join(e for e, _ in st)}": f for (k, st), f in search._fits.items()})
+    report, base, ext, series = _report(
+        search, sel, per_fold, honest, folds, te, ctx, cfg, noise, train + validate + test
+    )
+    return Diagnosis(
+        report=report,
+        series=series,
+        baseline=base,
+        extended=ext,
+        fits={f"{k}:{','.join(e for e, _ in st)}": f for (k, st), f in search._fits.items()},
+    )
 
 
 def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> dict:
@@ -282,10 +329,18 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
                 continue
             gk, ivk, _, mk = _pair_gain([(te, b[1], ev[1])], cfg, block_s)
             ladder_test[k] = {"mae": mk, "gain": gk, "interval": ivk}
-        return {"mae_psi_relative_reduction": g, "interval_95": iv, "measured_on": [s.name for s in te],
-                "method": "test runs: baseline and extended model refitted on all training and validation runs, "
-                          "free-run on the --test runs; interval: bootstrap over blocks of the test runs",
-                "baseline_mae_psi_deg": bm, "extended_mae_psi_deg": em, "ladder": ladder_test, "nested": []}
+        return {
+            "mae_psi_relative_reduction": g,
+            "interval_95": iv,
+            "measured_on": [s.name for s in te],
+            "method": "test runs: baseline and extended model refitted on all training and validation runs, "
+            "free-run on the --test runs; interval: bootstrap over blocks of the test runs",
+            "baseline_mae_psi_deg": bm,
+            "extended_mae_psi_deg": em,
+            "per_run": _per_run(te, b[1], e[1]),
+            "ladder": ladder_test,
+            "nested": [],
+        }
     # nested cross-validation: selection inside each fold's training runs, measured on its held-out runs
     pairs, nested, measured = [], [], []
     for k, fold in enumerate(folds):
@@ -293,7 +348,9 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
         if not inner:
             continue
         isearch = Search(inner, ctx, cfg)
-        isel = select(isearch, list(range(len(inner))), heading_noise_deg([s for f in inner for s in f.val], ctx.t_ship))
+        isel = select(
+            isearch, list(range(len(inner))), heading_noise_deg([s for f in inner for s in f.val], ctx.t_ship)
+        )
         st = isel.structure
         base = search.fit(k, ())
         try:
@@ -305,41 +362,92 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
         pairs.append((fold.val, pb, pe))
         measured += [s.name for s in fold.val]
         gk, ivk, bm, em = _pair_gain([(fold.val, pb, pe)], cfg, block_s)
-        nested.append({"fold": fold.name, "effects": [e for e, _ in st], "cause": isel.cause,
-                       "chosen_on": [s.name for s in fold.train], "measured_on": [s.name for s in fold.val],
-                       "gain": gk, "interval_95": ivk, "baseline_mae_psi_deg": bm, "extended_mae_psi_deg": em,
-                       "fit": ext.message})
+        nested.append(
+            {
+                "fold": fold.name,
+                "effects": [e for e, _ in st],
+                "cause": isel.cause,
+                "chosen_on": [s.name for s in fold.train],
+                "measured_on": [s.name for s in fold.val],
+                "gain": gk,
+                "interval_95": ivk,
+                "baseline_mae_psi_deg": bm,
+                "extended_mae_psi_deg": em,
+                "fit": ext.message,
+            }
+        )
     if not pairs:
-        return {"mae_psi_relative_reduction": None, "interval_95": None, "measured_on": [],
-                "method": "none: no fold has two training runs for a nested selection and no --test runs were given; "
-                          "the validation gain in the ladder is optimistic (chosen on the same runs)",
-                "ladder": {}, "nested": []}
+        return {
+            "mae_psi_relative_reduction": None,
+            "interval_95": None,
+            "measured_on": [],
+            "method": "none: no fold has two training runs for a nested selection and no --test runs "
+            "were given; "
+            "the validation gain in the ladder is optimistic (chosen on the same runs)",
+            "ladder": {},
+            "nested": [],
+        }
     g, iv, bm, em = _pair_gain(pairs, cfg, block_s)
-    return {"mae_psi_relative_reduction": g, "interval_95": iv, "measured_on": measured,
-            "method": "nested cross-validation: in each fold the effects are chosen inside its training runs alone "
-                      "(inner side-swap folds) and the chosen structure, refitted on them, is measured on the fold's "
-                      "held-out runs; interval: bootstrap over blocks of those runs",
-            "baseline_mae_psi_deg": bm, "extended_mae_psi_deg": em, "ladder": {}, "nested": nested}
+    return {
+        "mae_psi_relative_reduction": g,
+        "interval_95": iv,
+        "measured_on": measured,
+        "method": "nested cross-validation: in each fold the effects are chosen inside its training runs "
+        "alone "
+        "(inner side-swap folds) and the chosen structure, refitted on them, is measured on the fold's "
+        "held-out runs; interval: bootstrap over blocks of those runs",
+        "baseline_mae_psi_deg": bm,
+        "extended_mae_psi_deg": em,
+        "per_run": [x for v, pb, pe in pairs for x in _per_run(v, pb, pe)],
+        "ladder": {},
+        "nested": nested,
+    }
 
 
 def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: bool, ext_struct) -> dict:
     eff = BY_NAME[effect]
     if effect in sel.untried:
-        return {"effect": effect, "significant": False, "material": False, "estimate": {}, "uncertainty": {},
-                "validation_gain": None, "validation_gain_folds": None, "z": None, "physical": "",
-                "floor": eff.floor_reason, "evidence": f"Not tried: {sel.untried[effect]}."}
+        return {
+            "effect": effect,
+            "significant": False,
+            "material": False,
+            "estimate": {},
+            "uncertainty": {},
+            "validation_gain": None,
+            "validation_gain_folds": None,
+            "z": None,
+            "physical": "",
+            "floor": eff.floor_reason,
+            "evidence": f"Not tried: {sel.untried[effect]}.",
+        }
     step = sel.last.get(effect) or sel.alone.get(effect)
     alone = sel.alone.get(effect)
     # the fit whose estimate is reported: the final model if chosen, else the final model + this effect
-    st = ext_struct if chosen else structure_of(*ext_struct, effect) if effect not in dict(ext_struct) else ext_struct
+    st = (
+        ext_struct
+        if chosen
+        else structure_of(*ext_struct, effect)
+        if effect not in dict(ext_struct)
+        else ext_struct
+    )
     key = None
-    for (k, s) in search._fits:
+    for k, s in search._fits:
         if k == 0 and {e for e, _ in s} == {e for e, _ in st}:
             key = (k, s)
     if step is None or key is None:
-        return {"effect": effect, "significant": False, "material": False, "estimate": {}, "uncertainty": {},
-                "validation_gain": None, "validation_gain_folds": None, "z": None, "physical": "",
-                "floor": eff.floor_reason, "evidence": "Fit failed in some fold: not judged."}
+        return {
+            "effect": effect,
+            "significant": False,
+            "material": False,
+            "estimate": {},
+            "uncertainty": {},
+            "validation_gain": None,
+            "validation_gain_folds": None,
+            "z": None,
+            "physical": "",
+            "floor": eff.floor_reason,
+            "evidence": "Fit failed in some fold: not judged.",
+        }
     f = search._fits[key]
     form = f.form(effect)
     vals = f.values[effect]
@@ -349,20 +457,41 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
     physical = eff.physical(form, vals, ctx)
     fold_rows = []
     for k in range(len(search.folds)):
-        fk = next((search._fits[(kk, s)] for (kk, s) in search._fits if kk == k and {e for e, _ in s} == {e for e, _ in st}), None)
+        fk = next(
+            (
+                search._fits[(kk, s)]
+                for (kk, s) in search._fits
+                if kk == k and {e for e, _ in s} == {e for e, _ in st}
+            ),
+            None,
+        )
         if fk is not None:
-            fold_rows.append({"estimate": dict(fk.values[effect]), "uncertainty": {n: fk.std.get(n) for n in fk.values[effect]},
-                              "gain": step.gains[k] if k < len(step.gains) else None,
-                              "extended_mae_psi_deg": search.eval(k, fk.structure)[0]["mae_psi_deg"]})
-    ctxt = "in the final model (drop-one worth)" if chosen else (
-        "added to the final model" if ext_struct else "added to the linear baseline")
+            fold_rows.append(
+                {
+                    "estimate": dict(fk.values[effect]),
+                    "uncertainty": {n: fk.std.get(n) for n in fk.values[effect]},
+                    "gain": step.gains[k] if k < len(step.gains) else None,
+                    "extended_mae_psi_deg": search.eval(k, fk.structure)[0]["mae_psi_deg"],
+                }
+            )
+    ctxt = (
+        "in the final model (drop-one worth)"
+        if chosen
+        else ("added to the final model" if ext_struct else "added to the linear baseline")
+    )
     if chosen:
-        evidence = (f"Held-out heading error {step.gain:+.0%} when removed from the final model ({ctxt}; per fold "
-                    f"{', '.join(f'{g:+.0%}' for g in step.gains)}; cut {step.abs_gain_deg:.2f} deg; block t = {step.t:.1f} "
-                    f"> {step.t_crit:.2f} with {step.blocks - 1} dof): {physical}.")
+        evidence = (
+            f"Held-out heading error {step.gain:+.0%} when removed from the final model ({ctxt}; per fold "
+            f"{', '.join(f'{g:+.0%}' for g in step.gains)}; cut {step.abs_gain_deg:.2f} deg; "
+            f"block t = {step.t:.1f} "
+            f"> {step.t_crit:.2f} with {step.blocks - 1} dof): {physical}."
+        )
     else:
-        evidence = (f"Not named: {'; '.join(step.why) or 'another effect explained the same error'} ({ctxt}: held-out "
-                    f"{step.gain:+.0%}, per fold {', '.join(f'{g:+.0%}' for g in step.gains)}); fitted: {physical}.")
+        evidence = (
+            f"Not named: {'; '.join(step.why) or 'another effect explained the same error'} "
+            f"({ctxt}: held-out "
+            f"{step.gain:+.0%}, per fold {', '.join(f'{g:+.0%}' for g in step.gains)}); fitted: {physical}."
+        )
     return {
         "effect": effect,
         "form": form.name,
@@ -396,15 +525,22 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
     ext_val, ext_per = search.eval(0, st)
     chosen = [e for e, _ in st]
     rows = [_finding(e.name, sel, search, ctx, cfg, e.name in chosen, st) for e in CATALOGUE]
-    rows.sort(key=lambda r: (not r["significant"], -(r["validation_gain"] if r["validation_gain"] is not None else -np.inf)))
+    rows.sort(
+        key=lambda r: (
+            not r["significant"],
+            -(r["validation_gain"] if r["validation_gain"] is not None else -np.inf),
+        )
+    )
     structure = residual_structure(base, folds[0].val, base_per, ctx)
     after = residual_structure(ext, folds[0].val, ext_per, ctx) if chosen else structure
     cause = sel.cause
     for r in rows:
         if r["effect"] == cause and after["explained_fraction"] >= cfg.structured_r2:
             top = max(after["correlation"], key=lambda k: abs(after["correlation"][k]))
-            r["evidence"] += (f" Residuals stay structured after the extension: the effect signatures still explain "
-                              f"{after['explained_fraction']:.0%} of the yaw-acceleration error (strongest: {top}).")
+            r["evidence"] += (
+                f" Residuals stay structured after the extension: the effect signatures still explain "
+                f"{after['explained_fraction']:.0%} of the yaw-acceleration error (strongest: {top})."
+            )
     joint = {}
     for e in chosen:
         form = ext.form(e)
@@ -419,19 +555,44 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
     ladder = []
     for i, (s_, _step) in enumerate(sel.ladder):
         key = structure_of(*s_)
-        name = "baseline" if not s_ else ("+" + s_[-1][0] if i and len(s_) > len(sel.ladder[i - 1][0]) else
-                                          "-" + next(e for e, _ in sel.ladder[i - 1][0] if e not in dict(s_)))
+        name = (
+            "baseline"
+            if not s_
+            else (
+                "+" + s_[-1][0]
+                if i and len(s_) > len(sel.ladder[i - 1][0])
+                else "-" + next(e for e, _ in sel.ladder[i - 1][0] if e not in dict(s_))
+            )
+        )
         tl = honest.get("ladder", {}).get(key)
-        ladder.append({"model": name, "effects": [e for e, _ in s_], "validation_mae_psi_deg": pooled(key),
-                       "test_mae_psi_deg": tl["mae"] if tl else None,
-                       "test_interval_95": tl["interval"] if tl else None})
-    causes = [{"fold": folds[k].name if len(folds) > 1 else folds[0].name, "cause": p.cause,
-               "effects": [e for e, _ in p.structure]} for k, p in zip(ks, per_fold, strict=True)]
-    causes += [{"fold": "nested: " + n["fold"], "cause": n["cause"], "effects": n["effects"]} for n in honest["nested"]]
+        ladder.append(
+            {
+                "model": name,
+                "effects": [e for e, _ in s_],
+                "validation_mae_psi_deg": pooled(key),
+                "test_mae_psi_deg": tl["mae"] if tl else None,
+                "test_interval_95": tl["interval"] if tl else None,
+            }
+        )
+    causes = [
+        {
+            "fold": folds[k].name if len(folds) > 1 else folds[0].name,
+            "cause": p.cause,
+            "effects": [e for e, _ in p.structure],
+        }
+        for k, p in zip(ks, per_fold, strict=True)
+    ]
+    causes += [
+        {"fold": "nested: " + n["fold"], "cause": n["cause"], "effects": n["effects"]}
+        for n in honest["nested"]
+    ]
     agree = sum(c["cause"] == cause for c in causes)
     if not chosen:
-        summary = (f"No effect passes: the linear model's held-out heading error ({base_val['mae_psi_deg']:.2f} deg) is "
-                   f"not cut materially and significantly by any effect of the catalogue, alone or together.")
+        summary = (
+            f"No effect passes: the linear model's held-out heading error "
+            f"({base_val['mae_psi_deg']:.2f} deg) is "
+            f"not cut materially and significantly by any effect of the catalogue, alone or together."
+        )
     else:
         summary = next(r["evidence"] for r in rows if r["effect"] == cause)
     fold_reports = []
@@ -440,34 +601,64 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
         x = search.fit(k, st)
         bv, bp = search.eval(k, ())
         xv, xp = search.eval(k, st)
-        fold_reports.append({
-            "training_runs": [s.name for s in fold.train], "validation_runs": [s.name for s in fold.val],
-            "course_stable": is_stable(b.theta),
-            "baseline": {"parameters": b.params(), "uncertainty": {n: b.std[n] for n in PARAM_NAMES},
-                         "course_stable": is_stable(b.theta), "stable": is_stable(b.theta), "training_cost": b.cost,
-                         "fit": b.message, "validation": bv,
-                         "per_run": [{kk: v for kk, v in p.items() if kk != "sim"} for p in bp]},
-            "extended": {"effects": chosen, "parameters": x.params(), "course_stable": is_stable(x.theta),
-                         "validation": xv, "per_run": [{kk: v for kk, v in p.items() if kk != "sim"} for p in xp]},
-            "gain": {"mae_psi_relative_reduction": _gain(bv["mae_psi_deg"], xv["mae_psi_deg"])},
-        })
+        fold_reports.append(
+            {
+                "training_runs": [s.name for s in fold.train],
+                "validation_runs": [s.name for s in fold.val],
+                "course_stable": is_stable(b.theta),
+                "baseline": {
+                    "parameters": b.params(),
+                    "uncertainty": {n: b.std[n] for n in PARAM_NAMES},
+                    "course_stable": is_stable(b.theta),
+                    "stable": is_stable(b.theta),
+                    "training_cost": b.cost,
+                    "fit": b.message,
+                    "validation": bv,
+                    "per_run": [{kk: v for kk, v in p.items() if kk != "sim"} for p in bp],
+                },
+                "extended": {
+                    "effects": chosen,
+                    "parameters": x.params(),
+                    "course_stable": is_stable(x.theta),
+                    "validation": xv,
+                    "per_run": [{kk: v for kk, v in p.items() if kk != "sim"} for p in xp],
+                },
+                "gain": {"mae_psi_relative_reduction": _gain(bv["mae_psi_deg"], xv["mae_psi_deg"])},
+            }
+        )
     gain = {k: v for k, v in honest.items() if k not in ("ladder",)}
     gain["validation_mae_psi_relative_reduction"] = _gain(pooled(()), pooled(structure_of(*st)))
     report = {
         "cause": cause,
         "findings": rows,
-        "baseline": {"parameters": base.params(), "uncertainty": {n: base.std[n] for n in PARAM_NAMES},
-                     "course_stable": is_stable(base.theta), "validation": base_val,
-                     "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in base_per], "residuals": structure},
-        "extended": {"effects": chosen, "forms": {e: f for e, f in st}, "parameters": ext.params(),
-                     "uncertainty": {n: ext.std[n] for n in PARAM_NAMES}, "effect_estimates": joint,
-                     "course_stable": is_stable(ext.theta), "validation": ext_val,
-                     "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in ext_per], "residuals": after},
+        "baseline": {
+            "parameters": base.params(),
+            "uncertainty": {n: base.std[n] for n in PARAM_NAMES},
+            "course_stable": is_stable(base.theta),
+            "validation": base_val,
+            "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in base_per],
+            "residuals": structure,
+        },
+        "extended": {
+            "effects": chosen,
+            "forms": {e: f for e, f in st},
+            "parameters": ext.params(),
+            "uncertainty": {n: ext.std[n] for n in PARAM_NAMES},
+            "effect_estimates": joint,
+            "course_stable": is_stable(ext.theta),
+            "validation": ext_val,
+            "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in ext_per],
+            "residuals": after,
+        },
         "gain": gain,
         "ladder": ladder,
-        "stability": {"folds_agreeing": agree, "total": len(causes), "causes": causes,
-                      "rule": "the selection repeated on every selection fold alone and inside every nested fold; "
-                              "agreeing = same cause as the pooled selection"},
+        "stability": {
+            "folds_agreeing": agree,
+            "total": len(causes),
+            "causes": causes,
+            "rule": "the selection repeated on every selection fold alone and inside every nested fold; "
+            "agreeing = same cause as the pooled selection",
+        },
         "course_stable": [fr["course_stable"] for fr in fold_reports],
         "folds": fold_reports,
         "summary": summary,
@@ -476,21 +667,39 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
         "test_runs": [s.name for s in te],
         "provenance": _provenance(runs),
         "settings": {
-            "min_gain": cfg.min_gain, "min_abs_gain_deg": cfg.min_abs_gain_deg, "alpha": cfg.alpha,
-            "block_T": cfg.block_T, "block_s": cfg.block_T * ctx.t_ship, "time_scale_s": ctx.t_ship,
-            "heading_noise_deg": noise, "max_effects": cfg.max_effects, "structured_r2": cfg.structured_r2,
-            "catalogue": [e.name for e in CATALOGUE], "two_fold": len(folds) == 2, "u_ref_m_s": ctx.u_ref,
+            "min_gain": cfg.min_gain,
+            "min_abs_gain_deg": cfg.min_abs_gain_deg,
+            "alpha": cfg.alpha,
+            "block_T": cfg.block_T,
+            "block_s": cfg.block_T * ctx.t_ship,
+            "time_scale_s": ctx.t_ship,
+            "heading_noise_deg": noise,
+            "max_effects": cfg.max_effects,
+            "structured_r2": cfg.structured_r2,
+            "catalogue": [e.name for e in CATALOGUE],
+            "two_fold": len(folds) == 2,
+            "u_ref_m_s": ctx.u_ref,
             "fit": "prediction-error over one ship time scale, then output-error on free-run psi, r (and v); "
-                   "RK4 of the continuous-time model, rudder interpolated; stability not forced",
+            "RK4 of the continuous-time model, rudder interpolated; stability not forced",
             "significance": "one-sided t-test of per-block held-out MAE psi differences, t with G-1 dof",
         },
     }
     frames = []
     for s, pb, pe in zip(folds[0].val, base_per, ext_per, strict=True):
-        d = {"run_id": s.name, "time": s.t, "delta": s.delta, "psi": s.psi, "r": s.r,
-             "v": s.v if s.v is not None else np.full(s.t.size, np.nan),
-             "psi_baseline": pb["sim"][:, 2], "r_baseline": pb["sim"][:, 1], "v_baseline": pb["sim"][:, 0],
-             "psi_extended": pe["sim"][:, 2], "r_extended": pe["sim"][:, 1], "v_extended": pe["sim"][:, 0]}
+        d = {
+            "run_id": s.name,
+            "time": s.t,
+            "delta": s.delta,
+            "psi": s.psi,
+            "r": s.r,
+            "v": s.v if s.v is not None else np.full(s.t.size, np.nan),
+            "psi_baseline": pb["sim"][:, 2],
+            "r_baseline": pb["sim"][:, 1],
+            "v_baseline": pb["sim"][:, 0],
+            "psi_extended": pe["sim"][:, 2],
+            "r_extended": pe["sim"][:, 1],
+            "v_extended": pe["sim"][:, 0],
+        }
         if s.u is not None:
             d["u"] = s.u
         frames.append(pd.DataFrame(d))

@@ -71,7 +71,9 @@ def _deriv(v, r, e, a_in, s, th, codes, eqs, coefs, lag, offset, asym, cubic):  
 
 
 @njit(cache=True)
-def _run(out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic):  # pragma: no cover
+def _run(
+    out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic
+):  # pragma: no cover
     """RK4 from sample k0 (state x0, lag state e0) to k1 - 1, writing samples k0 .. k1-1 to rows
     0 .. k1-k0-1 of ``out``.
     ``a_half``/``s_half``: rudder (pre-lag) and speed factor on the half-step grid (index 2k = t_k)."""
@@ -100,12 +102,51 @@ def _run(out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, lag, 
             a2 = a_half[i0] + fc * (a_half[i0 + 2] - a_half[i0])
             s2 = s_half[i0] + fc * (s_half[i0 + 2] - s_half[i0])
             k1v, k1r, k1p, k1e = _deriv(v, r, e, a0, s0, th, codes, eqs, coefs, lag, offset, asym, cubic)
-            k2v, k2r, k2p, k2e = _deriv(v + 0.5 * hs * k1v, r + 0.5 * hs * k1r, e + 0.5 * hs * k1e, a1, s1,
-                                        th, codes, eqs, coefs, lag, offset, asym, cubic)
-            k3v, k3r, k3p, k3e = _deriv(v + 0.5 * hs * k2v, r + 0.5 * hs * k2r, e + 0.5 * hs * k2e, a1, s1,
-                                        th, codes, eqs, coefs, lag, offset, asym, cubic)
-            k4v, k4r, k4p, k4e = _deriv(v + hs * k3v, r + hs * k3r, e + hs * k3e, a2, s2,
-                                        th, codes, eqs, coefs, lag, offset, asym, cubic)
+            k2v, k2r, k2p, k2e = _deriv(
+                v + 0.5 * hs * k1v,
+                r + 0.5 * hs * k1r,
+                e + 0.5 * hs * k1e,
+                a1,
+                s1,
+                th,
+                codes,
+                eqs,
+                coefs,
+                lag,
+                offset,
+                asym,
+                cubic,
+            )
+            k3v, k3r, k3p, k3e = _deriv(
+                v + 0.5 * hs * k2v,
+                r + 0.5 * hs * k2r,
+                e + 0.5 * hs * k2e,
+                a1,
+                s1,
+                th,
+                codes,
+                eqs,
+                coefs,
+                lag,
+                offset,
+                asym,
+                cubic,
+            )
+            k4v, k4r, k4p, k4e = _deriv(
+                v + hs * k3v,
+                r + hs * k3r,
+                e + hs * k3e,
+                a2,
+                s2,
+                th,
+                codes,
+                eqs,
+                coefs,
+                lag,
+                offset,
+                asym,
+                cubic,
+            )
             v = v + hs / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
             r = r + hs / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
             psi = psi + hs / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
@@ -117,21 +158,54 @@ def _run(out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, lag, 
 
 
 @njit(cache=True)
-def _segments(out, starts, length, xs, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic):  # pragma: no cover
+def _segments(
+    out, starts, length, xs, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic
+):  # pragma: no cover
     """Prediction over ``length`` samples from each measured state xs[starts[i]] (rows of out[i])."""
     for i in range(starts.shape[0]):
         k0 = starts[i]
-        _run(out[i], k0, k0 + length, xs[k0], a_half[2 * k0], a_half, s_half, h, m, th, codes, eqs, coefs, lag,
-             offset, asym, cubic)
+        _run(
+            out[i],
+            k0,
+            k0 + length,
+            xs[k0],
+            a_half[2 * k0],
+            a_half,
+            s_half,
+            h,
+            m,
+            th,
+            codes,
+            eqs,
+            coefs,
+            lag,
+            offset,
+            asym,
+            cubic,
+        )
 
 
 def deriv(x, e, a_in, s, theta, terms: Terms) -> np.ndarray:
     """Python entry to the kernel's right-hand side: (dv/dt, dr/dt, dpsi/dt, de/dt) at state x =
     (v, r, psi), lag state ``e``, pre-lag rudder ``a_in`` deg and speed factor ``s`` (for tests)."""
     codes, eqs, coefs = _arrays(terms)
-    return np.array(_deriv(float(x[0]), float(x[1]), float(e), float(a_in), float(s), as_theta(theta), codes,
-                           eqs, coefs, float(terms.lag_s), float(terms.offset_deg), float(terms.asymmetry),
-                           float(terms.rudder_cubic_per_deg2)))
+    return np.array(
+        _deriv(
+            float(x[0]),
+            float(x[1]),
+            float(e),
+            float(a_in),
+            float(s),
+            as_theta(theta),
+            codes,
+            eqs,
+            coefs,
+            float(terms.lag_s),
+            float(terms.offset_deg),
+            float(terms.asymmetry),
+            float(terms.rudder_cubic_per_deg2),
+        )
+    )
 
 
 def _lag_and_substeps(terms: Terms, h: float, substeps: int) -> tuple[float, int]:
@@ -145,8 +219,11 @@ def _lag_and_substeps(terms: Terms, h: float, substeps: int) -> tuple[float, int
 
 
 def _arrays(terms: Terms):
-    return (np.asarray(terms.feat_code, dtype=np.int64), np.asarray(terms.feat_eq, dtype=np.int64),
-            np.asarray(terms.feat_coef, dtype=float))
+    return (
+        np.asarray(terms.feat_code, dtype=np.int64),
+        np.asarray(terms.feat_eq, dtype=np.int64),
+        np.asarray(terms.feat_coef, dtype=float),
+    )
 
 
 _HALF_CACHE: dict = {}
@@ -198,14 +275,31 @@ def simulate_terms(theta, terms: Terms, x0, t, delta, u_ratio=None, substeps: in
     codes, eqs, coefs = _arrays(terms)
     lag, m = _lag_and_substeps(terms, h, substeps)
     out = np.empty((d.size, 3))
-    _run(out, 0, d.size, np.asarray(x0, dtype=float).reshape(3), a_half[0], a_half, s_half, h, m,
-         th, codes, eqs, coefs, lag, float(terms.offset_deg), float(terms.asymmetry),
-         float(terms.rudder_cubic_per_deg2))
+    _run(
+        out,
+        0,
+        d.size,
+        np.asarray(x0, dtype=float).reshape(3),
+        a_half[0],
+        a_half,
+        s_half,
+        h,
+        m,
+        th,
+        codes,
+        eqs,
+        coefs,
+        lag,
+        float(terms.offset_deg),
+        float(terms.asymmetry),
+        float(terms.rudder_cubic_per_deg2),
+    )
     return out
 
 
-def predict_segments(theta, terms: Terms, states, t, delta, starts, length: int, u_ratio=None,
-                     substeps: int = 1) -> np.ndarray:
+def predict_segments(
+    theta, terms: Terms, states, t, delta, starts, length: int, u_ratio=None, substeps: int = 1
+) -> np.ndarray:
     """Prediction over ``length`` samples from each measured state ``states[k]`` (k in ``starts``):
     (len(starts), length, 3).  The lag state starts at the (delayed) logged rudder."""
     th = as_theta(theta)
@@ -216,22 +310,50 @@ def predict_segments(theta, terms: Terms, states, t, delta, starts, length: int,
     codes, eqs, coefs = _arrays(terms)
     lag, m = _lag_and_substeps(terms, h, substeps)
     out = np.empty((len(starts), length, 3))
-    _segments(out, np.asarray(starts, dtype=np.int64), int(length), np.ascontiguousarray(states, dtype=float),
-              a_half, s_half, h, m, th, codes, eqs, coefs, lag,
-              float(terms.offset_deg), float(terms.asymmetry), float(terms.rudder_cubic_per_deg2))
+    _segments(
+        out,
+        np.asarray(starts, dtype=np.int64),
+        int(length),
+        np.ascontiguousarray(states, dtype=float),
+        a_half,
+        s_half,
+        h,
+        m,
+        th,
+        codes,
+        eqs,
+        coefs,
+        lag,
+        float(terms.offset_deg),
+        float(terms.asymmetry),
+        float(terms.rudder_cubic_per_deg2),
+    )
     return out
 
 
-def simulate_extended(theta, x0, delta, h: float, *, t=None, offset_deg: float = 0.0,
-                      n_rrr_s_per_deg2: float = 0.0, delay_s: float | None = None, lag_s: float = 0.0,
-                      u_ratio=None, speed_exponent: float = 0.0, substeps: int = 1) -> np.ndarray:
+def simulate_extended(
+    theta,
+    x0,
+    delta,
+    h: float,
+    *,
+    t=None,
+    offset_deg: float = 0.0,
+    n_rrr_s_per_deg2: float = 0.0,
+    delay_s: float | None = None,
+    lag_s: float = 0.0,
+    u_ratio=None,
+    speed_exponent: float = 0.0,
+    substeps: int = 1,
+) -> np.ndarray:
     """Convenience free-run with the classic effects by keyword (see module docstring); ``delay_s``
     is the physical dead time (None or 0: none).  Returns (N, 3) of (v, r, psi)."""
     d = np.asarray(delta, dtype=float)
     if t is None:
         t = np.arange(d.size) * h
-    terms = Terms(offset_deg=offset_deg, delay_s=float(delay_s or 0.0), lag_s=lag_s,
-                  speed_exponent=speed_exponent)
+    terms = Terms(
+        offset_deg=offset_deg, delay_s=float(delay_s or 0.0), lag_s=lag_s, speed_exponent=speed_exponent
+    )
     if n_rrr_s_per_deg2:
         terms.feat_code.append(0)
         terms.feat_eq.append(1)

@@ -42,7 +42,9 @@ class Fold:
 
     @property
     def name(self) -> str:
-        return f"train {' + '.join(s.name for s in self.train)}, validate {' + '.join(s.name for s in self.val)}"
+        return (
+            f"train {' + '.join(s.name for s in self.train)}, validate {' + '.join(s.name for s in self.val)}"
+        )
 
 
 @dataclass
@@ -85,8 +87,14 @@ class Search:
     def fit(self, k: int, structure, start: FitResult | None = None) -> FitResult:
         key = (k, structure_of(*structure))
         if key not in self._fits:
-            self._fits[key] = fit_structure(self.folds[k].train, key[1], self.ctx, start=start,
-                                            max_nfev=self.cfg.max_nfev, block_T=self.cfg.block_T)
+            self._fits[key] = fit_structure(
+                self.folds[k].train,
+                key[1],
+                self.ctx,
+                start=start,
+                max_nfev=self.cfg.max_nfev,
+                block_T=self.cfg.block_T,
+            )
         return self._fits[key]
 
     def eval(self, k: int, structure):
@@ -155,8 +163,9 @@ class Search:
         for k in ks:
             f = self.fit(k, after)
             form = f.form(effect)
-            ok, text = BY_NAME[effect].material(form, f.values[effect], self.ctx,
-                                                self.response_change(k, after, effect))
+            ok, text = BY_NAME[effect].material(
+                form, f.values[effect], self.ctx, self.response_change(k, after, effect)
+            )
             mats.append(ok)
             floors.append(text)
         floor_abs = max(2.0 * noise_deg, cfg.min_abs_gain_deg)
@@ -168,11 +177,23 @@ class Search:
         if abs_gain < floor_abs:
             why.append(f"held-out heading cut {abs_gain:.3f} deg below the noise level {floor_abs:.3f} deg")
         if not t >= tc:
-            why.append(f"block t = {t:.2f} below t(0.95, {g - 1}) = {tc:.2f}" if g >= 3 else "fewer than 3 blocks")
+            why.append(
+                f"block t = {t:.2f} below t(0.95, {g - 1}) = {tc:.2f}" if g >= 3 else "fewer than 3 blocks"
+            )
         if not all(mats):
             why.append("below its physical floor: " + floors[0])
-        return Step(passes=not why, gain=gain, gains=gains, abs_gain_deg=abs_gain, t=t, t_crit=tc, blocks=g,
-                    material=all(mats), floor="; ".join(dict.fromkeys(floors)), why=why)
+        return Step(
+            passes=not why,
+            gain=gain,
+            gains=gains,
+            abs_gain_deg=abs_gain,
+            t=t,
+            t_crit=tc,
+            blocks=g,
+            material=all(mats),
+            floor="; ".join(dict.fromkeys(floors)),
+            why=why,
+        )
 
 
 def _gain(base: float, ext: float) -> float:
@@ -255,5 +276,6 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
     last = {e: s for e, s in last.items() if e not in dict(cur)}
     last.update(worth)
     cause = max(worth, key=lambda e: worth[e].gain) if worth else "none"
-    return Selection(structure=cur, ladder=ladder, alone=alone, last=last, worth=worth, cause=cause,
-                     untried=untried)
+    return Selection(
+        structure=cur, ladder=ladder, alone=alone, last=last, worth=worth, cause=cause, untried=untried
+    )

@@ -34,5 +34,15 @@ CATALOGUE: tuple[Effect, ...] = (
 BY_NAME = {e.name: e for e in CATALOGUE}
 NAMES = tuple(BY_NAME)
 
-__all__ = ["CATALOGUE", "BY_NAME", "NAMES", "FEATURES", "Context", "Effect", "Form", "Param", "Terms",
-           "feature_value"]
+__all__ = [
+    "CATALOGUE",
+    "BY_NAME",
+    "NAMES",
+    "FEATURES",
+    "Context",
+    "Effect",
+    "Form",
+    "Param",
+    "Terms",
+    "feature_value",
+]

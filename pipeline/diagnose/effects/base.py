@@ -1,6 +1,7 @@
 """The effect object of the diagnosis catalogue (SPEC section 7) and what an effect may use.
 
-An effect is a small object (one module per effect, registered in :data:`pipeline.diagnose.effects.CATALOGUE`):
+An effect is a small object (one module per effect, registered in
+:data:`pipeline.diagnose.effects.CATALOGUE`):
 
 - ``name`` (SPEC section 7) and ``forms``: one or more parameterisations (e.g. Norrbin r^3 or r|r|);
   the fit tries every form and keeps the one of least TRAINING cost;

@@ -28,9 +28,11 @@ class NonlinearSwayDamping(Effect):
 
     def physical(self, form, values, ctx):
         y, n = values["y_vv_per_m"], values["n_vv_deg_per_m2"]
-        return (f"cross-flow drag: at the largest sway velocity {ctx.v_max:.3f} m/s the sway force adds "
-                f"{y * ctx.v_max**2:+.3g} m/s^2 and the yaw moment {n * ctx.v_max**2:+.3g} deg/s^2, so the "
-                f"drift angle of large manoeuvres is limited more than a linear hull predicts")
+        return (
+            f"cross-flow drag: at the largest sway velocity {ctx.v_max:.3f} m/s the sway force adds "
+            f"{y * ctx.v_max**2:+.3g} m/s^2 and the yaw moment {n * ctx.v_max**2:+.3g} deg/s^2, so the "
+            f"drift angle of large manoeuvres is limited more than a linear hull predicts"
+        )
 
     def signature_series(self, v, r, delta, ddelta, u_ratio):
         return v * abs(v)

@@ -18,19 +18,23 @@ class NonlinearYawDamping(Effect):
     words = "nonlinear yaw damping"
     term = "dr/dt gains n_rrr r^3 (cubic form) or n_rr r|r| (modulus form); negative = more damping"
     signature = "yaw-acceleration error odd in r, growing with |r|: large manoeuvres over-predicted"
-    floor_reason = (f"changes the peak yaw rate of the largest manoeuvre by >= {MIN_RESPONSE:.0%} "
-                    "(the precision model tests are trusted to)")
+    floor_reason = (
+        f"changes the peak yaw rate of the largest manoeuvre by >= {MIN_RESPONSE:.0%} "
+        "(the precision model tests are trusted to)"
+    )
 
     def material(self, form, values, ctx, response_change):
         return bool(response_change >= MIN_RESPONSE), response_floor_text(response_change, MIN_RESPONSE)
 
     def physical(self, form, values, ctx: Context) -> str:
-        (k, val), = values.items()
+        ((k, val),) = values.items()
         term = val * ctx.r_max**3 if form.name == "cubic" else val * ctx.r_max**2
         more = "more" if val < 0 else "less"
-        return (f"yaw damping grows with the rate of turn ({form.name} form, {k} = {val:.3g}): at "
-                f"r = {ctx.r_max:.2f} deg/s it adds {abs(term):.3g} deg/s^2 of {more} damping, so indices from "
-                f"small manoeuvres mis-predict large ones")
+        return (
+            f"yaw damping grows with the rate of turn ({form.name} form, {k} = {val:.3g}): at "
+            f"r = {ctx.r_max:.2f} deg/s it adds {abs(term):.3g} deg/s^2 of {more} damping, so indices from "
+            f"small manoeuvres mis-predict large ones"
+        )
 
     def extra_estimate(self, form, values, ctx):
         return {"r_max_deg_s": ctx.r_max, "form": form.name}

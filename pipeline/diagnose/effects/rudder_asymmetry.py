@@ -30,8 +30,10 @@ class RudderAsymmetry(Effect):
         a = values["asymmetry"]
         strong, weak = ("starboard", "port") if a > 0 else ("port", "starboard")
         ratio = (1 + abs(a)) / max(1 - abs(a), 1e-9)
-        return (f"the rudder is {ratio - 1:.0%} more effective to {strong} than to {weak}: the propeller "
-                f"slipstream's rotation, typical of a single screw")
+        return (
+            f"the rudder is {ratio - 1:.0%} more effective to {strong} than to {weak}: the propeller "
+            f"slipstream's rotation, typical of a single screw"
+        )
 
     def signature_series(self, v, r, delta, ddelta, u_ratio):
         return np.abs(delta)

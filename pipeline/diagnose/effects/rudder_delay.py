@@ -21,8 +21,10 @@ class RudderDelay(Effect):
     words = "a rudder dead time"
     term = "delta_eff(t) = delta(t - delay_s) (logged rudder interpolated)"
     signature = "yaw-acceleration error proportional to -d(delta)/dt at every rudder reversal"
-    floor_reason = (f"delay >= max({MIN_STEPS} sample steps, {MIN_SHARE_OF_T:.0%} of the ship's time scale): "
-                    "shorter is not resolved by the log nor visible in a zigzag's timing")
+    floor_reason = (
+        f"delay >= max({MIN_STEPS} sample steps, {MIN_SHARE_OF_T:.0%} of the ship's time scale): "
+        "shorter is not resolved by the log nor visible in a zigzag's timing"
+    )
 
     def apply(self, form, values, terms: Terms) -> None:
         terms.delay_s = float(values["delay_s"])
@@ -32,8 +34,11 @@ class RudderDelay(Effect):
         return bool(values["delay_s"] >= f), f"dead time {values['delay_s']:.3f} s (floor {f:.3f} s)"
 
     def physical(self, form, values, ctx):
-        return (f"the rudder acts {values['delay_s']:.2f} s after it is logged ({values['delay_s'] / ctx.t_ship:.0%} "
-                f"of the ship's {ctx.t_ship:.1f} s time scale): an actuator or logging dead time")
+        return (
+            f"the rudder acts {values['delay_s']:.2f} s after it is logged "
+            f"({values['delay_s'] / ctx.t_ship:.0%} "
+            f"of the ship's {ctx.t_ship:.1f} s time scale): an actuator or logging dead time"
+        )
 
     def signature_series(self, v, r, delta, ddelta, u_ratio):
         return -ddelta

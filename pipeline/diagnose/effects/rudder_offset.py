@@ -18,8 +18,10 @@ class RudderOffset(Effect):
     words = "a constant rudder offset"
     term = "delta_eff = delta + offset_deg (in every rudder term)"
     signature = "a constant yaw acceleration: steady heading drift on a straight rudder"
-    floor_reason = (f"|offset| >= {MIN_OFFSET_DEG} deg: three times a tank rudder encoder's 0.1 deg resolution, "
-                    "the least neutral-rudder error worth correcting")
+    floor_reason = (
+        f"|offset| >= {MIN_OFFSET_DEG} deg: three times a tank rudder encoder's 0.1 deg resolution, "
+        "the least neutral-rudder error worth correcting"
+    )
 
     def apply(self, form: Form, values: dict, terms: Terms) -> None:
         terms.offset_deg = float(values["offset_deg"])
@@ -31,9 +33,11 @@ class RudderOffset(Effect):
     def physical(self, form: Form, values: dict, ctx: Context) -> str:
         off = values["offset_deg"]
         side = "starboard" if off > 0 else "port"
-        return (f"the rudder acts as if {abs(off):.2f} deg to {side} of its logged angle: a steady yaw moment "
-                f"equal to that much rudder, typical of a single propeller's asymmetric flow or a "
-                f"neutral-rudder setting error")
+        return (
+            f"the rudder acts as if {abs(off):.2f} deg to {side} of its logged angle: a steady yaw moment "
+            f"equal to that much rudder, typical of a single propeller's asymmetric flow or a "
+            f"neutral-rudder setting error"
+        )
 
     def extra_estimate(self, form, values, ctx):
         return {"offset_share_of_max_rudder": abs(values["offset_deg"]) / max(ctx.d_max, 1e-9)}

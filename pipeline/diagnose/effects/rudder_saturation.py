@@ -23,17 +23,22 @@ class RudderSaturation(Effect):
     def material(self, form, values, ctx, response_change):
         ch = abs(values["rudder_cubic_per_deg2"]) * ctx.d_max**2
         return bool(ch >= MIN_FORCE_CHANGE), (
-            f"rudder force at {ctx.d_max:.0f} deg changed by {ch:.1%} (floor {MIN_FORCE_CHANGE:.0%})")
+            f"rudder force at {ctx.d_max:.0f} deg changed by {ch:.1%} (floor {MIN_FORCE_CHANGE:.0%})"
+        )
 
     def physical(self, form, values, ctx):
         ch = values["rudder_cubic_per_deg2"] * ctx.d_max**2
         what = "less" if ch < 0 else "more"
-        return (f"at {ctx.d_max:.0f} deg the rudder gives {abs(ch):.0%} {what} force than a linear rudder "
-                f"(stall or saturation of the lift at large angles)")
+        return (
+            f"at {ctx.d_max:.0f} deg the rudder gives {abs(ch):.0%} {what} force than a linear rudder "
+            f"(stall or saturation of the lift at large angles)"
+        )
 
     def extra_estimate(self, form, values, ctx):
-        return {"force_change_at_max_rudder": values["rudder_cubic_per_deg2"] * ctx.d_max**2,
-                "max_rudder_deg": ctx.d_max}
+        return {
+            "force_change_at_max_rudder": values["rudder_cubic_per_deg2"] * ctx.d_max**2,
+            "max_rudder_deg": ctx.d_max,
+        }
 
     def signature_series(self, v, r, delta, ddelta, u_ratio):
         return delta**3

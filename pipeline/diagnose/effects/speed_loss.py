@@ -26,7 +26,9 @@ class SpeedLoss(Effect):
             return "the runs have no surge speed u"
         loss = 1.0 - ctx.u_min_ratio
         if loss < MIN_SPEED_LOSS:
-            return f"the speed falls by only {loss:.1%} (below {MIN_SPEED_LOSS:.0%}): no speed loss to explain"
+            return (
+                f"the speed falls by only {loss:.1%} (below {MIN_SPEED_LOSS:.0%}): no speed loss to explain"
+            )
         return None
 
     def apply(self, form, values, terms: Terms) -> None:
@@ -37,16 +39,24 @@ class SpeedLoss(Effect):
 
     def material(self, form, values, ctx, response_change):
         ch = self._change(values, ctx)
-        return bool(ch >= MIN_COEFF_CHANGE), f"coefficients at the lowest speed changed by {ch:.1%} (floor 5 %)"
+        return bool(
+            ch >= MIN_COEFF_CHANGE
+        ), f"coefficients at the lowest speed changed by {ch:.1%} (floor 5 %)"
 
     def physical(self, form, values, ctx):
-        return (f"the coefficients scale as (u/U)^{values['speed_exponent']:.2f}: the ship lost "
-                f"{1 - ctx.u_min_ratio:.0%} of its {ctx.u_ref:.3f} m/s approach speed, which changed its hull "
-                f"coefficients by {self._change(values, ctx):.0%}")
+        return (
+            f"the coefficients scale as (u/U)^{values['speed_exponent']:.2f}: the ship lost "
+            f"{1 - ctx.u_min_ratio:.0%} of its {ctx.u_ref:.3f} m/s approach speed, which changed its hull "
+            f"coefficients by {self._change(values, ctx):.0%}"
+        )
 
     def extra_estimate(self, form, values, ctx):
         lo = ctx.u_min_ratio
-        return {"u_ref_m_s": ctx.u_ref, "max_speed_loss": 1.0 - lo, "coefficient_loss": 1.0 - lo ** values["speed_exponent"]}
+        return {
+            "u_ref_m_s": ctx.u_ref,
+            "max_speed_loss": 1.0 - lo,
+            "coefficient_loss": 1.0 - lo ** values["speed_exponent"],
+        }
 
     def signature_series(self, v, r, delta, ddelta, u_ratio):
         if u_ratio is None:

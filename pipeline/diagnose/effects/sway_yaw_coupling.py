@@ -31,9 +31,11 @@ class SwayYawCoupling(Effect):
     def physical(self, form, values, ctx):
         v, r = ctx.v_max, ctx.r_max
         yaw = values["n_vvr_s_per_m2"] * v * v * r + values["n_vrr_s_per_m_deg"] * v * r * r
-        return (f"the hull's yaw moment depends on drift and turn together: at v = {v:.3f} m/s, "
-                f"r = {r:.2f} deg/s the cross terms add {yaw:+.3g} deg/s^2 to the yaw acceleration, "
-                f"which a linear (or r-only) model cannot carry")
+        return (
+            f"the hull's yaw moment depends on drift and turn together: at v = {v:.3f} m/s, "
+            f"r = {r:.2f} deg/s the cross terms add {yaw:+.3g} deg/s^2 to the yaw acceleration, "
+            f"which a linear (or r-only) model cannot carry"
+        )
 
     def signature_series(self, v, r, delta, ddelta, u_ratio):
         return v * v * r
