@@ -231,20 +231,6 @@ def _per_run(series, pb, pe) -> list[dict]:
     ]
 
 
-def _inner_folds(train: list[Series]) -> list[Fold]:
-    """Folds inside a fold's training runs (for nested selection): split by side (first rudder sign)
-    when both sides are there, else alternate by amplitude; both directions."""
-    if len(train) < 2:
-        return []
-    side = {s.name: np.sign(s.delta[np.argmax(np.abs(s.delta) > 0.5 * np.abs(s.delta).max())]) for s in train}
-    a = [s for s in train if side[s.name] > 0]
-    b = [s for s in train if side[s.name] <= 0]
-    if not a or not b:
-        ordered = sorted(train, key=lambda s: float(np.percentile(np.abs(s.delta), 99)))
-        a, b = ordered[0::2], ordered[1::2]
-    return [Fold(a, b), Fold(b, a)]
-
-
 # ---------------------------------------------------------------- the diagnosis
 
 
@@ -287,9 +273,9 @@ def diagnose(
     search = Search(folds, ctx, cfg)
     ks = list(range(len(folds)))
     sel = select(search, ks, noise, progress=tick)
-    # stability: each fold alone
-    per_fold = [sel] if len(folds) == 1 else [select(search, [k], noise) for k in ks]
     honest = _honest_gain(search, sel, folds, te, ctx, cfg, noise)
+    # stability: each fold alone (with --test runs; otherwise the leave-one-run-out selections are the folds)
+    per_fold = [select(search, [k], noise) for k in ks] if te and len(folds) > 1 else []
     if bar is not None:
         bar.close()
     report, base, ext, series = _report(
@@ -341,39 +327,46 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
             "ladder": ladder_test,
             "nested": [],
         }
-    # nested cross-validation: selection inside each fold's training runs, measured on its held-out runs
+    # nested leave-one-run-out: every run of the selection is held out in turn; the whole selection is
+    # repeated on the others, the chosen structure refitted on all of them, and measured on the held-out
+    # run alone.  Inner split: the roles kept (the remaining training runs train, the remaining
+    # validation runs validate), so that the nested selection is the main procedure on less data.
+    # (Also measured on the KVLCC2 MARIN fold 1: validating on the held-out run's mirror image instead
+    # gave 17 % where this rule gives 49 %; with four runs the choice itself is unstable, see stability.)
     pairs, nested, measured = [], [], []
-    for k, fold in enumerate(folds):
-        inner = _inner_folds(fold.train)
-        if not inner:
+    tr, va = folds[0].train, folds[0].val
+    for held in tr + va:
+        tr_i = [s for s in tr if s is not held]
+        va_i = [s for s in va if s is not held]
+        if not tr_i or not va_i:
             continue
+        inner = [Fold(tr_i, va_i)]
+        if cfg.two_fold and len(tr_i) >= 2 and len(va_i) >= 2 and _exchangeable(tr_i, va_i):
+            inner.append(Fold(va_i, tr_i))
         isearch = Search(inner, ctx, cfg)
-        isel = select(
-            isearch, list(range(len(inner))), heading_noise_deg([s for f in inner for s in f.val], ctx.t_ship)
-        )
-        st = isel.structure
-        base = search.fit(k, ())
         try:
-            ext = search.fit(k, st, start=base) if st else base
+            isel = select(isearch, list(range(len(inner))), noise)
+            refit = Search([Fold(tr_i + va_i, [held])], ctx, cfg)
+            b0 = refit.fit(0, (), start=isearch.fit(0, ()))
+            st = isel.structure
+            if st:
+                refit.fit(0, st, start=b0)
         except ModelError:
             continue
-        pb = search.eval(k, ())[1]
-        pe = search.eval(k, st)[1] if st else pb
-        pairs.append((fold.val, pb, pe))
-        measured += [s.name for s in fold.val]
-        gk, ivk, bm, em = _pair_gain([(fold.val, pb, pe)], cfg, block_s)
+        pb = refit.eval(0, ())[1]
+        pe = refit.eval(0, st)[1] if st else pb
+        pairs.append(([held], pb, pe))
+        measured.append(held.name)
         nested.append(
             {
-                "fold": fold.name,
+                "fold": f"hold out {held.name}",
                 "effects": [e for e, _ in st],
                 "cause": isel.cause,
-                "chosen_on": [s.name for s in fold.train],
-                "measured_on": [s.name for s in fold.val],
-                "gain": gk,
-                "interval_95": ivk,
-                "baseline_mae_psi_deg": bm,
-                "extended_mae_psi_deg": em,
-                "fit": ext.message,
+                "chosen_on": [s.name for s in tr_i + va_i],
+                "measured_on": [held.name],
+                "baseline_mae_psi_deg": pb[0]["mae_psi_deg"],
+                "extended_mae_psi_deg": pe[0]["mae_psi_deg"],
+                "gain": _gain(pb[0]["mae_psi_deg"], pe[0]["mae_psi_deg"]),
             }
         )
     if not pairs:
@@ -381,9 +374,8 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
             "mae_psi_relative_reduction": None,
             "interval_95": None,
             "measured_on": [],
-            "method": "none: no fold has two training runs for a nested selection and no --test runs "
-            "were given; "
-            "the validation gain in the ladder is optimistic (chosen on the same runs)",
+            "method": "none: fewer than three runs, so no run can be held out of a selection, and no --test "
+            "runs were given; the validation gain in the ladder is optimistic (chosen on the same runs)",
             "ladder": {},
             "nested": [],
         }
@@ -392,10 +384,9 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
         "mae_psi_relative_reduction": g,
         "interval_95": iv,
         "measured_on": measured,
-        "method": "nested cross-validation: in each fold the effects are chosen inside its training runs "
-        "alone "
-        "(inner side-swap folds) and the chosen structure, refitted on them, is measured on the fold's "
-        "held-out runs; interval: bootstrap over blocks of those runs",
+        "method": "nested leave-one-run-out: each run held out in turn, the effects chosen on the others "
+        "(same rule), the chosen structure refitted on them and measured on the held-out run; interval: "
+        "bootstrap over blocks of the held-out runs",
         "baseline_mae_psi_deg": bm,
         "extended_mae_psi_deg": em,
         "per_run": [x for v, pb, pe in pairs for x in _per_run(v, pb, pe)],
@@ -555,14 +546,10 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
     ladder = []
     for i, (s_, _step) in enumerate(sel.ladder):
         key = structure_of(*s_)
-        name = (
-            "baseline"
-            if not s_
-            else (
-                "+" + s_[-1][0]
-                if i and len(s_) > len(sel.ladder[i - 1][0])
-                else "-" + next(e for e, _ in sel.ladder[i - 1][0] if e not in dict(s_))
-            )
+        prev = {e for e, _ in sel.ladder[i - 1][0]} if i else set()
+        now = {e for e, _ in s_}
+        name = "baseline" if not s_ else "".join(
+            [f"+{e}" for e in now - prev] + [f"-{e}" for e in prev - now]
         )
         tl = honest.get("ladder", {}).get(key)
         ladder.append(
@@ -580,10 +567,10 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             "cause": p.cause,
             "effects": [e for e, _ in p.structure],
         }
-        for k, p in zip(ks, per_fold, strict=True)
+        for k, p in zip(ks, per_fold, strict=False)
     ]
     causes += [
-        {"fold": "nested: " + n["fold"], "cause": n["cause"], "effects": n["effects"]}
+        {"fold": n["fold"], "cause": n["cause"], "effects": n["effects"]}
         for n in honest["nested"]
     ]
     agree = sum(c["cause"] == cause for c in causes)
@@ -656,8 +643,8 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             "folds_agreeing": agree,
             "total": len(causes),
             "causes": causes,
-            "rule": "the selection repeated on every selection fold alone and inside every nested fold; "
-            "agreeing = same cause as the pooled selection",
+            "rule": "the selection repeated with each run held out (leave-one-run-out) or, with --test "
+            "runs, on every fold alone; agreeing = same cause as the selection on all runs",
         },
         "course_stable": [fr["course_stable"] for fr in fold_reports],
         "folds": fold_reports,

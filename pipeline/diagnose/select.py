@@ -7,6 +7,8 @@ Rule (stated, nothing else decides):
   TRAINING cost is kept) and refitted jointly, warm-started from S's fit, in every fold.  The
   candidates are ranked by the pooled relative reduction of held-out free-run MAE psi; the first that
   passes :func:`step_passes` joins S.  Up to ``max_effects`` effects.
+- Pairs: when no single effect passes, pairs among the best ``pair_top`` single candidates, each
+  member needed (:func:`_best_pair`).
 - Backward elimination: every effect of S is dropped in turn (S refitted without it); when the step
   back (S without it -> S) no longer passes, the effect of least worth leaves; repeated.
 - Cause: the effect with the largest drop-one worth in the final S.
@@ -211,6 +213,39 @@ class Selection:
     untried: dict  # effect -> reason
 
 
+def _best_pair(search: Search, ks, cur, ranked, noise_deg):
+    """Two effects that pass only together (an offset that hurts a model whose damping is wrong and
+    helps a great deal once it is right): tried when no single effect passes, among the ``pair_top``
+    best single candidates.  The pair passes when the step cur -> cur + pair passes with EACH member's
+    physical floor, and each member is needed: the step from (cur + the other member) to the pair passes
+    too.  Returns (first member, pair structure, step) of the best passing pair by pooled gain, or None."""
+    best = None
+    for i, (a, (st_a, _)) in enumerate(ranked):
+        for b, (st_b, _) in ranked[i + 1 :]:
+            pair = structure_of(*st_a, *[x for x in st_b if x[0] == b])
+            try:
+                for k in ks:
+                    starts = [search.fit(k, st_a), search.fit(k, st_b)]
+                    cand = []
+                    for st0 in starts:
+                        key = (k, structure_of(*pair))
+                        search._fits.pop(key, None)
+                        search._evals.pop(key, None)
+                        cand.append(search.fit(k, pair, start=st0))
+                    search._fits[(k, structure_of(*pair))] = min(cand, key=lambda f: f.cost)
+            except ModelError:
+                continue
+            sa = search.step(ks, cur, pair, a, noise_deg)
+            sb = search.step(ks, cur, pair, b, noise_deg)
+            if not (sa.passes and sb.passes):
+                continue
+            need_a = search.step(ks, st_b, pair, a, noise_deg)
+            need_b = search.step(ks, st_a, pair, b, noise_deg)
+            if need_a.passes and need_b.passes and (best is None or sa.gain > best[2].gain):
+                best = (a, pair, sa)
+    return best
+
+
 def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Selection:
     """Stepwise selection (module docstring) judged on folds ``ks`` of ``search``."""
     cfg, ctx = search.cfg, search.ctx
@@ -245,6 +280,8 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
         last = {e: s for e, (_, s) in cands.items()}
         ranked = sorted(cands.items(), key=lambda kv: -kv[1][1].gain)
         pick = next(((e, st, s) for e, (st, s) in ranked if s.passes), None)
+        if pick is None and len(cur) + 2 <= cfg.max_effects:
+            pick = _best_pair(search, ks, cur, ranked[: cfg.pair_top], noise_deg)
         if pick is None:
             break
         e, st, s = pick
