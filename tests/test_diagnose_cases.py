@@ -70,8 +70,9 @@ def _true_estimate(kind, mag, cfg):
     return cfg, None
 
 
-def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float) -> float:
-    """Held-out gain of the truth's own structure at its TRUE parameters over the fitted baseline.
+def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float) -> tuple[float, float]:
+    """Held-out gain (relative, and absolute in deg) of the truth's own structure at its TRUE parameters
+    over the fitted baseline.
 
     When even the truth cannot beat the linear fit by 30 % on the held-out runs (a short dead time on
     a sluggish ship is absorbed by the linear time constants, and the baseline sits at the noise
@@ -96,7 +97,7 @@ def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float) -> float:
         sim = simulate_terms(np.array(cfg.theta), terms, s.x0, s.t, s.delta, s.u / cfg.u0 if ratio else None)
         maes.append(float(np.mean(np.abs(sim[:, 2] - s.psi))))
     mae = float(np.mean(maes))
-    return (base_mae - mae) / base_mae
+    return (base_mae - mae) / base_mae, base_mae - mae
 
 
 @pytest.mark.slow
@@ -116,15 +117,25 @@ def test_hidden_effect_is_found(case):
         return
     finding = next(f for f in rep["findings"] if f["effect"] == kind)
     name, value = truth
-    if _oracle_gain(kind, cfg, val, rep["baseline"]["validation"]["mae_psi_deg"]) < 0.30:
-        # not demonstrable on held-out data by any model: no false cause, and the fit still sees it
+    rel, cut = _oracle_gain(kind, cfg, val, rep["baseline"]["validation"]["mae_psi_deg"])
+    floor = max(2 * rep["settings"]["heading_noise_deg"], rep["settings"]["min_abs_gain_deg"])
+    if rel < 0.30 or cut < floor:
+        # not demonstrable on held-out data by any model: no false cause, and the fit still sees it.
+        # Since issue 11 a held-out gain must also be above the heading noise level in absolute terms
+        # (case 12: a 0.35 s dead time, oracle cut 0.08 deg of a 0.15 deg baseline, below 0.1 deg)
         assert rep["cause"] in (kind, "none"), summary
         assert set(rep["extended"]["effects"]) <= {kind}, summary
-        assert abs(finding["estimate"][name] - value) <= 0.25 * abs(value), (name, finding["estimate"], value)
+        if name in finding["estimate"]:
+            assert abs(finding["estimate"][name] - value) <= 0.25 * abs(value), (name, finding["estimate"], value)
         return
     assert rep["cause"] == kind, summary
     assert finding["significant"]
     assert finding["validation_gain"] >= 0.30, summary
+    if kind == "nonlinear_yaw_damping" and finding["form"] == "abs":
+        # the fit chose the r|r| form on its training cost: the form does not match the r^3 truth, so
+        # (issue 11: "estimates within 25 % where the form matches") only its sense is checked
+        assert finding["estimate"]["n_rr_per_deg"] < 0
+        return
     est = finding["estimate"][name]
     assert abs(est - value) <= 0.25 * abs(value), (name, est, value)
     assert finding["uncertainty"][list(finding["estimate"])[0]] > 0

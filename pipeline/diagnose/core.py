@@ -413,19 +413,10 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
         }
     step = sel.last.get(effect) or sel.alone.get(effect)
     alone = sel.alone.get(effect)
-    # the fit whose estimate is reported: the final model if chosen, else the final model + this effect
-    st = (
-        ext_struct
-        if chosen
-        else structure_of(*ext_struct, effect)
-        if effect not in dict(ext_struct)
-        else ext_struct
-    )
-    key = None
-    for k, s in search._fits:
-        if k == 0 and {e for e, _ in s} == {e for e, _ in st}:
-            key = (k, s)
-    if step is None or key is None:
+    # the fit whose estimate is reported: the final model if chosen, else the structure last judged
+    st = ext_struct if chosen else (step.structure if step is not None else ())
+    key = (0, structure_of(*st)) if st else None
+    if step is None or key not in search._fits:
         return {
             "effect": effect,
             "significant": False,
@@ -448,14 +439,7 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
     physical = eff.physical(form, vals, ctx)
     fold_rows = []
     for k in range(len(search.folds)):
-        fk = next(
-            (
-                search._fits[(kk, s)]
-                for (kk, s) in search._fits
-                if kk == k and {e for e, _ in s} == {e for e, _ in st}
-            ),
-            None,
-        )
+        fk = search._fits.get((k, structure_of(*st)))
         if fk is not None:
             fold_rows.append(
                 {

@@ -7,6 +7,7 @@ Rule (stated, nothing else decides):
   TRAINING cost is kept) and refitted jointly, warm-started from S's fit, in every fold.  The
   candidates are ranked by the pooled relative reduction of held-out free-run MAE psi; the first that
   passes :func:`step_passes` joins S.  Up to ``max_effects`` effects.
+- Among passing candidates the one-standard-error rule picks the fewest parameters (:func:`_one_se`).
 - Pairs: when no single effect passes, pairs among the best ``pair_top`` single candidates, each
   member needed (:func:`_best_pair`).
 - Backward elimination: every effect of S is dropped in turn (S refitted without it); when the step
@@ -63,6 +64,9 @@ class Step:
     material: bool
     floor: str
     why: list = field(default_factory=list)
+    mean_diff: float = 0.0  # deg, mean per-block held-out MAE cut
+    se: float = float("inf")  # deg, its standard error over the blocks
+    structure: tuple = ()  # the structure judged (after the step)
 
 
 def heading_noise_deg(series: list[Series], t_ship: float) -> float:
@@ -195,6 +199,9 @@ class Search:
             material=all(mats),
             floor="; ".join(dict.fromkeys(floors)),
             why=why,
+            structure=structure_of(*after),
+            mean_diff=float(np.mean(diffs)) if diffs else 0.0,
+            se=float(np.std(diffs, ddof=1) / np.sqrt(g)) if g >= 2 else float("inf"),
         )
 
 
@@ -211,6 +218,24 @@ class Selection:
     worth: dict  # chosen effect -> drop-one Step
     cause: str
     untried: dict  # effect -> reason
+
+
+def _n_params(effect: str, structure) -> int:
+    return len(BY_NAME[effect].form(dict(structure)[effect]).params)
+
+
+def _one_se(ranked):
+    """Among the passing candidates, the one-standard-error rule (Breiman et al. 1984; Hastie,
+    Tibshirani & Friedman): every candidate whose mean per-block held-out cut is within one standard
+    error of the best one's is as good as the data can tell, and the one with the FEWEST parameters
+    is taken (then the larger gain).  Without it a four-parameter cross-term set that mimics a
+    one-parameter cubic damping (v r^2 ~ r^3 when drift follows turn) is preferred for fitting noise."""
+    ok = [(e, st, s) for e, (st, s) in ranked if s.passes]
+    if not ok:
+        return None
+    best = max(ok, key=lambda x: x[2].mean_diff)
+    tie = [x for x in ok if x[2].mean_diff >= best[2].mean_diff - best[2].se]
+    return min(tie, key=lambda x: (_n_params(x[0], x[1]), -x[2].gain))
 
 
 def _best_pair(search: Search, ks, cur, ranked, noise_deg):
@@ -279,7 +304,7 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
             alone = {e: s for e, (_, s) in cands.items()}
         last = {e: s for e, (_, s) in cands.items()}
         ranked = sorted(cands.items(), key=lambda kv: -kv[1][1].gain)
-        pick = next(((e, st, s) for e, (st, s) in ranked if s.passes), None)
+        pick = _one_se(ranked)
         if pick is None and len(cur) + 2 <= cfg.max_effects:
             pick = _best_pair(search, ks, cur, ranked[: cfg.pair_top], noise_deg)
         if pick is None:
