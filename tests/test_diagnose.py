@@ -299,3 +299,21 @@ def test_verdict_does_not_depend_on_the_scale_of_the_data():
         a["findings"][0]["validation_gain_folds"], b["findings"][0]["validation_gain_folds"], strict=True
     ):
         assert x == pytest.approx(y, abs=0.05)
+
+
+def test_catalog_rule_uses_every_run():
+    """Catalog mode: the pairs of tests run to both sides make a crossed selection design (largest and
+    smallest amplitude), every other zigzag is a test run; one pair: starboard trains, port validates."""
+    from pipeline.cli.diagnose import pick_catalog_runs
+
+    def e(rid, a, h, side):
+        return {"run_id": rid, "kind": "zigzag", "rudder_deg": a, "heading_deg": h, "first_side": side}
+
+    runs = [e("z10s", 10, 10, "starboard"), e("z10p", 10, 10, "port"), e("z20s", 20, 10, "starboard"),
+            e("z20p", 20, 10, "port"), e("z05", 5, 1, "starboard"), e("z35", 35, 5, "starboard")]
+    train, val, test = pick_catalog_runs(runs)
+    assert train == ["z20s", "z10p"] and val == ["z20p", "z10s"] and sorted(test) == ["z05", "z35"]
+    train, val, test = pick_catalog_runs(runs[:2] + runs[4:])
+    assert train == ["z10s"] and val == ["z10p"] and sorted(test) == ["z05", "z35"]
+    with pytest.raises(InputError, match="two zigzag"):
+        pick_catalog_runs(runs[:1])

@@ -126,7 +126,8 @@ def test_hidden_effect_is_found(case):
         assert rep["cause"] in (kind, "none"), summary
         assert set(rep["extended"]["effects"]) <= {kind}, summary
         if name in finding["estimate"]:
-            assert abs(finding["estimate"][name] - value) <= 0.25 * abs(value), (name, finding["estimate"], value)
+            est = finding["estimate"][name]
+            assert abs(est - value) <= 0.25 * abs(value), (name, finding["estimate"], value)
         return
     assert rep["cause"] == kind, summary
     assert finding["significant"]
