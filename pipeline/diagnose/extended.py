@@ -31,6 +31,7 @@ from pipeline.model import as_theta
 
 _CLIP_R = 500.0  # deg/s: a diverging trial model is clipped here so residuals stay finite
 _CLIP_V = 100.0  # m/s
+_CLIP_D = 1000.0  # deg, lag state
 
 
 @njit(cache=True, inline="always")
@@ -149,8 +150,15 @@ def _run(
             )
             v = v + hs / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
             r = r + hs / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
-            psi = psi + hs / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
+            dpsi = hs / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
+            # a diverging trial model: the RK4 stages themselves can explode (r^3 of a clipped r), so
+            # the heading increment and the lag state are clipped too (residuals stay finite and large)
+            if not (abs(dpsi) < _CLIP_R * hs):
+                dpsi = _CLIP_R * hs if dpsi > 0 else -_CLIP_R * hs
+            psi = psi + dpsi
             e = e + hs / 6.0 * (k1e + 2.0 * k2e + 2.0 * k3e + k4e)
+            if not (abs(e) < _CLIP_D):
+                e = _CLIP_D if e > 0 else -_CLIP_D
             if not (abs(v) < _CLIP_V):
                 v = _CLIP_V if v > 0 else -_CLIP_V
             if not (abs(r) < _CLIP_R):
