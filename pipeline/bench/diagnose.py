@@ -20,9 +20,9 @@ def run(quick: bool = False) -> list[dict]:
     runs = [zigzag_truth(a, a, s, 80.0, dc.replace(cfg, seed=cfg.seed + j)) for j, (a, s) in enumerate(legs)]
     short = [zigzag_truth(a, a, s, 20.0, dc.replace(cfg, seed=cfg.seed + j)) for j, (a, s) in enumerate(legs)]
     diagnose(short[:1], short[1:2])  # compile / warm up
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     rep = diagnose(runs[:2], runs[2:]).report
-    sec = time.perf_counter() - t0
+    sec, cpu = time.perf_counter() - t0, time.process_time() - c0
     return [
         {
             "name": f"diagnosis, 4 runs x 80 s, {len(CATALOGUE)} effects",
