@@ -71,6 +71,41 @@ _EFFECT_WORDS = {
 }
 
 
+#: Relative spread of approach speeds tolerated among the runs of one diagnosis.  Dimensional
+#: coefficients scale with U (rudder force with U^2): runs 15 % apart in speed differ by about 30 % in
+#: rudder force, more than any effect the diagnosis is asked to find, so they cannot share one model.
+SPEED_TOLERANCE = 0.15
+
+
+def _check_runs_belong_together(runs: list[Run], series: list) -> None:
+    """Refuse runs of different ships (metadata ``ship``), approach speeds more than
+    :data:`SPEED_TOLERANCE` apart, or different sample steps: one line naming the odd run."""
+    ships = {}
+    for run in runs:
+        ship = str(run.meta.get("ship") or "").strip()
+        if ship:
+            ships.setdefault(ship.upper(), run.name)
+    if len(ships) > 1:
+        raise InputError(
+            f"the runs are of different ships ({', '.join(sorted(ships))}): diagnose one ship at a time",
+            file=sorted(ships.values())[-1],
+        )
+    speeds = [(s.name, s.approach_speed()) for s in series if s.u is not None]
+    if len(speeds) >= 2:
+        lo = min(speeds, key=lambda x: x[1])
+        hi = max(speeds, key=lambda x: x[1])
+        if hi[1] > (1.0 + SPEED_TOLERANCE) * lo[1]:
+            raise InputError(
+                f"approach speed {hi[1]:.3f} m/s differs from {lo[1]:.3f} m/s of {lo[0]} by more than "
+                f"{SPEED_TOLERANCE:.0%}: runs at different speeds do not share one model",
+                file=hi[0],
+                column="u",
+            )
+    steps = {round(s.h, 9) for s in series}
+    if len(steps) > 1:
+        raise InputError(f"runs have different sample steps {sorted(steps)} s (ingest them with one dt)")
+
+
 @dataclass
 class Diagnosis:
     """Result of :func:`diagnose`: ``report`` is diagnosis.json (SPEC section 7), ``series`` the
@@ -332,6 +367,7 @@ def diagnose(
         raise InputError("no validation run given")
     tr = [series_from_run(r) for r in train]
     va = [series_from_run(r) for r in validate]
+    _check_runs_belong_together(train + validate, tr + va)
     names = [s.name for s in tr + va]
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})

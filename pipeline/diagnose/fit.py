@@ -105,6 +105,21 @@ def series_from_run(run: Run, min_samples: int = 50) -> Series:
         raise InputError(
             "time is not a uniform increasing grid (ingest the run first)", file=run.name, column="time"
         )
+    u = cols.get("u")
+    if u is not None:
+        if (u < 0).any():
+            raise InputError(
+                f"surge speed u < 0 (astern) at sample {int(np.argmax(u < 0)) + 1}: the diagnosis "
+                "models ahead motion only",
+                file=run.name,
+                column="u",
+            )
+        n0 = max(2, int(round(_U_REF_SPAN / float(dt.mean()))))
+        # the approach speed scales speed-dependent effects (u / U_ref); 1 mm/s is no approach at all
+        if float(np.mean(u[:n0])) <= 1e-3:
+            raise InputError(
+                "surge speed u is zero at the start of the run: no approach speed", file=run.name, column="u"
+            )
     return Series(
         name=run.name,
         t=cols["time"],
