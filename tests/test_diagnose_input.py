@@ -67,3 +67,11 @@ def test_cli_gives_one_line_and_exit_2_for_zero_speed(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "u" in err
     assert not out.exists()
+
+
+def test_run_without_rudder_excitation_is_refused():
+    a, b = _pair()
+    f = a.frame.copy()
+    f["delta"] = 0.3
+    with pytest.raises(InputError, match="no rudder excitation"):
+        diagnose([dc.replace(a, frame=f)], [b])

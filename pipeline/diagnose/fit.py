@@ -105,6 +105,15 @@ def series_from_run(run: Run, min_samples: int = 50) -> Series:
         raise InputError(
             "time is not a uniform increasing grid (ingest the run first)", file=run.name, column="time"
         )
+    d = cols["delta"]
+    # A run whose rudder never leaves its median by 1 deg (ten times a rudder encoder's resolution)
+    # carries no rudder excitation: no rudder-driven model can be learned from it.
+    if float(np.max(np.abs(d - np.median(d)))) < 1.0:
+        raise InputError(
+            "the rudder never moves more than 1 deg: no rudder excitation, nothing to diagnose",
+            file=run.name,
+            column="delta",
+        )
     u = cols.get("u")
     if u is not None:
         if (u < 0).any():
