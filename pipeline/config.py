@@ -165,18 +165,33 @@ class ControlConfig:
 
 @dataclass(frozen=True)
 class DiagnoseConfig:
-    """Model diagnosis (SPEC section 7)."""
+    """Model diagnosis (SPEC section 7).  Every threshold's reason is stated beside it."""
 
-    min_gain: float = 0.10               # least relative reduction of free-run MAE psi to call an effect real
-    seed: int = 11
-    min_z: float = 3.0                   # least |estimate| / std (cluster-robust) to call it non-zero
-    block_s: float = 20.0                # s, time-block length of the cluster-robust (sandwich) covariance
-    every_run: bool = True               # a real effect must also cut the MAE psi of every validation run
+    # a step of the stepwise search (pipeline.diagnose.select) must cut the pooled held-out MAE psi by
+    # this share: below 10 % a naval architect would not change the model (and with 9 effects tried
+    # per round, small cuts are where chance finds its false positives)
+    min_gain: float = 0.10
+    # deg: least absolute held-out heading cut, a tank's heading repeatability (gyro or optical
+    # tracking resolves ~0.1 deg); the floor used is max(2 x measured heading noise, this)
+    min_abs_gain_deg: float = 0.10
+    # one-sided level of the block t-test (t with G-1 dof over G blocks of the held-out runs)
+    alpha: float = 0.05
+    # block length in ship time scales T_ship: blocks of 2 T are close to independent (the yaw
+    # response forgets its state in ~T) and a zigzag half-period holds about one
+    block_T: float = 2.0
+    # pairs are tried (when no single effect passes) among this many best single candidates: 4 gives
+    # 6 pairs, the cost of one more round
+    pair_top: int = 4
+    max_effects: int = 4  # largest extended model (more would be an Abkowitz fit by another name)
+    seed: int = 11                       # bootstrap draws of the reported interval
+    n_boot: int = 2000                   # bootstrap resamples of the reported gain's 95 % interval
+    max_nfev: int = 200                  # function evaluations per least-squares stage
     structured_r2: float = 0.2           # residuals "stay structured" when signatures explain this share
-    max_nfev: int = 400                  # function evaluations per output-error fit
-    other_side: bool = True              # catalog mode: also train on one zigzag of the other side
-    min_speed_loss: float = 0.03         # speed_loss is tried only when u falls by at least this fraction
-    two_fold: bool = True                # also the reverse fold (train on the validation runs): sides >= 2
+    two_fold: bool = True  # also the reverse fold (train on the validation runs) when exchangeable
+    # relative: runs whose approach speeds differ by more than this are refused together (Froude
+    # number, hence the dimensional coefficients, would differ by as much: 15 % of U is ~30 % of the
+    # rudder force)
+    speed_tolerance: float = 0.15
 
 
 @dataclass(frozen=True)

@@ -1,11 +1,19 @@
 """The sway-yaw identification model of SPEC section 5 and its Nomoto indices (paper Eq. 6).
 
 Units (the paper's and SPEC's, in which Table 4 is given): v m/s, r deg/s, psi deg, delta deg,
-step h s.  Parameters theta = (a11, a12, a21, a22, b11, b21):
+step h s.  Parameters theta = (a11, a12, a21, a22, b11, b21).
 
-    v(k+1)   = v(k) + h (a11 v(k) + a12 r(k) + b11 delta(k))
-    r(k+1)   = r(k) + h (a21 v(k) + a22 r(k) + b21 delta(k))
-    psi(k+1) = psi(k) + h r(k)
+The equations of motion are defined ONCE, in continuous time, by :func:`rhs`:
+
+    dv/dt   = a11 v + a12 r + b11 delta
+    dr/dt   = a21 v + a22 r + b21 delta
+    dpsi/dt = r
+
+SPEC section 5's discrete step (:func:`step`, :func:`simulate`) is the explicit Euler step of it,
+x(k+1) = x(k) + h rhs(x(k), delta(k)).  :func:`simulate_zoh` integrates the same right-hand side
+exactly with the rudder held over each step (zero-order hold, matrix exponential): the simulation of
+the diagnosis, which must add no discretisation error of its own.  Copies (numba kernels elsewhere)
+are held to :func:`rhs` by tests (tests/test_model_definition.py).
 """
 
 from __future__ import annotations
@@ -40,15 +48,59 @@ def as_theta(params) -> np.ndarray:
     return theta
 
 
-def step(x, delta, theta, h: float):
-    """One step of the model.  ``x`` (..., 3) = (v m/s, r deg/s, psi deg); ``delta`` deg; ``h`` s."""
+def rhs(x, delta, theta):
+    """Continuous-time right-hand side dx/dt of the sway-yaw model, THE definition of the equations.
+
+    ``x`` (..., 3) = (v m/s, r deg/s, psi deg); ``delta`` deg; returns (..., 3) =
+    (dv/dt m/s^2, dr/dt deg/s^2, dpsi/dt deg/s).
+    """
     a11, a12, a21, a22, b11, b21 = as_theta(theta)
     x = np.asarray(x, dtype=float)
-    v, r, psi = x[..., 0], x[..., 1], x[..., 2]
+    v, r = x[..., 0], x[..., 1]
     out = np.empty_like(x)
-    out[..., 0] = v + h * (a11 * v + a12 * r + b11 * delta)
-    out[..., 1] = r + h * (a21 * v + a22 * r + b21 * delta)
-    out[..., 2] = psi + h * r
+    out[..., 0] = a11 * v + a12 * r + b11 * delta
+    out[..., 1] = a21 * v + a22 * r + b21 * delta
+    out[..., 2] = r
+    return out
+
+
+def state_matrices(theta) -> tuple[np.ndarray, np.ndarray]:
+    """(A (3, 3), B (3,)) of :func:`rhs` written as dx/dt = A x + B delta (read off the definition)."""
+    A = np.column_stack([rhs(e, 0.0, theta) for e in np.eye(3)])
+    B = rhs(np.zeros(3), 1.0, theta)
+    return A, B
+
+
+def step(x, delta, theta, h: float):
+    """One step of SPEC section 5's model: the Euler step of :func:`rhs`.
+    ``x`` (..., 3) = (v m/s, r deg/s, psi deg); ``delta`` deg; ``h`` s."""
+    x = np.asarray(x, dtype=float)
+    return x + h * rhs(x, delta, theta)
+
+
+def zoh_matrices(theta, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretisation (Ad, Bd) of :func:`rhs` at step ``h`` s: the matrix
+    exponential of the augmented [[A, B], [0, 0]] h."""
+    from scipy.linalg import expm
+
+    A, B = state_matrices(theta)
+    M = np.zeros((4, 4))
+    M[:3, :3] = A
+    M[:3, 3] = B
+    E = expm(M * float(h))
+    return E[:3, :3], E[:3, 3]
+
+
+def simulate_zoh(theta, x0, delta, h: float) -> np.ndarray:
+    """Free-run of the continuous-time model with the rudder held over each step (exact, no
+    discretisation error).  Same arguments and row convention as :func:`simulate`."""
+    Ad, Bd = zoh_matrices(theta, h)
+    d = np.asarray(delta, dtype=float)
+    out = np.empty((d.size, 3))
+    x = np.asarray(x0, dtype=float).reshape(3).copy()
+    for k in range(d.size):
+        out[k] = x
+        x = Ad @ x + Bd * d[k]
     return out
 
 
@@ -66,16 +118,14 @@ def simulate(theta, x0, delta, h: float) -> np.ndarray:
     -------
     (N, 3) array of (v, r, psi); row 0 is ``x0``, row k+1 follows from row k and delta[k].
     """
-    a11, a12, a21, a22, b11, b21 = as_theta(theta)
+    A, B = state_matrices(theta)
+    Ad, Bd = np.eye(3) + h * A, h * B  # the Euler step of rhs, as a matrix (exactly :func:`step`)
     d = np.asarray(delta, dtype=float)
-    n = d.size
-    out = np.empty((n, 3))
-    v, r, psi = (float(c) for c in x0)
-    for k in range(n):
-        out[k] = (v, r, psi)
-        v, r, psi = (v + h * (a11 * v + a12 * r + b11 * d[k]),
-                     r + h * (a21 * v + a22 * r + b21 * d[k]),
-                     psi + h * r)
+    out = np.empty((d.size, 3))
+    x = np.asarray(x0, dtype=float).reshape(3).copy()
+    for k in range(d.size):
+        out[k] = x
+        x = Ad @ x + Bd * d[k]
     return out
 
 

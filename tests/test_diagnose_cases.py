@@ -70,30 +70,34 @@ def _true_estimate(kind, mag, cfg):
     return cfg, None
 
 
-def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float) -> float:
-    """Held-out gain of the truth's own structure at its TRUE parameters over the fitted baseline.
+def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float) -> tuple[float, float]:
+    """Held-out gain (relative, and absolute in deg) of the truth's own structure at its TRUE parameters
+    over the fitted baseline.
 
     When even the truth cannot beat the linear fit by 30 % on the held-out runs (a short dead time on
     a sluggish ship is absorbed by the linear time constants, and the baseline sits at the noise
     floor), no diagnosis can honestly show that gain.  Measured for case 07 (0.32 s dead time):
     baseline 0.074 deg, the truth model itself 0.087 deg.
     """
-    from pipeline.diagnose.extended import NULL
-    from pipeline.diagnose.fit import FitResult, evaluate, series_from_run
+    from pipeline.diagnose.effects import Terms
+    from pipeline.diagnose.extended import simulate_terms
+    from pipeline.diagnose.fit import series_from_run
 
-    extra = dict(NULL)
-    u_ref = None
+    terms, ratio = Terms(), False
     if kind == "rudder_offset":
-        extra["offset_deg"] = cfg.rudder_offset
+        terms.offset_deg = cfg.rudder_offset
     elif kind == "rudder_delay":
-        extra["delay_s"] = cfg.rudder_delay
+        terms.delay_s = cfg.rudder_delay
     elif kind == "nonlinear_yaw_damping":
-        extra["n_rrr_s_per_deg2"] = cfg.n_rrr
+        terms.feat_code, terms.feat_eq, terms.feat_coef = [0], [1], [cfg.n_rrr]
     elif kind == "speed_loss":
-        extra["speed_exponent"], u_ref = 1.0, cfg.u0
-    oracle = FitResult((), np.array(cfg.theta), extra, {}, np.zeros((0, 0)), [], 0.0, 0.0, u_ref)
-    mae = evaluate(oracle, [series_from_run(r) for r in val_runs])[0]["mae_psi_deg"]
-    return (base_mae - mae) / base_mae
+        terms.speed_exponent, ratio = 1.0, True
+    maes = []
+    for s in (series_from_run(r) for r in val_runs):
+        sim = simulate_terms(np.array(cfg.theta), terms, s.x0, s.t, s.delta, s.u / cfg.u0 if ratio else None)
+        maes.append(float(np.mean(np.abs(sim[:, 2] - s.psi))))
+    mae = float(np.mean(maes))
+    return (base_mae - mae) / base_mae, base_mae - mae
 
 
 @pytest.mark.slow
@@ -113,15 +117,26 @@ def test_hidden_effect_is_found(case):
         return
     finding = next(f for f in rep["findings"] if f["effect"] == kind)
     name, value = truth
-    if _oracle_gain(kind, cfg, val, rep["baseline"]["validation"]["mae_psi_deg"]) < 0.30:
-        # not demonstrable on held-out data by any model: no false cause, and the fit still sees it
+    rel, cut = _oracle_gain(kind, cfg, val, rep["baseline"]["validation"]["mae_psi_deg"])
+    floor = max(2 * rep["settings"]["heading_noise_deg"], rep["settings"]["min_abs_gain_deg"])
+    if rel < 0.30 or cut < floor:
+        # not demonstrable on held-out data by any model: no false cause, and the fit still sees it.
+        # Since issue 11 a held-out gain must also be above the heading noise level in absolute terms
+        # (case 12: a 0.35 s dead time, oracle cut 0.08 deg of a 0.15 deg baseline, below 0.1 deg)
         assert rep["cause"] in (kind, "none"), summary
         assert set(rep["extended"]["effects"]) <= {kind}, summary
-        assert abs(finding["estimate"][name] - value) <= 0.25 * abs(value), (name, finding["estimate"], value)
+        if name in finding["estimate"]:
+            est = finding["estimate"][name]
+            assert abs(est - value) <= 0.25 * abs(value), (name, finding["estimate"], value)
         return
     assert rep["cause"] == kind, summary
     assert finding["significant"]
     assert finding["validation_gain"] >= 0.30, summary
+    if kind == "nonlinear_yaw_damping" and finding["form"] == "abs":
+        # the fit chose the r|r| form on its training cost: the form does not match the r^3 truth, so
+        # (issue 11: "estimates within 25 % where the form matches") only its sense is checked
+        assert finding["estimate"]["n_rr_per_deg"] < 0
+        return
     est = finding["estimate"][name]
     assert abs(est - value) <= 0.25 * abs(value), (name, est, value)
     assert finding["uncertainty"][list(finding["estimate"])[0]] > 0

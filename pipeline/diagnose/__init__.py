@@ -1,25 +1,31 @@
 """Diagnosis stage (SPEC section 7): what the linear model gets wrong, the named cause, the gain.
 
-Public API: :func:`diagnose` (pure: runs in, :class:`Diagnosis` out), :func:`simulate_extended`,
-:func:`fit_model`, the linear truth model :func:`zigzag_truth` for tests, :func:`write_outputs`.
+Public API: :func:`diagnose` (pure: runs in, :class:`Diagnosis` out), the open effect catalogue
+:data:`CATALOGUE` (pipeline.diagnose.effects), :func:`simulate_extended`, :func:`fit_structure`,
+the linear truth model :func:`zigzag_truth` for tests, :func:`write_outputs` (in .output).
 """
 
 from pipeline.diagnose.core import Diagnosis, diagnose, residual_structure
-from pipeline.diagnose.extended import EFFECT_PARAM, EFFECTS, simulate_extended
-from pipeline.diagnose.fit import FitResult, Series, evaluate, fit_model, series_from_run
+from pipeline.diagnose.effects import BY_NAME, CATALOGUE
+from pipeline.diagnose.extended import simulate_extended, simulate_terms
+from pipeline.diagnose.fit import FitResult, Series, evaluate, fit_structure, series_from_run
 from pipeline.diagnose.truth import TruthConfig, zigzag_truth
+
+EFFECTS = tuple(e.name for e in CATALOGUE)
 
 __all__ = [
     "Diagnosis",
     "diagnose",
     "residual_structure",
-    "EFFECT_PARAM",
+    "BY_NAME",
+    "CATALOGUE",
     "EFFECTS",
     "simulate_extended",
+    "simulate_terms",
     "FitResult",
     "Series",
     "evaluate",
-    "fit_model",
+    "fit_structure",
     "series_from_run",
     "TruthConfig",
     "zigzag_truth",

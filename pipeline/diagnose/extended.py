@@ -1,26 +1,23 @@
-"""The extended sway-yaw model: SPEC section 5's linear model plus the candidate effects of section 7.
+"""The extended sway-yaw model in continuous time and its simulation without error of its own.
 
-Units as SPEC section 5: v m/s, r deg/s, psi deg, delta deg, step h s, u m/s.  With all effect
-parameters at their null values the simulator is exactly :func:`pipeline.model.simulate`.
+Right-hand side (units of SPEC section 5: v m/s, r deg/s, psi deg, delta deg, t s, u m/s):
 
-    d_eff(k) = delta(t_k - (tau - h)) + delta0                   rudder_delay tau s, rudder_offset delta0 deg
-    s(k)     = (u(k) / U_ref) ** n                               speed_loss: exponent n (n = 1 is the
-                                                                 physics: dimensional a_ij ~ U/L, b ~ U^2)
-    v(k+1)   = v + h (s a11 v + s a12 r + s^2 b11 d_eff)
-    r(k+1)   = r + h (s a21 v + s a22 r + s^2 b21 d_eff + n_rrr r^3)   nonlinear_yaw_damping (Norrbin)
-    psi(k+1) = psi + h r
+    a(t)     = delta(t - delay_s)                          logged rudder, linearly interpolated
+    e        = lag state (lag_s de/dt = a - e) if lag_s > 0, else a
+    g        = (e + offset_deg) (1 + asym sign(.)) + cubic (e + offset_deg)^3     rudder force angle
+    s        = (u / U_ref)^speed_exponent                  (ones without speed_loss)
+    dv/dt    = s (a11 v + a12 r) + s^2 b11 g + sum_j c_j f_j(v, r)   over feature terms of dv/dt
+    dr/dt    = s (a21 v + a22 r) + s^2 b21 g + sum_j c_j f_j(v, r)   over feature terms of dr/dt
+    dpsi/dt  = r
 
-``n_rrr`` is in s/deg^2 (r in deg/s, r^3 n_rrr in deg/s^2); negative means more damping.
-The delayed rudder is linearly interpolated on the logged time grid (the rudder before the run
-start is taken as its first value).
-
-Dead time and the Euler step: SPEC's discrete model responds about one step h later than the
-continuous ship whose samples it fits (the rudder is held over the step, half a step; psi follows
-r by the rectangle rule, half a step).  Measured on the linear truth model (:mod:`.truth`), a free
-delay fitted to clean data settles at -0.06 to -0.09 s with h = 0.08 s, and injected dead times come
-out low by the same amount.  So ``delay_s`` is the *physical* dead time and the logged rudder is
-shifted by (delay_s - h).  ``delay_s=None`` means no delay effect: no shift at all, exactly the SPEC
-model; the delay model nests the baseline at delay_s = h.
+With every effect at its null value this is :func:`pipeline.model.rhs` (tests hold the kernel's copy
+to it).  Integration: classical RK4 at the sample step (``substeps`` per step when asked), the rudder
+and the speed factor taken at the step's start, middle and end from the logged series (linear
+interpolation).  The baseline uses the same integrator with no effect, so that an effect never
+"explains" a difference of integration: an exact zero-order-hold baseline (rudder held over the
+step) would differ from this interpolating one by a half-step rudder delay, which a dead time would
+then fit.  The RK4 error against the exact first-order-hold solution is held below 1e-4 of the
+response by tests/test_model_definition.py.
 """
 
 from __future__ import annotations
@@ -28,68 +25,318 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from pipeline.diagnose.effects.base import Terms
 from pipeline.errors import ModelError
 from pipeline.model import as_theta
 
-EFFECTS = ("rudder_offset", "nonlinear_yaw_damping", "rudder_delay", "speed_loss")
-#: the effect's own parameter (the one tested against zero) and its null value
-EFFECT_PARAM = {
-    "rudder_offset": "offset_deg",
-    "nonlinear_yaw_damping": "n_rrr_s_per_deg2",
-    "rudder_delay": "delay_s",
-    "speed_loss": "speed_exponent",
-}
-NULL = {"offset_deg": 0.0, "n_rrr_s_per_deg2": 0.0, "delay_s": None, "speed_exponent": 0.0}
-_CLIP_R = 200.0  # deg/s: a diverging trial model is clipped here so residuals stay finite
-_CLIP_V = 50.0  # m/s
+_CLIP_R = 500.0  # deg/s: a diverging trial model is clipped here so residuals stay finite
+_CLIP_V = 100.0  # m/s
+_CLIP_D = 1000.0  # deg, lag state
+
+
+@njit(cache=True, inline="always")
+def _feature(code, v, r):  # pragma: no cover - compiled; held to effects.base.feature_value by a test
+    if code == 0:
+        return r * r * r
+    if code == 1:
+        return r * abs(r)
+    if code == 2:
+        return v * abs(v)
+    if code == 3:
+        return v * v * r
+    if code == 4:
+        return v * r * r
+    if code == 5:
+        return v * abs(r)
+    if code == 6:
+        return abs(v) * r
+    return v * v * v
+
+
+@njit(cache=True, inline="always")
+def _deriv(v, r, e, a_in, s, th, codes, eqs, coefs, lag, offset, asym, cubic):  # pragma: no cover
+    """(dv/dt, dr/dt, dpsi/dt, de/dt) of the extended model (module docstring)."""
+    ang = (e if lag > 0.0 else a_in) + offset
+    sg = 1.0 if ang > 0.0 else (-1.0 if ang < 0.0 else 0.0)
+    g = ang * (1.0 + asym * sg) + cubic * ang * ang * ang
+    dv = s * (th[0] * v + th[1] * r) + s * s * th[4] * g
+    dr = s * (th[2] * v + th[3] * r) + s * s * th[5] * g
+    for j in range(codes.shape[0]):
+        f = coefs[j] * _feature(codes[j], v, r)
+        if eqs[j] == 0:
+            dv += f
+        else:
+            dr += f
+    de = (a_in - e) / lag if lag > 0.0 else 0.0
+    return dv, dr, r, de
 
 
 @njit(cache=True)
-def _sim_kernel(theta, n_rrr, s, d, x0, h):  # pragma: no cover - compiled
-    a11, a12, a21, a22, b11, b21 = theta[0], theta[1], theta[2], theta[3], theta[4], theta[5]
-    n = d.shape[0]
-    out = np.empty((n, 3))
-    v, r, psi = x0[0], x0[1], x0[2]
-    for k in range(n):
-        out[k, 0] = v
-        out[k, 1] = r
-        out[k, 2] = psi
-        sk = s[k]
-        sb = sk * sk
-        vn = v + h * (sk * a11 * v + sk * a12 * r + sb * b11 * d[k])
-        rn = r + h * (sk * a21 * v + sk * a22 * r + sb * b21 * d[k] + n_rrr * r * r * r)
-        psi = psi + h * r
-        if vn > _CLIP_V:
-            vn = _CLIP_V
-        elif vn < -_CLIP_V:
-            vn = -_CLIP_V
-        if rn > _CLIP_R:
-            rn = _CLIP_R
-        elif rn < -_CLIP_R:
-            rn = -_CLIP_R
-        v, r = vn, rn
+def _run(
+    out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic
+):  # pragma: no cover
+    """RK4 from sample k0 (state x0, lag state e0) to k1 - 1, writing samples k0 .. k1-1 to rows
+    0 .. k1-k0-1 of ``out``.
+    ``a_half``/``s_half``: rudder (pre-lag) and speed factor on the half-step grid (index 2k = t_k)."""
+    v, r, psi, e = x0[0], x0[1], x0[2], e0
+    hs = h / m
+    for k in range(k0, k1):
+        out[k - k0, 0] = v
+        out[k - k0, 1] = r
+        out[k - k0, 2] = psi
+        if k == k1 - 1:
+            break
+        for j in range(m):
+            # inputs at sub-step start, middle, end by linear interpolation on the half grid
+            fa = j / m
+            fb = (j + 0.5) / m
+            fc = (j + 1.0) / m
+            i0 = 2 * k
+            a0 = a_half[i0] + fa * (a_half[i0 + 2] - a_half[i0])
+            s0 = s_half[i0] + fa * (s_half[i0 + 2] - s_half[i0])
+            if m == 1:
+                a1 = a_half[i0 + 1]
+                s1 = s_half[i0 + 1]
+            else:
+                a1 = a_half[i0] + fb * (a_half[i0 + 2] - a_half[i0])
+                s1 = s_half[i0] + fb * (s_half[i0 + 2] - s_half[i0])
+            a2 = a_half[i0] + fc * (a_half[i0 + 2] - a_half[i0])
+            s2 = s_half[i0] + fc * (s_half[i0 + 2] - s_half[i0])
+            k1v, k1r, k1p, k1e = _deriv(v, r, e, a0, s0, th, codes, eqs, coefs, lag, offset, asym, cubic)
+            k2v, k2r, k2p, k2e = _deriv(
+                v + 0.5 * hs * k1v,
+                r + 0.5 * hs * k1r,
+                e + 0.5 * hs * k1e,
+                a1,
+                s1,
+                th,
+                codes,
+                eqs,
+                coefs,
+                lag,
+                offset,
+                asym,
+                cubic,
+            )
+            k3v, k3r, k3p, k3e = _deriv(
+                v + 0.5 * hs * k2v,
+                r + 0.5 * hs * k2r,
+                e + 0.5 * hs * k2e,
+                a1,
+                s1,
+                th,
+                codes,
+                eqs,
+                coefs,
+                lag,
+                offset,
+                asym,
+                cubic,
+            )
+            k4v, k4r, k4p, k4e = _deriv(
+                v + hs * k3v,
+                r + hs * k3r,
+                e + hs * k3e,
+                a2,
+                s2,
+                th,
+                codes,
+                eqs,
+                coefs,
+                lag,
+                offset,
+                asym,
+                cubic,
+            )
+            v = v + hs / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+            r = r + hs / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
+            dpsi = hs / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
+            # a diverging trial model: the RK4 stages themselves can explode (r^3 of a clipped r), so
+            # the heading increment and the lag state are clipped too (residuals stay finite and large)
+            if not (abs(dpsi) < _CLIP_R * hs):
+                dpsi = _CLIP_R * hs if dpsi > 0 else -_CLIP_R * hs
+            psi = psi + dpsi
+            e = e + hs / 6.0 * (k1e + 2.0 * k2e + 2.0 * k3e + k4e)
+            if not (abs(e) < _CLIP_D):
+                e = _CLIP_D if e > 0 else -_CLIP_D
+            if not (abs(v) < _CLIP_V):
+                v = _CLIP_V if v > 0 else -_CLIP_V
+            if not (abs(r) < _CLIP_R):
+                r = _CLIP_R if r > 0 else -_CLIP_R
+
+
+@njit(cache=True)
+def _segments(
+    out, starts, length, xs, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic
+):  # pragma: no cover
+    """Prediction over ``length`` samples from each measured state xs[starts[i]] (rows of out[i])."""
+    for i in range(starts.shape[0]):
+        k0 = starts[i]
+        _run(
+            out[i],
+            k0,
+            k0 + length,
+            xs[k0],
+            a_half[2 * k0],
+            a_half,
+            s_half,
+            h,
+            m,
+            th,
+            codes,
+            eqs,
+            coefs,
+            lag,
+            offset,
+            asym,
+            cubic,
+        )
+
+
+def deriv(x, e, a_in, s, theta, terms: Terms) -> np.ndarray:
+    """Python entry to the kernel's right-hand side: (dv/dt, dr/dt, dpsi/dt, de/dt) at state x =
+    (v, r, psi), lag state ``e``, pre-lag rudder ``a_in`` deg and speed factor ``s`` (for tests)."""
+    codes, eqs, coefs = _arrays(terms)
+    return np.array(
+        _deriv(
+            float(x[0]),
+            float(x[1]),
+            float(e),
+            float(a_in),
+            float(s),
+            as_theta(theta),
+            codes,
+            eqs,
+            coefs,
+            float(terms.lag_s),
+            float(terms.offset_deg),
+            float(terms.asymmetry),
+            float(terms.rudder_cubic_per_deg2),
+        )
+    )
+
+
+def _lag_and_substeps(terms: Terms, h: float, substeps: int) -> tuple[float, int]:
+    """The servo lag as integrated, and the RK4 sub-steps: a lag below h/20 is invisible at the sample
+    step and is taken as none; otherwise sub-steps of at most 2 lag_s keep explicit RK4 stable on the
+    lag state (RK4 is stable for step/lag < 2.78)."""
+    lag = float(terms.lag_s)
+    if lag < h / 20.0:
+        return 0.0, int(substeps)
+    return lag, max(int(substeps), int(np.ceil(h / (2.0 * lag))))
+
+
+def _arrays(terms: Terms):
+    return (
+        np.asarray(terms.feat_code, dtype=np.int64),
+        np.asarray(terms.feat_eq, dtype=np.int64),
+        np.asarray(terms.feat_coef, dtype=float),
+    )
+
+
+_HALF_CACHE: dict = {}
+
+
+def half_grid(t: np.ndarray, y: np.ndarray, shift: float = 0.0) -> np.ndarray:
+    """Cached :func:`_half_grid` (the fit simulates the same logged rudder thousands of times): keyed on
+    the arrays' identity and contents' first/last values, their length and the shift."""
+    key = (id(t), id(y), len(t), float(t[0]), float(y[0]), float(y[-1]), float(shift))
+    hit = _HALF_CACHE.get(key)
+    if hit is not None and hit[0] is t and hit[1] is y:
+        return hit[2]
+    out = _half_grid(t, y, shift)
+    if len(_HALF_CACHE) > 256:
+        _HALF_CACHE.clear()
+    _HALF_CACHE[key] = (t, y, out)
     return out
 
 
-def effective_rudder(
-    t: np.ndarray, delta: np.ndarray, offset_deg: float = 0.0, delay_s: float | None = None
-) -> np.ndarray:
-    """Rudder the model is driven with (deg): logged rudder plus ``offset_deg``; with a physical dead
-    time ``delay_s`` (s) the logged rudder is shifted by (delay_s - h) (see module docstring)."""
-    d = np.asarray(delta, dtype=float)
+def _half_grid(t: np.ndarray, y: np.ndarray, shift: float = 0.0) -> np.ndarray:
+    """``y`` (logged at times ``t``) on the half-step grid t_0, t_0 + h/2, ..., t_N-1, evaluated at
+    (time - shift), linearly interpolated, held at the ends."""
     t = np.asarray(t, dtype=float)
-    if delay_s is not None:
-        shift = float(delay_s) - float(t[1] - t[0])
-        if shift != 0.0:
-            d = np.interp(t - shift, t, d, left=d[0], right=d[-1])
-    return d + offset_deg
+    th = np.empty(2 * t.size - 1)
+    th[0::2] = t
+    th[1::2] = 0.5 * (t[:-1] + t[1:])
+    return np.interp(th - shift, t, np.asarray(y, dtype=float))
 
 
-def speed_factor(u_ratio: np.ndarray | None, n: int, exponent: float) -> np.ndarray:
-    """Coefficient scale (u/U_ref)^exponent (ones when there is no speed ratio or exponent is 0)."""
+def speed_half(t, u_ratio, exponent: float) -> np.ndarray:
+    """Speed factor (u/U)^n on the half grid (ones when there is no ratio or n = 0)."""
+    n = 2 * len(t) - 1
     if u_ratio is None or exponent == 0.0:
         return np.ones(n)
-    return np.power(np.clip(u_ratio, 0.05, None), exponent)
+    return np.power(np.clip(half_grid(t, u_ratio), 0.05, None), exponent)
+
+
+def simulate_terms(theta, terms: Terms, x0, t, delta, u_ratio=None, substeps: int = 1) -> np.ndarray:
+    """Free-run of the extended model from ``x0`` = (v, r, psi), driven by the logged ``delta`` (deg) at
+    times ``t`` (s, uniform).  Returns (N, 3) (v, r, psi); row 0 is x0."""
+    th = as_theta(theta)
+    d = np.asarray(delta, dtype=float)
+    t = np.asarray(t, dtype=float)
+    if d.ndim != 1 or d.size < 2 or t.size != d.size:
+        raise ModelError("rudder series must be one-dimensional with at least 2 samples, as long as time")
+    h = float(t[1] - t[0])
+    a_half = half_grid(t, d, terms.delay_s)
+    s_half = speed_half(t, u_ratio, terms.speed_exponent)
+    codes, eqs, coefs = _arrays(terms)
+    lag, m = _lag_and_substeps(terms, h, substeps)
+    out = np.empty((d.size, 3))
+    _run(
+        out,
+        0,
+        d.size,
+        np.asarray(x0, dtype=float).reshape(3),
+        a_half[0],
+        a_half,
+        s_half,
+        h,
+        m,
+        th,
+        codes,
+        eqs,
+        coefs,
+        lag,
+        float(terms.offset_deg),
+        float(terms.asymmetry),
+        float(terms.rudder_cubic_per_deg2),
+    )
+    return out
+
+
+def predict_segments(
+    theta, terms: Terms, states, t, delta, starts, length: int, u_ratio=None, substeps: int = 1
+) -> np.ndarray:
+    """Prediction over ``length`` samples from each measured state ``states[k]`` (k in ``starts``):
+    (len(starts), length, 3).  The lag state starts at the (delayed) logged rudder."""
+    th = as_theta(theta)
+    t = np.asarray(t, dtype=float)
+    h = float(t[1] - t[0])
+    a_half = half_grid(t, delta, terms.delay_s)
+    s_half = speed_half(t, u_ratio, terms.speed_exponent)
+    codes, eqs, coefs = _arrays(terms)
+    lag, m = _lag_and_substeps(terms, h, substeps)
+    out = np.empty((len(starts), length, 3))
+    _segments(
+        out,
+        np.asarray(starts, dtype=np.int64),
+        int(length),
+        np.ascontiguousarray(states, dtype=float),
+        a_half,
+        s_half,
+        h,
+        m,
+        th,
+        codes,
+        eqs,
+        coefs,
+        lag,
+        float(terms.offset_deg),
+        float(terms.asymmetry),
+        float(terms.rudder_cubic_per_deg2),
+    )
+    return out
 
 
 def simulate_extended(
@@ -102,29 +349,21 @@ def simulate_extended(
     offset_deg: float = 0.0,
     n_rrr_s_per_deg2: float = 0.0,
     delay_s: float | None = None,
+    lag_s: float = 0.0,
     u_ratio=None,
     speed_exponent: float = 0.0,
+    substeps: int = 1,
 ) -> np.ndarray:
-    """Free-run simulation of the extended model (see module docstring).
-
-    Parameters
-    ----------
-    theta : the six linear parameters (SPEC section 5 units).
-    x0 : initial (v m/s, r deg/s, psi deg).
-    delta : logged rudder, deg, length N.
-    h : step, s.
-    t : time, s (defaults to k h).
-    delay_s : physical rudder dead time, s, or None for no delay effect.
-    u_ratio : u / U_ref per sample (needed only with speed_loss).
-
-    Returns (N, 3) array of (v, r, psi); row 0 is ``x0``.
-    """
-    th = as_theta(theta)
+    """Convenience free-run with the classic effects by keyword (see module docstring); ``delay_s``
+    is the physical dead time (None or 0: none).  Returns (N, 3) of (v, r, psi)."""
     d = np.asarray(delta, dtype=float)
-    if d.ndim != 1 or d.size < 2:
-        raise ModelError("rudder series must be one-dimensional with at least 2 samples")
     if t is None:
         t = np.arange(d.size) * h
-    de = effective_rudder(t, d, offset_deg, delay_s)
-    s = speed_factor(None if u_ratio is None else np.asarray(u_ratio, dtype=float), d.size, speed_exponent)
-    return _sim_kernel(th, float(n_rrr_s_per_deg2), s, de, np.asarray(x0, dtype=float).reshape(3), float(h))
+    terms = Terms(
+        offset_deg=offset_deg, delay_s=float(delay_s or 0.0), lag_s=lag_s, speed_exponent=speed_exponent
+    )
+    if n_rrr_s_per_deg2:
+        terms.feat_code.append(0)
+        terms.feat_eq.append(1)
+        terms.feat_coef.append(float(n_rrr_s_per_deg2))
+    return simulate_terms(theta, terms, x0, t, d, u_ratio=u_ratio, substeps=substeps)

@@ -1,26 +1,26 @@
-"""Batch output-error fit of the (extended) sway-yaw model and its free-run evaluation.
+"""Fitting the (extended) sway-yaw model to runs, and its free-run evaluation.
 
-The fit minimises the free-run (simulation) error of psi, r and, when the run has it, v over all
-training runs, each channel divided by the spread of its measurement so the channels weigh alike.
-It starts from an equation-error least-squares fit on smoothed derivatives (linear regression, no
-iteration), which is close enough for :func:`scipy.optimize.least_squares` to converge.
+Fit (:func:`fit_structure`), for any ship, stable or not (nothing forces stability):
 
-Uncertainty: free-run residuals are strongly correlated in time, so the textbook Gauss-Newton
-covariance s^2 (J^T J)^-1 (every sample independent) makes every estimate look precise.  Used here
-is the cluster-robust ("sandwich") covariance with contiguous time blocks of ``block_s`` seconds of
-every run as the clusters (all channels of one block in one cluster):
+1. Starting values by equation-error least squares: Savitzky-Golay derivatives of v and r regressed
+   on v, r, the rudder and every feature term of the structure (all linear in the parameters).
+2. Prediction-error fit over a horizon of one ship time scale T_ship (segments starting every half
+   horizon from the measured state): a course-unstable trial model cannot run away over one T, so
+   the optimisation cannot diverge.
+3. Output-error polishing: free-run from each run's measured initial state over the whole run
+   (psi, r and, when measured, v; each channel divided by its measured spread; every run weighs
+   alike).  Kept when finite, else the prediction-error result (flagged in ``message``).
+Warm starts (a previous fit of a nested structure) go to step 3 directly; a dead time or servo lag
+new to the structure is first profiled over a grid of T_ship fractions (the cost is not convex in a
+time parameter).
 
-    cov = (J^T J)^-1 [G/(G-1) sum_c (J_c^T e_c)(J_c^T e_c)^T] (J^T J)^-1
+Uncertainty: cluster-robust (sandwich) covariance of the output-error estimate with time blocks of
+``block_T`` ship time scales as clusters (block length from the ship, not fixed seconds, so that the
+scale of the data does not change it).
 
-which is the block bootstrap's large-sample limit and assumes only that blocks far apart are
-independent.  (The first version inflated s^2 (J^T J)^-1 by (1 + rho)/(1 - rho) with rho the lag-1
-autocorrelation of the residuals; with rho ~ 0.999 that factor is ~2000 in variance whatever the
-Jacobian's own correlation, so it was far too wide on long runs -- on the HSVA KVLCC2 runs a cubic
-damping that held on every held-out run came out at z = 1.1.)
-
-Dead time: the cost is not convex in the delay (a dead time trades against the yaw time constants),
-so a delay is first profiled over a grid (the linear parameters refitted at each value) and the
-joint fit starts from the best grid point.
+Time scale T_ship (:func:`ship_time_scale`): |T| of a first-order Nomoto model r' = (K delta - r)/T
+fitted by equation error on the training runs; for a course-unstable ship it is the time scale of
+the divergence.  Dimensionless under Froude scaling, so a run at full scale gives the same T/duration.
 """
 
 from __future__ import annotations
@@ -31,17 +31,18 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
-from pipeline.diagnose.extended import EFFECT_PARAM, NULL, simulate_extended
+from pipeline.diagnose.effects import BY_NAME, NAMES, Context, Terms
+from pipeline.diagnose.extended import predict_segments, simulate_terms
 from pipeline.errors import InputError, ModelError
 from pipeline.io import Run
 from pipeline.model import PARAM_NAMES
 
-_U_REF_SPAN = 2.0  # s: the approach speed is the mean u over the first 2 s of a run
+_U_REF_SPAN = 2.0  # s: approach speed = mean u over the first 2 s (ingest's own convention)
 
 
 @dataclass
 class Series:
-    """One run prepared for fitting: uniform time (s), rudder (deg), psi (deg), r (deg/s), v and u (m/s)."""
+    """One run prepared for fitting: uniform time (s), rudder (deg), psi (deg), r (deg/s), v, u (m/s)."""
 
     name: str
     t: np.ndarray
@@ -50,6 +51,7 @@ class Series:
     r: np.ndarray
     v: np.ndarray | None = None
     u: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
 
     @property
     def h(self) -> float:
@@ -59,8 +61,11 @@ class Series:
     def x0(self) -> np.ndarray:
         return np.array([self.v[0] if self.v is not None else 0.0, self.r[0], self.psi[0]])
 
+    def states(self) -> np.ndarray:
+        v = self.v if self.v is not None else np.zeros_like(self.r)
+        return np.column_stack([v, self.r, self.psi])
+
     def u_smooth(self) -> np.ndarray | None:
-        """u smoothed over ~1 s (m/s); computed once (the fit calls it at every evaluation)."""
         if self.u is None:
             return None
         cached = self.__dict__.get("_u_smooth")
@@ -82,8 +87,13 @@ def _odd(n: int, limit: int) -> int:
     return n if n % 2 else n - 1
 
 
+#: deg: a run whose rudder never moves more than this from its median has no excitation to learn from
+MIN_RUDDER_EXCITATION_DEG = 1.0
+
+
 def series_from_run(run: Run, min_samples: int = 50) -> Series:
-    """Take the columns the diagnosis needs from a processed run (SPEC section 2 units)."""
+    """Take the columns the diagnosis needs from a processed run (SPEC section 2 units); refuse runs
+    the diagnosis cannot use (one line naming the run and the column)."""
     f = run.frame
     for c in ("time", "psi", "r", "delta"):
         if c not in f.columns:
@@ -106,11 +116,10 @@ def series_from_run(run: Run, min_samples: int = 50) -> Series:
             "time is not a uniform increasing grid (ingest the run first)", file=run.name, column="time"
         )
     d = cols["delta"]
-    # A run whose rudder never leaves its median by 1 deg (ten times a rudder encoder's resolution)
-    # carries no rudder excitation: no rudder-driven model can be learned from it.
-    if float(np.max(np.abs(d - np.median(d)))) < 1.0:
+    if float(np.max(np.abs(d - np.median(d)))) < MIN_RUDDER_EXCITATION_DEG:
         raise InputError(
-            "the rudder never moves more than 1 deg: no rudder excitation, nothing to diagnose",
+            f"the rudder never moves more than {MIN_RUDDER_EXCITATION_DEG} deg: no rudder excitation, "
+            "nothing to diagnose",
             file=run.name,
             column="delta",
         )
@@ -124,109 +133,140 @@ def series_from_run(run: Run, min_samples: int = 50) -> Series:
                 column="u",
             )
         n0 = max(2, int(round(_U_REF_SPAN / float(dt.mean()))))
-        # the approach speed scales speed-dependent effects (u / U_ref); 1 mm/s is no approach at all
-        if float(np.mean(u[:n0])) <= 1e-3:
+        if float(np.mean(u[:n0])) <= 1e-6:
             raise InputError(
                 "surge speed u is zero at the start of the run: no approach speed", file=run.name, column="u"
             )
     return Series(
         name=run.name,
         t=cols["time"],
-        delta=cols["delta"],
+        delta=d,
         psi=cols["psi"],
         r=cols["r"],
         v=cols.get("v"),
-        u=cols.get("u"),
+        u=u,
+        meta=dict(run.meta),
     )
 
 
-# ---------------------------------------------------------------- parameter vector handling
+# ---------------------------------------------------------------- structures and parameter vectors
+
+Structure = tuple  # of (effect name, form name), in catalogue order
+
+
+def structure_of(*items) -> Structure:
+    """A structure from effect names or (name, form) pairs, in catalogue order."""
+    pairs = [(i, BY_NAME[i].forms[0].name) if isinstance(i, str) else tuple(i) for i in items]
+    return tuple(sorted(pairs, key=lambda p: NAMES.index(p[0])))
+
+
+def effects_of(structure: Structure) -> list[str]:
+    return [e for e, _ in structure]
 
 
 @dataclass
 class Layout:
-    """Which parameters are free: the six linear ones plus one per effect."""
+    structure: Structure
+    ctx: Context
 
-    effects: tuple[str, ...]
+    @property
+    def params(self):
+        return [(e, p) for e, f in self.structure for p in BY_NAME[e].form(f).params]
 
     @property
     def names(self) -> list[str]:
-        return list(PARAM_NAMES) + [EFFECT_PARAM[e] for e in self.effects]
+        return list(PARAM_NAMES) + [p.name for _, p in self.params]
 
-    def unpack(self, p: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
-        extra = dict(NULL)
-        for i, e in enumerate(self.effects):
-            extra[EFFECT_PARAM[e]] = float(p[6 + i])
-        return p[:6], extra
+    def bounds(self):
+        lo, hi = [-np.inf] * 6, [np.inf] * 6
+        # sway and yaw damping are positive on every displacement ship (a11 = Y_v/(m - Y_vdot) < 0,
+        # a22 = N_r/(I_z - N_rdot) < 0); course instability comes from the coupling a12 a21, so these
+        # sign bounds leave course-unstable ships free (D = a11 a22 - a12 a21 < 0 is allowed)
+        hi[0] = hi[3] = 0.0
+        for _, p in self.params:
+            a, b = p.bounds(self.ctx)
+            lo.append(a)
+            hi.append(b)
+        return np.array(lo), np.array(hi)
 
-
-_BOUNDS = {
-    "offset_deg": (-15.0, 15.0),
-    "n_rrr_s_per_deg2": (-1.0, 1.0),
-    "delay_s": (-0.5, 3.0),
-    "speed_exponent": (-2.0, 5.0),
-}
-_START = {"offset_deg": 0.0, "n_rrr_s_per_deg2": 0.0, "delay_s": 0.0, "speed_exponent": 0.0}
-#: dead times (s) the delay is profiled over before the joint fit
-_DELAY_GRID = tuple(np.round(np.arange(0.0, 1.61, 0.2), 2))
+    def unpack(self, p: np.ndarray) -> tuple[np.ndarray, Terms, dict]:
+        theta = np.asarray(p[:6], dtype=float)
+        terms = Terms()
+        values: dict[str, dict] = {}
+        i = 6
+        for e, f in self.structure:
+            form = BY_NAME[e].form(f)
+            vals = {}
+            for prm in form.params:
+                vals[prm.name] = float(p[i])
+                i += 1
+            BY_NAME[e].apply(form, vals, terms)
+            values[e] = vals
+        return theta, terms, values
 
 
 @dataclass
 class FitResult:
-    effects: tuple[str, ...]
-    theta: np.ndarray  # a11 .. b21
-    extra: dict[str, float]  # effect parameters (null values for effects not fitted)
-    std: dict[str, float]  # one-sigma of every free parameter
-    cov: np.ndarray  # covariance of the free parameters, order Layout.names
+    structure: Structure
+    p: np.ndarray
     names: list[str]
+    theta: np.ndarray
+    terms: Terms
+    values: dict  # {effect: {param: value}}
+    std: dict  # one-sigma of every free parameter (cluster-robust)
     cost: float
-    rho: float  # lag-1 autocorrelation of the training residuals
-    u_ref: float | None  # m/s, reference (approach) speed of the coefficients
-    success: bool = True
+    u_ref: float | None
     message: str = ""
     training_runs: list[str] = field(default_factory=list)
+
+    @property
+    def effects(self) -> list[str]:
+        return effects_of(self.structure)
 
     def params(self) -> dict[str, float]:
         return {n: float(v) for n, v in zip(PARAM_NAMES, self.theta, strict=True)}
 
+    def form(self, effect: str):
+        return BY_NAME[effect].form(dict(self.structure)[effect])
 
-def _u_ratio(s: Series, u_ref: float | None) -> np.ndarray | None:
+
+def reference_speed(series: list[Series]) -> float | None:
+    us = [s.approach_speed() for s in series]
+    if any(u is None for u in us):
+        return None
+    return float(np.mean(us))
+
+
+def _u_ratio(s: Series, u_ref: float | None):
     if u_ref is None or s.u is None:
         return None
     return s.u_smooth() / u_ref
 
 
-def simulate_series(s: Series, theta, extra: dict[str, float], u_ref: float | None) -> np.ndarray:
-    """Free-run of one run from its measured initial state, driven by its logged rudder."""
-    return simulate_extended(
-        theta,
+def simulate_fit(fit: FitResult, s: Series, theta=None, terms=None) -> np.ndarray:
+    return simulate_terms(
+        fit.theta if theta is None else theta,
+        fit.terms if terms is None else terms,
         s.x0,
+        s.t,
         s.delta,
-        s.h,
-        t=s.t,
-        offset_deg=extra["offset_deg"],
-        n_rrr_s_per_deg2=extra["n_rrr_s_per_deg2"],
-        delay_s=extra["delay_s"],
-        u_ratio=_u_ratio(s, u_ref),
-        speed_exponent=extra["speed_exponent"],
+        _u_ratio(s, fit.u_ref),
     )
 
 
 def _scales(series: list[Series]) -> dict[str, float]:
     def spread(key):
         vals = [getattr(s, key) for s in series if getattr(s, key) is not None]
-        if not vals:
-            return 1.0
-        return max(float(np.std(np.concatenate(vals))), 1e-6)
+        return max(float(np.std(np.concatenate(vals))), 1e-6) if vals else 1.0
 
     return {"psi": spread("psi"), "r": spread("r"), "v": spread("v")}
 
 
-def _residuals(series, sc, theta, extra, u_ref) -> np.ndarray:
+def _oe_residuals(series, sc, theta, terms, u_ref) -> np.ndarray:
     parts = []
     for s in series:
-        sim = simulate_series(s, theta, extra, u_ref)
-        w = 1.0 / np.sqrt(s.t.size)  # every run weighs alike whatever its length
+        sim = simulate_terms(theta, terms, s.x0, s.t, s.delta, _u_ratio(s, u_ref))
+        w = 1.0 / np.sqrt(s.t.size)
         parts.append(w * (sim[:, 2] - s.psi) / sc["psi"])
         parts.append(w * (sim[:, 1] - s.r) / sc["r"])
         if s.v is not None:
@@ -234,53 +274,99 @@ def _residuals(series, sc, theta, extra, u_ref) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def _lag1(series, sc, theta, extra, u_ref) -> float:
-    """Mean lag-1 autocorrelation of the free-run residual channels."""
-    rhos = []
+def _pe_residuals(series, sc, theta, terms, u_ref, horizon: int) -> np.ndarray:
+    parts = []
     for s in series:
-        sim = simulate_series(s, theta, extra, u_ref)
-        chans = [sim[:, 2] - s.psi, sim[:, 1] - s.r] + ([sim[:, 0] - s.v] if s.v is not None else [])
-        for e in chans:
-            e = e - e.mean()
-            den = float(e @ e)
-            if den > 0:
-                rhos.append(float(e[1:] @ e[:-1]) / den)
-    return float(np.clip(np.mean(rhos) if rhos else 0.0, 0.0, 0.999))
+        n = s.t.size
+        length = min(horizon, n)
+        starts = np.arange(0, n - length + 1, max(1, length // 2))
+        pred = predict_segments(theta, terms, s.states(), s.t, s.delta, starts, length, _u_ratio(s, u_ref))
+        idx = starts[:, None] + np.arange(length)[None, :]
+        w = 1.0 / np.sqrt(idx.size)
+        parts.append((w * (pred[:, :, 2] - s.psi[idx]) / sc["psi"]).ravel())
+        parts.append((w * (pred[:, :, 1] - s.r[idx]) / sc["r"]).ravel())
+        if s.v is not None:
+            parts.append((w * (pred[:, :, 0] - s.v[idx]) / sc["v"]).ravel())
+    return np.concatenate(parts)
 
 
-def _profile_delay(series, sc, layout: Layout, p0: np.ndarray, u_ref, max_nfev: int, bounds) -> np.ndarray:
-    """Start vector with the dead time at the grid value of least training cost, the other parameters
-    refitted (few iterations) at each grid value from ``p0``."""
-    i = 6 + layout.effects.index("rudder_delay")
-    free = [j for j in range(p0.size) if j != i]
-    best, best_cost = p0, np.inf
-    q = p0.copy()
-    lo, hi = (np.asarray(b, dtype=float)[free] for b in bounds)
-    x = np.clip(p0[free], lo + 1e-9, hi - 1e-9)
-    for d in _DELAY_GRID:  # warm start from the neighbouring grid value
+def _derivs(s: Series, t_ship: float):
+    """Savitzky-Golay smoothed (v, r) and derivatives; window a fifth of the ship's time scale."""
+    win = _odd(max(5, int(round(0.2 * t_ship / s.h)) | 1), s.t.size)
+    r = savgol_filter(s.r, win, 2)
+    rd = savgol_filter(s.r, win, 2, deriv=1, delta=s.h)
+    if s.v is not None:
+        v = savgol_filter(s.v, win, 2)
+        vd = savgol_filter(s.v, win, 2, deriv=1, delta=s.h)
+    else:
+        v = vd = None
+    return v, vd, r, rd
 
-        def fun(x, d=d):
-            p = q.copy()
-            p[free] = x
-            p[i] = d
-            th, ex = layout.unpack(p)
-            return _residuals(series, sc, th, ex, u_ref)
 
-        r = least_squares(
-            fun, x, bounds=(lo, hi), x_scale="jac", max_nfev=max(10, max_nfev // 30), method="trf"
-        )
-        if np.all(np.isfinite(r.x)):
-            x = r.x
-        if np.isfinite(r.cost) and r.cost < best_cost:
-            best_cost = r.cost
-            best = q.copy()
-            best[free] = r.x
-            best[i] = d
-    return best
+def ship_time_scale(series: list[Series]) -> float:
+    """|T| (s) of the first-order Nomoto model r' = a r + b delta + c fitted by equation error,
+    clipped to [10 sample steps, half the shortest run]."""
+    X, y = [], []
+    for s in series:
+        win = _odd(max(5, (s.t.size // 100) | 1), s.t.size)  # a hundredth of the run: scale-free
+        r = savgol_filter(s.r, win, 2)
+        rd = savgol_filter(s.r, win, 2, deriv=1, delta=s.h)
+        X.append(np.column_stack([r, s.delta, np.ones_like(r)]))
+        y.append(rd)
+    c, *_ = np.linalg.lstsq(np.vstack(X), np.concatenate(y), rcond=None)
+    h = series[0].h
+    dur = min(s.t[-1] - s.t[0] for s in series)
+    t = 1.0 / abs(c[0]) if c[0] != 0 else dur
+    return float(np.clip(t, 10 * h, 0.5 * dur))
+
+
+def equation_error_start(series: list[Series], layout: Layout) -> np.ndarray:
+    """Least-squares start of the six linear parameters and every feature parameter (input effects at
+    their start values), from smoothed derivatives; v = 0 where sway is not measured."""
+    ctx = layout.ctx
+    feats = [(i, p) for i, (_, p) in enumerate(layout.params) if p.feature is not None]
+    p0 = np.zeros(len(layout.names))
+    for i, (_, prm) in enumerate(layout.params):
+        p0[6 + i] = prm.start_value(ctx)
+    from pipeline.diagnose.effects.base import feature_value
+
+    rows_v, rows_r, yv, yr = [], [], [], []
+    for s in series:
+        v, vd, r, rd = _derivs(s, ctx.t_ship)
+        vv = v if v is not None else np.zeros_like(r)
+        base = [vv, r, s.delta]
+        fr = [feature_value(p.feature[0], vv, r) for _, p in feats if p.feature[1] == 1]
+        rows_r.append(np.column_stack(base + fr))
+        yr.append(rd)
+        if v is not None:
+            fv = [feature_value(p.feature[0], vv, r) for _, p in feats if p.feature[1] == 0]
+            rows_v.append(np.column_stack(base + fv))
+            yv.append(vd)
+    Xr = np.vstack(rows_r)
+    sc = np.maximum(np.abs(Xr).max(axis=0), 1e-12)
+    cr, *_ = np.linalg.lstsq(Xr / sc, np.concatenate(yr), rcond=None)
+    cr = cr / sc
+    if rows_v:
+        Xv = np.vstack(rows_v)
+        scv = np.maximum(np.abs(Xv).max(axis=0), 1e-12)
+        cv, *_ = np.linalg.lstsq(Xv / scv, np.concatenate(yv), rcond=None)
+        cv = cv / scv
+        p0[:6] = [cv[0], cv[1], cr[0], cr[1], cv[2], cr[2]]
+    else:  # no sway measured: first-order yaw, a placeholder sway mode
+        p0[:6] = [-1.0, 0.0, 0.0, cr[1], 0.0, cr[2]]
+        cv = np.zeros(3)
+    jr, jv = 3, 3
+    for i, p in feats:
+        if p.feature[1] == 1:
+            p0[6 + i] = cr[jr]
+            jr += 1
+        elif rows_v:
+            p0[6 + i] = cv[jv]
+            jv += 1
+    return p0
 
 
 def _clusters(series: list[Series], block_s: float) -> np.ndarray:
-    """Cluster id of every residual (order of :func:`_residuals`): run and time block of ``block_s`` s."""
     ids, base = [], 0
     for s in series:
         blk = np.floor((s.t - s.t[0]) / block_s).astype(int)
@@ -291,11 +377,7 @@ def _clusters(series: list[Series], block_s: float) -> np.ndarray:
 
 
 def sandwich_cov(J: np.ndarray, e: np.ndarray, clusters: np.ndarray) -> np.ndarray:
-    """Cluster-robust covariance (J^T J)^-1 M (J^T J)^-1 of a least-squares estimate.
-
-    ``J`` (m, p) Jacobian of the residuals ``e`` (m,), ``clusters`` (m,) integer ids; M is the sum over
-    clusters of the outer products of the score J_c^T e_c, times G/(G-1) for G clusters.
-    """
+    """Cluster-robust covariance (J^T J)^-1 M (J^T J)^-1; M = G/(G-1) sum_c (J_c^T e_c)(J_c^T e_c)^T."""
     B = np.linalg.pinv(J.T @ J)
     ids = np.unique(clusters)
     g = len(ids)
@@ -307,209 +389,144 @@ def sandwich_cov(J: np.ndarray, e: np.ndarray, clusters: np.ndarray) -> np.ndarr
     return B @ meat @ B
 
 
-def equation_error_start(series: list[Series]) -> np.ndarray:
-    """Linear least-squares start for a11 .. b21 from smoothed derivatives (v = 0 if not measured)."""
-    rows_v, rows_r, yv, yr = [], [], [], []
-    for s in series:
-        win = _odd(max(5, int(round(1.0 / s.h))), s.t.size)
-        rd = savgol_filter(s.r, win, 2, deriv=1, delta=s.h)
-        rs = savgol_filter(s.r, win, 2)
-        v = savgol_filter(s.v, win, 2) if s.v is not None else np.zeros_like(s.r)
-        X = np.column_stack([v, rs, s.delta])
-        rows_r.append(X)
-        yr.append(rd)
-        if s.v is not None:
-            rows_v.append(X)
-            yv.append(savgol_filter(s.v, win, 2, deriv=1, delta=s.h))
-    Xr = np.vstack(rows_r)
-    if all(s.v is None for s in series):
-        # no sway measured: first-order Nomoto r' = a22 r + b21 delta, sway mode a placeholder
-        c, *_ = np.linalg.lstsq(Xr[:, 1:], np.concatenate(yr), rcond=None)
-        a22, b21 = float(min(c[0], -0.05)), float(c[1])
-        return np.array([-1.0, 0.0, -0.5, a22, 0.0, b21])
-    cr, *_ = np.linalg.lstsq(Xr, np.concatenate(yr), rcond=None)
-    cv, *_ = np.linalg.lstsq(np.vstack(rows_v), np.concatenate(yv), rcond=None)
-    return np.array([cv[0], cv[1], cr[0], cr[1], cv[2], cr[2]])
+#: trust-region sub-problem solver: "lsmr" (matrix-vector products only) rather than "exact" (an SVD of
+#: the whole Jacobian per iteration, which a multithreaded BLAS on a loaded 2-core machine made 90 %
+#: of the diagnosis time); the parameters are few and well scaled (x_scale="jac")
+_TR = "lsmr"
+#: stopping tolerances of every least-squares stage: a relative change of the cost or the parameters
+#: below 1e-6 moves a held-out heading error by far less than the 0.1 deg the diagnosis can judge
+_TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-8}
+
+#: fractions of T_ship a new dead time or servo lag is profiled over before the joint fit
+_TIME_GRID = (0.0, 0.03, 0.07, 0.12, 0.2)
 
 
-_CONTINUATION = (25.0, 50.0)  # s
-
-
-def _truncate(s: Series, span: float) -> Series:
-    k = int(np.searchsorted(s.t, s.t[0] + span)) + 1
-    return Series(
-        name=s.name,
-        t=s.t[:k],
-        delta=s.delta[:k],
-        psi=s.psi[:k],
-        r=s.r[:k],
-        v=None if s.v is None else s.v[:k],
-        u=None if s.u is None else s.u[:k],
-    )
-
-
-def reference_speed(series: list[Series]) -> float | None:
-    """Approach speed of the training runs (m/s): mean u over each run's first 2 s, averaged."""
-    us = [s.approach_speed() for s in series if s.u is not None]
-    if not us or len(us) != len(series):
-        return None
-    return float(np.mean(us))
-
-
-def fit_model(
+def fit_structure(
     series: list[Series],
-    effects: tuple[str, ...] = (),
+    structure: Structure,
+    ctx: Context,
     start: FitResult | None = None,
-    max_nfev: int = 400,
-    block_s: float = 20.0,
+    max_nfev: int = 200,
+    block_T: float = 2.0,
 ) -> FitResult:
-    """Output-error fit of the linear model plus ``effects`` on the training ``series``.
-
-    ``start`` (a previous fit) gives the starting point; otherwise the equation-error start.
-    ``block_s`` (s) is the time-block length of the cluster-robust covariance.
-    Raises :class:`ModelError` if the fit produces no finite result.
-    """
-    if "speed_loss" in effects and reference_speed(series) is None:
+    """Fit the linear model plus ``structure`` on ``series`` (module docstring).  ``start``: a fit of
+    a nested structure (its values are reused, new parameters start at their start values)."""
+    layout = Layout(structure_of(*structure), ctx)
+    lo, hi = layout.bounds()
+    u_ref = reference_speed(series) if any(e == "speed_loss" for e, _ in layout.structure) else None
+    if any(e == "speed_loss" for e, _ in layout.structure) and u_ref is None:
         raise ModelError("speed_loss needs the surge speed u in every training run")
-    layout = Layout(tuple(effects))
-    u_ref = reference_speed(series)
     sc = _scales(series)
-    theta0 = start.theta.copy() if start is not None else equation_error_start(series)
-    p0 = list(theta0)
-    # sway and yaw damping are positive on every displacement ship (a11 = Y_v/(m - Y_vdot) < 0,
-    # a22 = N_r/(I_z - N_rdot) < 0); course instability comes from the coupling a12 a21 (the Munk
-    # moment), never from these signs.  Bounded, because a free-run fit of a few zigzags can
-    # otherwise turn the sway state into a hidden integrator (a22 > 0 and a21 ~ 50 on a KCS with a
-    # 2.8 deg rudder offset: training cost below the physical fit, 43 deg held-out error).
-    lo, hi = [-np.inf] * 6, [np.inf] * 6
-    hi[0] = hi[3] = 0.0
-    for e in layout.effects:
-        name = EFFECT_PARAM[e]
-        v0 = start.extra[name] if (start is not None and e in start.effects) else _START[name]
-        p0.append(v0)
-        lo.append(_BOUNDS[name][0])
-        hi.append(_BOUNDS[name][1])
-    p0 = np.clip(np.array(p0, dtype=float), np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+    names = layout.names
+    if start is None:
+        p0 = equation_error_start(series, layout)
+    else:
+        p0 = np.array([prm.start_value(ctx) for _, prm in layout.params], dtype=float)
+        p0 = np.concatenate([start.theta, p0])
+        old = dict(zip(start.names, start.p, strict=True))
+        for i, n in enumerate(names[6:], start=6):
+            if n in old:
+                p0[i] = old[n]
+    eps = 1e-9 * np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0)))
+    p0 = np.clip(p0, lo + eps, hi - eps)
 
-    def fun(p):
-        th, ex = layout.unpack(p)
-        return _residuals(series, sc, th, ex, u_ref)
+    def oe(p):
+        th, tm, _ = layout.unpack(p)
+        return _oe_residuals(series, sc, th, tm, u_ref)
 
-    if start is None and not layout.effects:
-        # continuation: a free-run fit over a long zigzag is far from convex (heading integrates
-        # every error), so fit the first 25 s, then 50 s, then all, each from the previous optimum
-        for span in _CONTINUATION:
-            short = [_truncate(s, span) for s in series]
-            if all(s.t.size == s0.t.size for s, s0 in zip(short, series, strict=True)):
-                break
-            sc_s = _scales(short)
-            r = least_squares(
-                lambda p, sh=short, sc=sc_s: _residuals(sh, sc, p, NULL, u_ref),
-                p0,
-                bounds=(lo, hi),
+    horizon = max(10, int(round(ctx.t_ship / series[0].h)))
+
+    def pe(p):
+        th, tm, _ = layout.unpack(p)
+        return _pe_residuals(series, sc, th, tm, u_ref, horizon)
+
+    msg = []
+    if start is None:
+        r = least_squares(
+            pe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL
+        )
+        if np.all(np.isfinite(r.x)):
+            p0 = np.clip(r.x, lo + eps, hi - eps)
+        msg.append(f"prediction-error start over {horizon} steps")
+    # a time parameter new to the structure: profile it
+    new_time = [
+        i
+        for i, (e, prm) in enumerate(layout.params, start=6)
+        if prm.time_scaled and (start is None or prm.name not in start.names)
+    ]
+    for i in new_time:
+        best, best_cost = p0, np.inf
+        free = [j for j in range(p0.size) if j != i]
+        for frac in _TIME_GRID:
+            q = p0.copy()
+            q[i] = np.clip(frac * ctx.t_ship, lo[i] + eps[i], hi[i] - eps[i])
+
+            def fun(x, q=q, free=free):
+                z = q.copy()
+                z[free] = x
+                return oe(z)
+
+            rr = least_squares(
+                fun,
+                q[free],
+                bounds=(lo[free], hi[free]),
                 x_scale="jac",
-                max_nfev=max_nfev,
+                max_nfev=max(6, max_nfev // 25),
                 method="trf",
+                tr_solver=_TR,
+                **_TOL,
             )
-            if np.all(np.isfinite(r.x)):
-                p0 = r.x
-    starts = [p0]
-    if "rudder_delay" in layout.effects and not (start is not None and "rudder_delay" in start.effects):
-        starts = [_profile_delay(series, sc, layout, p0, u_ref, max_nfev, (lo, hi))]
-    res = None
-    for q in starts:
-        q = np.clip(q, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-        r = least_squares(fun, q, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf")
-        if res is None or (np.isfinite(r.cost) and r.cost < res.cost):
-            res = r
-    if not np.all(np.isfinite(res.x)) or not np.isfinite(res.cost):
+            if np.isfinite(rr.cost) and rr.cost < best_cost:
+                best_cost = rr.cost
+                best = q.copy()
+                best[free] = rr.x
+        p0 = best
+    res = least_squares(
+        oe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL
+    )
+    if not (np.all(np.isfinite(res.x)) and np.isfinite(res.cost)):
         raise ModelError("the diagnosis fit produced no finite result")
-    th, ex = layout.unpack(res.x)
-    rho = _lag1(series, sc, th, ex, u_ref)
-    cov = sandwich_cov(res.jac, res.fun, _clusters(series, block_s))
-    std = {n: float(np.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(layout.names)}
+    msg.append("output-error polish" + ("" if res.success else f" (stopped: {res.message})"))
+    th, tm, values = layout.unpack(res.x)
+    cov = sandwich_cov(res.jac, res.fun, _clusters(series, block_T * ctx.t_ship))
+    std = {n: float(np.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(names)}
     return FitResult(
-        effects=layout.effects,
-        theta=np.asarray(th, dtype=float),
-        extra=ex,
+        structure=layout.structure,
+        p=np.asarray(res.x, dtype=float),
+        names=names,
+        theta=th,
+        terms=tm,
+        values=values,
         std=std,
-        cov=cov,
-        names=layout.names,
         cost=float(res.cost),
-        rho=rho,
         u_ref=u_ref,
-        success=bool(res.success),
-        message=str(res.message),
+        message="; ".join(msg),
         training_runs=[s.name for s in series],
     )
 
 
 def is_stable(theta) -> bool:
-    """True when the linear sway-yaw part [[a11, a12], [a21, a22]] has both eigenvalues in the left
-    half-plane (strictly negative real parts)."""
+    """True when the linear sway-yaw part [[a11, a12], [a21, a22]] has both eigenvalues in the open
+    left half-plane: the ship is course-stable (straight-line stable)."""
     a = np.array([[theta[0], theta[1]], [theta[2], theta[3]]], dtype=float)
     return bool(np.all(np.isfinite(a)) and np.all(np.linalg.eigvals(a).real < 0.0))
 
 
-def fit_baseline(
-    series: list[Series],
-    extra_starts: tuple = (),
-    max_nfev: int = 400,
-    block_s: float = 20.0,
-) -> FitResult:
-    """Output-error fit of the linear model from several starts; the stable fit of least training cost.
-
-    The free-run cost over long zigzags is far from convex: heading integrates every error, and the
-    logged rudder is replayed open loop, so a slightly unstable model (a spirally unstable ship is
-    kept on course by the zigzag's own rudder feedback, which the replay lacks) drifts away
-    exponentially.  One start can therefore end in a poor local optimum (on the HSVA KVLCC2 runs one
-    crossed split ended at a11 > 0, unstable sway, at a training cost 55 % above another stable
-    optimum).  Starts tried, each refined on all ``series``: the equation-error start with
-    continuation (:func:`fit_model`), the same start without continuation, the optimum of each
-    training run alone, and ``extra_starts`` (FitResults or parameter vectors, e.g. the other fold's
-    optimum).  The choice is made on the TRAINING cost only, among the fits whose linear part is
-    stable (:func:`is_stable`): an unstable linear model cannot be validated by an open-loop
-    free-run, whose error it amplifies without
-    bound.  When no fit is stable, the one of least cost.
-    """
-    cands = [fit_model(series, (), max_nfev=max_nfev, block_s=block_s)]
-    starts = [equation_error_start(series)] + list(extra_starts)
-    if len(series) > 1:
-        for s in series:
-            try:
-                starts.append(fit_model([s], (), max_nfev=max_nfev, block_s=block_s))
-            except ModelError:
-                continue
-    for st in starts:
-        if not isinstance(st, FitResult):
-            th = np.asarray(st, dtype=float)[:6]
-            st = FitResult((), th, dict(NULL), {}, np.zeros((6, 6)), list(PARAM_NAMES), np.inf, 0.0, None)
-        try:
-            cands.append(fit_model(series, (), start=st, max_nfev=max_nfev, block_s=block_s))
-        except ModelError:
-            continue
-    stable = [c for c in cands if is_stable(c.theta)]
-    best = min(stable or cands, key=lambda c: c.cost)
-    best.message = f"{best.message} (best of {len(cands)} starts, {len(stable)} stable)"
-    return best
-
-
-def evaluate(fit: FitResult, series: list[Series]) -> tuple[dict[str, float], list[dict]]:
-    """Free-run metrics on ``series``: mean over runs of MAE psi (deg), MSE r ((deg/s)^2), MSE v ((m/s)^2).
-
-    Returns (mean metrics, per-run list with the simulated arrays under ``"sim"``).
-    """
+def evaluate(fit: FitResult, series: list[Series]) -> tuple[dict, list[dict]]:
+    """Free-run metrics on ``series``: mean over runs of MAE psi (deg), MSE r ((deg/s)^2), MSE v ((m/s)^2);
+    and per run (with the simulated arrays under ``"sim"``)."""
     per = []
     for s in series:
-        sim = simulate_series(s, fit.theta, fit.extra, fit.u_ref)
-        row = {
-            "run_id": s.name,
-            "mae_psi_deg": float(np.mean(np.abs(sim[:, 2] - s.psi))),
-            "mse_r": float(np.mean((sim[:, 1] - s.r) ** 2)),
-            "mse_v": float(np.mean((sim[:, 0] - s.v) ** 2)) if s.v is not None else None,
-            "sim": sim,
-        }
-        per.append(row)
+        sim = simulate_fit(fit, s)
+        per.append(
+            {
+                "run_id": s.name,
+                "mae_psi_deg": float(np.mean(np.abs(sim[:, 2] - s.psi))),
+                "mse_r": float(np.mean((sim[:, 1] - s.r) ** 2)),
+                "mse_v": float(np.mean((sim[:, 0] - s.v) ** 2)) if s.v is not None else None,
+                "sim": sim,
+            }
+        )
     mean = {
         "mae_psi_deg": float(np.mean([p["mae_psi_deg"] for p in per])),
         "mse_r": float(np.mean([p["mse_r"] for p in per])),

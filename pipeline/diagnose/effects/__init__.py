@@ -1,0 +1,48 @@
+"""The open effect catalogue of the diagnosis (SPEC section 7): one module per effect, one list.
+
+Adding an effect = one new module defining ``EFFECT`` (a :class:`~.base.Effect`) + its line in
+:data:`CATALOGUE` + its test.  Feature effects need no engine change (their terms are codes of
+:data:`~.base.FEATURES`); an input transformation needs a field of :class:`~.base.Terms`.
+"""
+
+from __future__ import annotations
+
+from pipeline.diagnose.effects import (
+    nonlinear_sway_damping,
+    nonlinear_yaw_damping,
+    rudder_asymmetry,
+    rudder_delay,
+    rudder_lag,
+    rudder_offset,
+    rudder_saturation,
+    speed_loss,
+    sway_yaw_coupling,
+)
+from pipeline.diagnose.effects.base import FEATURES, Context, Effect, Form, Param, Terms, feature_value
+
+CATALOGUE: tuple[Effect, ...] = (
+    rudder_offset.EFFECT,
+    nonlinear_yaw_damping.EFFECT,
+    rudder_delay.EFFECT,
+    rudder_lag.EFFECT,
+    speed_loss.EFFECT,
+    nonlinear_sway_damping.EFFECT,
+    sway_yaw_coupling.EFFECT,
+    rudder_saturation.EFFECT,
+    rudder_asymmetry.EFFECT,
+)
+BY_NAME = {e.name: e for e in CATALOGUE}
+NAMES = tuple(BY_NAME)
+
+__all__ = [
+    "CATALOGUE",
+    "BY_NAME",
+    "NAMES",
+    "FEATURES",
+    "Context",
+    "Effect",
+    "Form",
+    "Param",
+    "Terms",
+    "feature_value",
+]

@@ -1,0 +1,176 @@
+"""The effect object of the diagnosis catalogue (SPEC section 7) and what an effect may use.
+
+An effect is a small object (one module per effect, registered in
+:data:`pipeline.diagnose.effects.CATALOGUE`):
+
+- ``name`` (SPEC section 7) and ``forms``: one or more parameterisations (e.g. Norrbin r^3 or r|r|);
+  the fit tries every form and keeps the one of least TRAINING cost;
+- every form's :class:`Param` list: name with unit suffix, null value (the effect absent), bounds,
+  start, unit;
+- its contribution to the equations of motion, in one of two kinds:
+  * terms linear in the parameters added to dv/dt or dr/dt (``Param.feature`` = (feature code,
+    equation)); the features are the functions of (v, r) in :data:`FEATURES`;
+  * a transformation of the effective rudder, or of the coefficients with speed, set through
+    :meth:`Effect.apply` on :class:`Terms` (offset, dead time, servo lag, saturation, asymmetry,
+    speed exponent);
+- ``signature``: what it leaves in the residuals of a model without it (words, and
+  :meth:`Effect.signature_series` for the residual-structure table);
+- its materiality floor (:meth:`Effect.material`) with the physical reason (``floor_reason``);
+- :meth:`Effect.physical`: one sentence a naval architect would accept.
+
+Units: v m/s, r deg/s, psi deg, delta deg, time s, u m/s (SPEC section 2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: feature codes of the numba kernel: f(v m/s, r deg/s)
+FEATURES = {
+    0: "r^3",
+    1: "r|r|",
+    2: "v|v|",
+    3: "v^2 r",
+    4: "v r^2",
+    5: "v|r|",
+    6: "|v| r",
+    7: "v^3",
+}
+#: equation index of a feature term: 0 adds to dv/dt (m/s^2), 1 to dr/dt (deg/s^2)
+V_EQ, R_EQ = 0, 1
+
+
+def feature_value(code: int, v, r):
+    """Reference (numpy) value of feature ``code`` at (v m/s, r deg/s); the kernel's copy is held to
+    this by tests/test_diagnose_effects.py."""
+    v = np.asarray(v, dtype=float)
+    r = np.asarray(r, dtype=float)
+    return {
+        0: lambda: r**3,
+        1: lambda: r * np.abs(r),
+        2: lambda: v * np.abs(v),
+        3: lambda: v * v * r,
+        4: lambda: v * r * r,
+        5: lambda: v * np.abs(r),
+        6: lambda: np.abs(v) * r,
+        7: lambda: v**3,
+    }[code]()
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter of an effect.  ``lo``/``hi``/``start`` are in ``unit`` unless ``time_scaled``, in
+    which case they are multiples of the ship's time scale T_ship (s) so that bounds do not depend on
+    the scale of the data."""
+
+    name: str
+    null: float
+    lo: float
+    hi: float
+    start: float
+    unit: str
+    feature: tuple[int, int] | None = None  # (feature code, equation) for a term linear in the parameter
+    time_scaled: bool = False
+
+    def bounds(self, ctx: Context) -> tuple[float, float]:
+        k = ctx.t_ship if self.time_scaled else 1.0
+        return self.lo * k, self.hi * k
+
+    def start_value(self, ctx: Context) -> float:
+        return self.start * (ctx.t_ship if self.time_scaled else 1.0)
+
+
+@dataclass(frozen=True)
+class Form:
+    name: str
+    params: tuple[Param, ...]
+
+
+@dataclass
+class Terms:
+    """Everything the simulation kernel needs beyond the six linear parameters (null = no effect)."""
+
+    feat_code: list = field(default_factory=list)
+    feat_eq: list = field(default_factory=list)
+    feat_coef: list = field(default_factory=list)
+    offset_deg: float = 0.0
+    delay_s: float = 0.0
+    lag_s: float = 0.0
+    rudder_cubic_per_deg2: float = 0.0
+    asymmetry: float = 0.0
+    speed_exponent: float = 0.0
+
+
+@dataclass(frozen=True)
+class Context:
+    """What the data say about the ship, for bounds, floors and physical readings (training runs).
+
+    t_ship s: the ship's own time scale (first-order Nomoto |T| from equation error); h s: sample step;
+    d_max deg, r_max deg/s, v_max m/s: largest |delta|, |r|, |v| (99.5th percentile); u_ref m/s:
+    approach speed (None without u); u_min_ratio: lowest u/u_ref; b21 (deg/s^2)/deg: rudder yaw
+    effectiveness of the fitted model (for moments); lpp_m: model length if the metadata has it.
+    """
+
+    t_ship: float
+    h: float
+    d_max: float
+    r_max: float
+    v_max: float
+    u_ref: float | None = None
+    u_min_ratio: float | None = None
+    lpp_m: float | None = None
+
+
+class Effect:
+    """Base class; a concrete effect sets the class attributes and overrides what it needs."""
+
+    name: str = ""
+    forms: tuple[Form, ...] = ()
+    words: str = ""  # short noun phrase
+    term: str = ""  # its contribution to the equations of motion
+    signature: str = ""  # what it leaves in the residuals of a model without it
+    floor_reason: str = ""  # the physical reason of the materiality floor
+    needs_u: bool = False
+
+    def form(self, name: str | None = None) -> Form:
+        if name is None:
+            return self.forms[0]
+        return next(f for f in self.forms if f.name == name)
+
+    def applicable(self, ctx: Context) -> str | None:
+        """None when the effect can be tried on these data, else the reason it cannot."""
+        if self.needs_u and ctx.u_ref is None:
+            return "the runs have no surge speed u"
+        return None
+
+    def apply(self, form: Form, values: dict, terms: Terms) -> None:
+        """Add the effect to ``terms``: feature terms by default; input effects override."""
+        for p in form.params:
+            if p.feature is not None:
+                terms.feat_code.append(p.feature[0])
+                terms.feat_eq.append(p.feature[1])
+                terms.feat_coef.append(float(values[p.name]))
+
+    def material(self, form: Form, values: dict, ctx: Context, response_change: float) -> tuple[bool, str]:
+        """(material?, floor text).  ``response_change``: relative change of the peak yaw rate of the
+        largest training manoeuvre when the effect is removed from the fitted model."""
+        return bool(response_change >= 0.05), (
+            f"changes the peak yaw rate of the largest manoeuvre by {response_change:.1%} (floor 5 %)"
+        )
+
+    def physical(self, form: Form, values: dict, ctx: Context) -> str:
+        return f"{self.words}: " + ", ".join(f"{k} = {v:.3g}" for k, v in values.items())
+
+    def extra_estimate(self, form: Form, values: dict, ctx: Context) -> dict:
+        """Derived quantities reported beside the parameters (SI/deg units)."""
+        return {}
+
+    def signature_series(self, v, r, delta, ddelta, u_ratio) -> np.ndarray | None:
+        """Regressor of the yaw-acceleration error that a model without the effect leaves."""
+        return None
+
+
+def response_floor_text(response_change: float, floor: float = 0.05) -> str:
+    return f"changes the peak yaw rate of the largest manoeuvre by {response_change:.1%} (floor {floor:.0%})"

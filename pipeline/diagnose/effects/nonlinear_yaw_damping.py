@@ -1,0 +1,46 @@
+"""nonlinear_yaw_damping: yaw damping growing faster than linearly with r (Norrbin r^3, or r|r|)."""
+
+from __future__ import annotations
+
+from pipeline.diagnose.effects.base import R_EQ, Context, Effect, Form, Param, response_floor_text
+
+#: least relative change of the largest manoeuvre's peak yaw rate for the damping to be named: a
+#: turning or zigzag prediction within 5 % is what model tests are trusted to (ITTC repeatability)
+MIN_RESPONSE = 0.05
+
+
+class NonlinearYawDamping(Effect):
+    name = "nonlinear_yaw_damping"
+    forms = (
+        Form("cubic", (Param("n_rrr_s_per_deg2", 0.0, -1.0, 1.0, 0.0, "s/deg^2", feature=(0, R_EQ)),)),
+        Form("abs", (Param("n_rr_per_deg", 0.0, -2.0, 2.0, 0.0, "1/deg", feature=(1, R_EQ)),)),
+    )
+    words = "nonlinear yaw damping"
+    term = "dr/dt gains n_rrr r^3 (cubic form) or n_rr r|r| (modulus form); negative = more damping"
+    signature = "yaw-acceleration error odd in r, growing with |r|: large manoeuvres over-predicted"
+    floor_reason = (
+        f"changes the peak yaw rate of the largest manoeuvre by >= {MIN_RESPONSE:.0%} "
+        "(the precision model tests are trusted to)"
+    )
+
+    def material(self, form, values, ctx, response_change):
+        return bool(response_change >= MIN_RESPONSE), response_floor_text(response_change, MIN_RESPONSE)
+
+    def physical(self, form, values, ctx: Context) -> str:
+        ((k, val),) = values.items()
+        term = val * ctx.r_max**3 if form.name == "cubic" else val * ctx.r_max**2
+        more = "more" if val < 0 else "less"
+        return (
+            f"yaw damping grows with the rate of turn ({form.name} form, {k} = {val:.3g}): at "
+            f"r = {ctx.r_max:.2f} deg/s it adds {abs(term):.3g} deg/s^2 of {more} damping, so indices from "
+            f"small manoeuvres mis-predict large ones"
+        )
+
+    def extra_estimate(self, form, values, ctx):
+        return {"r_max_deg_s": ctx.r_max, "form": form.name}
+
+    def signature_series(self, v, r, delta, ddelta, u_ratio):
+        return r**3
+
+
+EFFECT = NonlinearYawDamping()

@@ -1,0 +1,47 @@
+"""rudder_saturation: the rudder force stops growing linearly with the angle (a cubic term in delta)."""
+
+from __future__ import annotations
+
+from pipeline.diagnose.effects.base import Effect, Form, Param, Terms
+
+#: floor: the force at the largest rudder angle differs from the linear one by >= 5 % (the precision
+#: a rudder force is measured to in captive tests)
+MIN_FORCE_CHANGE = 0.05
+
+
+class RudderSaturation(Effect):
+    name = "rudder_saturation"
+    forms = (Form("cubic", (Param("rudder_cubic_per_deg2", 0.0, -5e-3, 5e-3, 0.0, "1/deg^2"),)),)
+    words = "a saturating rudder force"
+    term = "rudder force ~ delta_eff + c delta_eff^3 (c < 0: saturation/stall)"
+    signature = "yaw-acceleration error odd in delta, growing with |delta|^3"
+    floor_reason = f"force at the largest rudder angle changed by >= {MIN_FORCE_CHANGE:.0%}"
+
+    def apply(self, form, values, terms: Terms) -> None:
+        terms.rudder_cubic_per_deg2 = float(values["rudder_cubic_per_deg2"])
+
+    def material(self, form, values, ctx, response_change):
+        ch = abs(values["rudder_cubic_per_deg2"]) * ctx.d_max**2
+        return bool(ch >= MIN_FORCE_CHANGE), (
+            f"rudder force at {ctx.d_max:.0f} deg changed by {ch:.1%} (floor {MIN_FORCE_CHANGE:.0%})"
+        )
+
+    def physical(self, form, values, ctx):
+        ch = values["rudder_cubic_per_deg2"] * ctx.d_max**2
+        what = "less" if ch < 0 else "more"
+        return (
+            f"at {ctx.d_max:.0f} deg the rudder gives {abs(ch):.0%} {what} force than a linear rudder "
+            f"(stall or saturation of the lift at large angles)"
+        )
+
+    def extra_estimate(self, form, values, ctx):
+        return {
+            "force_change_at_max_rudder": values["rudder_cubic_per_deg2"] * ctx.d_max**2,
+            "max_rudder_deg": ctx.d_max,
+        }
+
+    def signature_series(self, v, r, delta, ddelta, u_ratio):
+        return delta**3
+
+
+EFFECT = RudderSaturation()

@@ -1,0 +1,44 @@
+"""sway_yaw_coupling: nonlinear sway-yaw cross terms v^2 r and v r^2 in both equations (Abkowitz)."""
+
+from __future__ import annotations
+
+from pipeline.diagnose.effects.base import R_EQ, V_EQ, Effect, Form, Param, response_floor_text
+
+MIN_RESPONSE = 0.05  # as nonlinear_yaw_damping
+
+
+class SwayYawCoupling(Effect):
+    name = "sway_yaw_coupling"
+    forms = (
+        Form(
+            "abkowitz",
+            (
+                Param("y_vvr_s_per_m_deg", 0.0, -1e3, 1e3, 0.0, "s/(m deg)", feature=(3, V_EQ)),
+                Param("y_vrr_s2_per_deg2", 0.0, -10.0, 10.0, 0.0, "s^2/deg^2", feature=(4, V_EQ)),
+                Param("n_vvr_s_per_m2", 0.0, -1e5, 1e5, 0.0, "s/m^2", feature=(3, R_EQ)),
+                Param("n_vrr_s_per_m_deg", 0.0, -1e3, 1e3, 0.0, "s/(m deg)", feature=(4, R_EQ)),
+            ),
+        ),
+    )
+    words = "nonlinear sway-yaw coupling"
+    term = "dv/dt and dr/dt each gain c_vvr v^2 r + c_vrr v r^2 (Abkowitz cross terms)"
+    signature = "errors that grow with the product of drift and turn: large manoeuvres mis-shaped in v and r"
+    floor_reason = f"changes the peak yaw rate of the largest manoeuvre by >= {MIN_RESPONSE:.0%}"
+
+    def material(self, form, values, ctx, response_change):
+        return bool(response_change >= MIN_RESPONSE), response_floor_text(response_change, MIN_RESPONSE)
+
+    def physical(self, form, values, ctx):
+        v, r = ctx.v_max, ctx.r_max
+        yaw = values["n_vvr_s_per_m2"] * v * v * r + values["n_vrr_s_per_m_deg"] * v * r * r
+        return (
+            f"the hull's yaw moment depends on drift and turn together: at v = {v:.3f} m/s, "
+            f"r = {r:.2f} deg/s the cross terms add {yaw:+.3g} deg/s^2 to the yaw acceleration, "
+            f"which a linear (or r-only) model cannot carry"
+        )
+
+    def signature_series(self, v, r, delta, ddelta, u_ratio):
+        return v * v * r
+
+
+EFFECT = SwayYawCoupling()

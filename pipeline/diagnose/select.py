@@ -1,0 +1,343 @@
+"""Choosing the extended model: stepwise over the effect catalogue, judged on held-out runs.
+
+Rule (stated, nothing else decides):
+
+- Forward with refits: from the current structure S (start: the linear baseline), every effect of
+  the catalogue not in S is added (each of its forms fitted on the training runs; the form of least
+  TRAINING cost is kept) and refitted jointly, warm-started from S's fit, in every fold.  The
+  candidates are ranked by the pooled relative reduction of held-out free-run MAE psi; the first that
+  passes :func:`step_passes` joins S.  Up to ``max_effects`` effects.
+- Among passing candidates the one-standard-error rule picks the fewest parameters (:func:`_one_se`).
+- Pairs: when no single effect passes, pairs among the best ``pair_top`` single candidates, each
+  member needed (:func:`_best_pair`).
+- Backward elimination: every effect of S is dropped in turn (S refitted without it); when the step
+  back (S without it -> S) no longer passes, the effect of least worth leaves; repeated.
+- Cause: the effect with the largest drop-one worth in the final S.
+
+A step S -> S' passes when ALL hold (:func:`step_passes`):
+- relative: pooled held-out MAE psi falls by >= ``min_gain`` and falls in every fold;
+- absolute: the mean held-out MAE psi cut is above the heading noise level (max of twice the
+  measured heading noise and ``min_abs_gain_deg``, a tank's heading repeatability);
+- significant: one-sided t-test of the per-block MAE differences with G - 1 degrees of freedom
+  (G blocks of ``block_T`` ship time scales over all held-out runs; t with G-1 dof, not a normal
+  z, because G is small: Cameron, Gelbach & Miller 2008), at level ``alpha``;
+- material: the new effect's estimate exceeds its physical floor (the effect's own
+  :meth:`~.effects.base.Effect.material`) in every fold.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from pipeline.config import DiagnoseConfig
+from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
+from pipeline.diagnose.fit import FitResult, Series, evaluate, fit_structure, simulate_fit, structure_of
+from pipeline.errors import ModelError
+
+
+@dataclass
+class Fold:
+    train: list[Series]
+    val: list[Series]
+
+    @property
+    def name(self) -> str:
+        return (
+            f"train {' + '.join(s.name for s in self.train)}, validate {' + '.join(s.name for s in self.val)}"
+        )
+
+
+@dataclass
+class Step:
+    """S -> S' judged on the held-out runs of the folds."""
+
+    passes: bool
+    gain: float  # pooled relative reduction of held-out MAE psi
+    gains: list  # per fold
+    abs_gain_deg: float
+    t: float
+    t_crit: float
+    blocks: int
+    material: bool
+    floor: str
+    why: list = field(default_factory=list)
+    mean_diff: float = 0.0  # deg, mean per-block held-out MAE cut
+    se: float = float("inf")  # deg, its standard error over the blocks
+    structure: tuple = ()  # the structure judged (after the step)
+
+
+def heading_noise_deg(series: list[Series], t_ship: float) -> float:
+    """Heading measurement noise (deg): std of psi about a local quadratic over a tenth of T_ship."""
+    from scipy.signal import savgol_filter
+
+    res = []
+    for s in series:
+        win = max(5, int(round(0.1 * t_ship / s.h)) | 1)
+        win = min(win, s.t.size - (1 - s.t.size % 2))
+        res.append(s.psi - savgol_filter(s.psi, win, 2))
+    return float(np.std(np.concatenate(res)))
+
+
+class Search:
+    """Fits and held-out evaluations of structures in folds, cached by (fold, structure)."""
+
+    def __init__(self, folds: list[Fold], ctx: Context, cfg: DiagnoseConfig):
+        self.folds, self.ctx, self.cfg = folds, ctx, cfg
+        self._fits: dict = {}
+        self._evals: dict = {}
+        self.block_s = cfg.block_T * ctx.t_ship
+
+    def fit(self, k: int, structure, start: FitResult | None = None) -> FitResult:
+        key = (k, structure_of(*structure))
+        if key not in self._fits:
+            self._fits[key] = fit_structure(
+                self.folds[k].train,
+                key[1],
+                self.ctx,
+                start=start,
+                max_nfev=self.cfg.max_nfev,
+                block_T=self.cfg.block_T,
+            )
+        return self._fits[key]
+
+    def eval(self, k: int, structure):
+        key = (k, structure_of(*structure))
+        if key not in self._evals:
+            self._evals[key] = evaluate(self._fits[key], self.folds[k].val)
+        return self._evals[key]
+
+    def choose_form(self, ks, base, effect: str):
+        """Fit every form of ``effect`` added to ``base`` in folds ``ks``; the form of least summed
+        TRAINING cost (returns the structure, or None if no form could be fitted)."""
+        best, best_cost = None, np.inf
+        for form in BY_NAME[effect].forms:
+            st = structure_of(*base, (effect, form.name))
+            try:
+                cost = sum(self.fit(k, st, start=self.fit(k, base)).cost for k in ks)
+            except ModelError:
+                continue
+            if cost < best_cost:
+                best, best_cost = st, cost
+        return best
+
+    def response_change(self, k: int, structure, effect: str) -> float:
+        """Relative change of the yaw rate of the largest training manoeuvre when ``effect`` is set to
+        its null values in the fitted ``structure`` (max |r_with - r_without| / max |r_with|)."""
+        f = self.fit(k, structure)
+        s = max(self.folds[k].train, key=lambda x: float(np.percentile(np.abs(x.delta), 99)))
+        from pipeline.diagnose.fit import Layout
+
+        layout = Layout(f.structure, self.ctx)
+        p = f.p.copy()
+        for i, (e, prm) in enumerate(layout.params, start=6):
+            if e == effect:
+                p[i] = prm.null
+        th, tm, _ = layout.unpack(p)
+        a = simulate_fit(f, s)[:, 1]
+        b = simulate_fit(f, s, th, tm)[:, 1]
+        return float(np.max(np.abs(a - b)) / max(np.max(np.abs(a)), 1e-12))
+
+    def step(self, ks, before, after, effect: str, noise_deg: float) -> Step:
+        """Judge ``before`` -> ``after`` (which adds ``effect``) on the held-out runs of folds ``ks``."""
+        cfg = self.cfg
+        gains, cuts, bsum, asum, diffs = [], [], 0.0, 0.0, []
+        for k in ks:
+            (mb, pb), (ma, pa) = self.eval(k, before), self.eval(k, after)
+            gains.append(_gain(mb["mae_psi_deg"], ma["mae_psi_deg"]))
+            cuts.append(mb["mae_psi_deg"] - ma["mae_psi_deg"])
+            bsum += mb["mae_psi_deg"]
+            asum += ma["mae_psi_deg"]
+            for s, xb, xa in zip(self.folds[k].val, pb, pa, strict=True):
+                eb, ea = np.abs(xb["sim"][:, 2] - s.psi), np.abs(xa["sim"][:, 2] - s.psi)
+                blk = np.floor((s.t - s.t[0]) / self.block_s).astype(int)
+                for b in np.unique(blk):
+                    m = blk == b
+                    if m.sum() >= max(5, 0.5 * self.block_s / s.h):  # a trailing stub is no block
+                        diffs.append(float(eb[m].mean() - ea[m].mean()))
+        gain = _gain(bsum, asum)
+        abs_gain = float(np.mean(cuts))
+        g = len(diffs)
+        if g >= 3 and np.std(diffs, ddof=1) > 0:
+            t = float(np.mean(diffs) / (np.std(diffs, ddof=1) / np.sqrt(g)))
+            tc = float(stats.t.ppf(1.0 - cfg.alpha, g - 1))
+        else:
+            t, tc = (np.inf if g >= 3 and np.mean(diffs) > 0 else -np.inf), np.inf
+        mats, floors = [], []
+        for k in ks:
+            f = self.fit(k, after)
+            form = f.form(effect)
+            ok, text = BY_NAME[effect].material(
+                form, f.values[effect], self.ctx, self.response_change(k, after, effect)
+            )
+            mats.append(ok)
+            floors.append(text)
+        floor_abs = max(2.0 * noise_deg, cfg.min_abs_gain_deg)
+        why = []
+        if gain < cfg.min_gain:
+            why.append(f"held-out gain {gain:.0%} below {cfg.min_gain:.0%}")
+        if min(gains) <= 0:
+            why.append("not better in every fold")
+        if abs_gain < floor_abs:
+            why.append(f"held-out heading cut {abs_gain:.3f} deg below the noise level {floor_abs:.3f} deg")
+        if not t >= tc:
+            why.append(
+                f"block t = {t:.2f} below t(0.95, {g - 1}) = {tc:.2f}" if g >= 3 else "fewer than 3 blocks"
+            )
+        if not all(mats):
+            why.append("below its physical floor: " + floors[0])
+        return Step(
+            passes=not why,
+            gain=gain,
+            gains=gains,
+            abs_gain_deg=abs_gain,
+            t=t,
+            t_crit=tc,
+            blocks=g,
+            material=all(mats),
+            floor="; ".join(dict.fromkeys(floors)),
+            why=why,
+            structure=structure_of(*after),
+            mean_diff=float(np.mean(diffs)) if diffs else 0.0,
+            se=float(np.std(diffs, ddof=1) / np.sqrt(g)) if g >= 2 else float("inf"),
+        )
+
+
+def _gain(base: float, ext: float) -> float:
+    return float((base - ext) / base) if base > 0 else 0.0
+
+
+@dataclass
+class Selection:
+    structure: tuple
+    ladder: list  # [(structure, step or None)]
+    alone: dict  # effect -> Step of baseline -> +effect (round 1)
+    last: dict  # effect -> Step of final -> final + effect (not chosen) or drop-one (chosen)
+    worth: dict  # chosen effect -> drop-one Step
+    cause: str
+    untried: dict  # effect -> reason
+
+
+def _n_params(effect: str, structure) -> int:
+    return len(BY_NAME[effect].form(dict(structure)[effect]).params)
+
+
+def _one_se(ranked):
+    """Among the passing candidates, the one-standard-error rule (Breiman et al. 1984; Hastie,
+    Tibshirani & Friedman): every candidate whose mean per-block held-out cut is within one standard
+    error of the best one's is as good as the data can tell, and the one with the FEWEST parameters
+    is taken (then the larger gain).  Without it a four-parameter cross-term set that mimics a
+    one-parameter cubic damping (v r^2 ~ r^3 when drift follows turn) is preferred for fitting noise."""
+    ok = [(e, st, s) for e, (st, s) in ranked if s.passes]
+    if not ok:
+        return None
+    best = max(ok, key=lambda x: x[2].mean_diff)
+    tie = [x for x in ok if x[2].mean_diff >= best[2].mean_diff - best[2].se]
+    return min(tie, key=lambda x: (_n_params(x[0], x[1]), -x[2].gain))
+
+
+def _best_pair(search: Search, ks, cur, ranked, noise_deg):
+    """Two effects that pass only together (an offset that hurts a model whose damping is wrong and
+    helps a great deal once it is right): tried when no single effect passes, among the ``pair_top``
+    best single candidates.  The pair passes when the step cur -> cur + pair passes with EACH member's
+    physical floor, and each member is needed: the step from (cur + the other member) to the pair passes
+    too.  Returns (first member, pair structure, step) of the best passing pair by pooled gain, or None."""
+    best = None
+    for i, (a, (st_a, _)) in enumerate(ranked):
+        for b, (st_b, _) in ranked[i + 1 :]:
+            pair = structure_of(*st_a, *[x for x in st_b if x[0] == b])
+            try:
+                for k in ks:
+                    starts = [search.fit(k, st_a), search.fit(k, st_b)]
+                    cand = []
+                    for st0 in starts:
+                        key = (k, structure_of(*pair))
+                        search._fits.pop(key, None)
+                        search._evals.pop(key, None)
+                        cand.append(search.fit(k, pair, start=st0))
+                    search._fits[(k, structure_of(*pair))] = min(cand, key=lambda f: f.cost)
+            except ModelError:
+                continue
+            sa = search.step(ks, cur, pair, a, noise_deg)
+            sb = search.step(ks, cur, pair, b, noise_deg)
+            if not (sa.passes and sb.passes):
+                continue
+            need_a = search.step(ks, st_b, pair, a, noise_deg)
+            need_b = search.step(ks, st_a, pair, b, noise_deg)
+            if need_a.passes and need_b.passes and (best is None or sa.gain > best[2].gain):
+                best = (a, pair, sa)
+    return best
+
+
+def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Selection:
+    """Stepwise selection (module docstring) judged on folds ``ks`` of ``search``."""
+    cfg, ctx = search.cfg, search.ctx
+    untried = {e.name: e.applicable(ctx) for e in CATALOGUE if e.applicable(ctx)}
+    names = [e.name for e in CATALOGUE if e.name not in untried]
+    cur: tuple = ()
+    for k in ks:
+        search.fit(k, cur)
+    ladder = [(cur, None)]
+    alone: dict = {}
+    last: dict = {}
+
+    def round_(base):
+        out = {}
+        for e in names:
+            if e in dict(base):
+                continue
+            st = search.choose_form(ks, base, e)
+            if st is None:
+                continue
+            out[e] = (st, search.step(ks, base, st, e, noise_deg))
+            if progress:
+                progress(e)
+        return out
+
+    last_base = None
+    while len(cur) < cfg.max_effects:
+        cands = round_(cur)
+        last_base = cur
+        if not cur:
+            alone = {e: s for e, (_, s) in cands.items()}
+        last = {e: s for e, (_, s) in cands.items()}
+        ranked = sorted(cands.items(), key=lambda kv: -kv[1][1].gain)
+        pick = _one_se(ranked)
+        if pick is None and len(cur) + 2 <= cfg.max_effects:
+            pick = _best_pair(search, ks, cur, ranked[: cfg.pair_top], noise_deg)
+        if pick is None:
+            break
+        e, st, s = pick
+        cur = st
+        ladder.append((cur, s))
+    # backward elimination
+    while len(cur) >= 2:
+        worst = None
+        for e, _ in cur:
+            without = tuple(x for x in cur if x[0] != e)
+            for k in ks:
+                search.fit(k, without, start=search.fit(k, cur))
+            s = search.step(ks, without, cur, e, noise_deg)
+            if not s.passes and (worst is None or s.gain < worst[1].gain):
+                worst = (e, s)
+        if worst is None:
+            break
+        cur = tuple(x for x in cur if x[0] != worst[0])
+        ladder.append((cur, None))
+    worth = {}
+    for e, _ in cur:
+        without = tuple(x for x in cur if x[0] != e)
+        for k in ks:
+            search.fit(k, without, start=search.fit(k, cur))
+        worth[e] = search.step(ks, without, cur, e, noise_deg)
+    if last_base != cur and len(cur) < cfg.max_effects:
+        # what every effect not chosen would add to the FINAL model
+        last = {e: s for e, (_, s) in round_(cur).items()}
+    last = {e: s for e, s in last.items() if e not in dict(cur)}
+    last.update(worth)
+    cause = max(worth, key=lambda e: worth[e].gain) if worth else "none"
+    return Selection(
+        structure=cur, ladder=ladder, alone=alone, last=last, worth=worth, cause=cause, untried=untried
+    )

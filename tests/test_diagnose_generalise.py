@@ -1,0 +1,230 @@
+"""Does the diagnosis generalise? Cases judged against truths NOT written in its own formulas (issue #11).
+
+The truths (tests/truths/, no import of pipeline.model or pipeline.diagnose):
+
+- :mod:`truths.swayyaw`: a continuous-time sway-yaw ship integrated by RK4 at 0.01 s (one case at
+  0.0025 s), logged at 0.08 s, with a rate-limited servo, zigzag logic on the measured heading, two
+  ships that are not the paper's (fast and strongly stable; slow and nearly course-unstable) and
+  effects in forms of their own (servo lag, r|r|, tanh stall, |.| cross terms, ...), AR(1) sensor
+  noise and rudder encoder quantisation.  32 seeded cases (:func:`truths.cases.draw_cases`, seed
+  ``DiagnoseConfig().seed + 2``), each trained on 20/20 S + 10/10 P, validated on 20/20 P + 10/10 S
+  and, when the diagnosis API takes ``test``, reported on 15/15 S + 15/15 P.  What counts as right
+  is stated in :mod:`truths.cases` (clean -> "none"; an injected effect -> its name, significant,
+  held-out gain >= 30 %, estimate within 25 % where the form matches).
+- :mod:`truths.kvlcc2`: another ship and tank: the KVLCC2 MMG model (Yasukawa & Yoshimura 2015) at
+  full scale written as MARIN SIMMAN .dat files, read with ``--scale 45.7``.  Side-swap folds (train
+  starboard 20/20 + 10/10, validate port; and the reverse): each must name a cause and cut the
+  held-out heading MAE by >= 50 % (issue #11, item 7).
+- Scale invariance: the same KVLCC2 runs (a) Froude-scaled to model scale and read without
+  ``--scale``, (b) read at full scale without ``--scale`` (a 320 m "model"; logged step scaled by
+  sqrt(45.7) so that the runs have the same number of samples): the cause must be the one found
+  with ``--scale 45.7``.
+
+Every raw file goes through ``ingest`` (canonical CSV or MARIN .dat), as a user's data would.
+Marker ``generalise`` selects these tests (``pytest -m generalise``); ``python
+tests/truths/run_cases.py`` prints the table of every case.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import inspect
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from truths import cases as tc
+from truths import kvlcc2 as kv
+from truths import swayyaw as sy
+from truths.files import froude_to_model, marin_test_name, write_marin
+
+from pipeline.config import DiagnoseConfig, IngestConfig
+from pipeline.ingest import ingest_file
+
+pytestmark = [pytest.mark.generalise, pytest.mark.slow]
+
+SEED = DiagnoseConfig().seed + 2
+CASES = tc.draw_cases(SEED)
+SCALE = 45.7
+KV_DURATION = 800.0       # s full scale (118 s at 1:45.7): 2-3 zigzag periods of the 20/20
+KV_LEGS = ((20, "starboard"), (10, "starboard"), (20, "port"), (10, "port"))
+KV_MIN_GAIN = 0.50        # issue #11 item 7: each side-swap fold cuts the held-out heading MAE by half
+
+
+# ------------------------------------------------------------------------------------------ runner
+def load(path: Path, scale: float | None = None, dt: float | None = None):
+    """A raw file through ingest, as ``diagnose --train FILE`` reads it (run id = file stem)."""
+    cfg = IngestConfig() if dt is None else dc.replace(IngestConfig(), dt=dt)
+    run = ingest_file(path, scale=scale, config=cfg)
+    run.meta["run_id"] = path.stem
+    return run
+
+
+def diagnose_report(train, validate, test=None) -> dict:
+    """diagnosis.json of pipeline.diagnose.diagnose; ``test`` runs passed when the API takes them."""
+    from pipeline.diagnose import diagnose
+
+    kw = {}
+    if test and "test" in inspect.signature(diagnose).parameters:
+        kw["test"] = test
+    out = diagnose(train, validate, **kw)
+    return out.report if hasattr(out, "report") else out
+
+
+def run_case(case: tc.Case, folder: Path) -> tuple[dict, float]:
+    """(diagnosis report, CPU seconds of the diagnosis) of one sway-yaw case."""
+    paths = tc.write_runs(case, folder)
+    runs = {k: [load(p) for p in v] for k, v in paths.items()}
+    t0 = time.process_time()
+    rep = diagnose_report(runs["train"], runs["validate"], runs["test"])
+    return rep, time.process_time() - t0
+
+
+def write_kvlcc2(folder: Path, seed: int) -> dict[tuple[int, str], Path]:
+    """The four KVLCC2 zigzags as full-scale MARIN .dat files (and their model-scale twins)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    ship = kv.KVLCC2()
+    out = {}
+    for j, (a, side) in enumerate(KV_LEGS):
+        f = kv.simulate_zigzag(ship, a, a, side, duration=KV_DURATION, seed=seed + j)
+        name = f"kvlcc2_zz{a}_{side[0].upper()}"
+        out[(a, side)] = write_marin(f, folder / f"{name}.dat", marin_test_name("KVLCC2", a, a))
+        out[(a, side, "model")] = write_marin(froude_to_model(f, SCALE), folder / f"{name}_model.dat",
+                                              marin_test_name("KVLCC2", a, a))
+    return out
+
+
+def kvlcc2_fold(files: dict, fold: int, how: str = "full") -> dict:
+    """Side-swap fold 1 (train starboard, validate port) or 2 (the reverse).
+
+    how: "full" (full-scale files, --scale 45.7), "model" (model-scale twins, no --scale),
+    "unscaled" (full-scale files read as if model scale, step 0.08 sqrt(45.7) s)."""
+    sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
+
+    def get(side):
+        res = []
+        for a in (20, 10):
+            if how == "full":
+                res.append(load(files[(a, side)], scale=SCALE))
+            elif how == "model":
+                res.append(load(files[(a, side, "model")]))
+            else:
+                res.append(load(files[(a, side)], dt=0.08 * math.sqrt(SCALE)))
+        return res
+
+    return diagnose_report(get(sides[0]), get(sides[1]))
+
+
+# ------------------------------------------------------------------------------ truths hold up
+def test_truth_signs_and_nomoto():
+    """The truths keep SPEC section 2's signs; each ship's coefficients give back its Nomoto indices."""
+    for ship in sy.SHIPS.values():
+        back = sy.coefficients_to_nomoto(ship.coefficients)
+        for k in ("K", "T1", "T2", "T3"):
+            assert back[k] == pytest.approx(getattr(ship, k), rel=1e-9), (ship.name, k)
+        f = sy.simulate(sy.Truth(ship=ship), sy.Zigzag(10, 1e9, "starboard", 20.0), seed=0, noise=False)
+        assert f["r"].iloc[-1] > 0 and f["v"].iloc[-1] < 0    # starboard rudder: r > 0, drift outward
+        assert f["psi"].iloc[-1] > 0 and f["y0"].iloc[-1] > 0  # heading and track to starboard
+    s = kv.check_signs()
+    assert s["r_deg_s"] > 0 and s["v_m_s"] < 0
+
+
+def test_truth_effects_are_what_they_say():
+    """Servo lag and dead time act as stated; AR(1) noise has the stated correlation; quantisation."""
+    base = sy.Truth(ship=sy.FAST)
+    zz = sy.Zigzag(20, 20, "starboard", 12.0)
+    f = sy.simulate(base.with_effects(delay_s=0.5), zz, seed=0, noise=False).attrs["true"]
+    t, d, de = f["time"].to_numpy(), f["delta"].to_numpy(), f["delta_eff"].to_numpy()
+    assert np.allclose(de[t > 1.0], np.interp(t[t > 1.0] - 0.5, t, d), atol=1.0)  # 0.08 s grid
+    g = sy.simulate(base.with_effects(lag_s=0.8), zz, seed=0, noise=False).attrs["true"]
+    d = g["delta"].to_numpy()
+    lagged = np.zeros_like(d)  # the logged rudder through tau y' = x - y, exact for a held input
+    a = math.exp(-0.08 / 0.8)
+    for k in range(1, d.size):
+        lagged[k] = a * lagged[k - 1] + (1 - a) * 0.5 * (d[k] + d[k - 1])
+    assert np.max(np.abs(g["delta_eff"].to_numpy() - lagged)) < 0.3
+    assert np.max(np.abs(g["delta_eff"].to_numpy() - d)) > 10.0    # and it is a real lag
+    sen = sy.Sensors(ar1_phi=0.95, noise_psi=0.1)
+    h = sy.simulate(sy.Truth(ship=sy.FAST, sensors=sen), sy.Zigzag(10, 10, "port", 400.0), seed=3)
+    e = h["psi"].to_numpy() - h.attrs["true"]["psi"].to_numpy()
+    rho = np.corrcoef(e[1:], e[:-1])[0, 1]
+    assert abs(rho - 0.95) < 0.03 and abs(e.std() - 0.1) < 0.03
+    q = sy.simulate(sy.Truth(ship=sy.FAST, sensors=sy.Sensors(noise_delta=0.0, quant_delta=0.1)), zz, seed=1)
+    assert np.allclose(q["delta"] * 10, np.round(q["delta"] * 10), atol=1e-9)
+
+
+def test_marin_file_round_trip(tmp_path):
+    """A KVLCC2 run written as MARIN .dat and ingested with --scale is the model-scale truth."""
+    f = kv.simulate_zigzag(kv.KVLCC2(), 20, 20, "port", duration=300.0, seed=1)
+    p = write_marin(f, tmp_path / "zz.dat", marin_test_name("KVLCC2", 20, 20))
+    lines = p.read_text().splitlines()
+    assert lines[1] == "Zig-zag manoeuvring for KVLCC2 : 20 / -20" and lines[2] == ""
+    assert len(lines[3].split("\t")) == 11 and lines[-1] == ""
+    run = load(p, scale=SCALE)
+    assert run.meta["first_side"] == "port" and run.meta["rudder_deg"] == 20
+    m = froude_to_model(f, SCALE)
+    t = run.frame["time"].to_numpy()
+    sel = (t > 5) & (t < t[-1] - 5)
+    for col, tol in (("psi", 0.15), ("r", 0.1), ("delta", 0.25), ("u", 0.01), ("v", 0.01)):
+        ref = np.interp(t, m["time"], m[col])
+        assert np.max(np.abs(run.frame[col].to_numpy() - ref)[sel]) < tol, col
+
+
+def test_kvlcc2_zigzags_against_published():
+    """Free-running check of the MMG KVLCC2 against SIMMAN 2008 (MARIN) figures.
+
+    Published first overshoots: 10/10 about 8 deg, 20/20 about 13 deg.  A wrong sign or unit in the
+    MMG model moves them by far more than the band here (3-12 and 8-20 deg), which allows for the
+    difference between an MMG prediction and a tank (Yasukawa & Yoshimura's own comparison shows a
+    few degrees either way) and for the side: the single propeller makes them side-dependent.
+    Measured (run_cases.py prints them): 10/10 5.1 S / 7.2 P, 20/20 10.6 S / 13.9 P deg.
+    """
+    s = kv.KVLCC2()
+    for a, lo, hi in ((10, 3.0, 12.0), (20, 8.0, 20.0)):
+        for side in ("starboard", "port"):
+            m = kv.zigzag_metrics(kv.simulate_zigzag(s, a, a, side, duration=400.0, noise=False), a)
+            assert lo < m["overshoots_deg"][0] < hi, (a, side, m)
+    # 20/20 of a full form loses a quarter to a third of its speed (ALGORITHMS; HSVA runs 30 %)
+    m = kv.zigzag_metrics(kv.simulate_zigzag(s, 20, 20, "starboard", duration=400.0, noise=False), 20)
+    assert 0.6 < m["lowest_speed_ratio"] < 0.8
+
+
+# ---------------------------------------------------------------------------- the 32 cases
+@pytest.mark.parametrize("case", CASES, ids=[f"{c.cid}-{c.ship}-{c.expected}" for c in CASES])
+def test_case(case, tmp_path):
+    rep, _ = run_case(case, tmp_path)
+    ok, why, fig = tc.judge(case, rep)
+    assert ok, f"{case.truth}: " + "; ".join(why) + f" | got {fig}"
+
+
+# ------------------------------------------------------------------ another ship and tank: KVLCC2
+@pytest.fixture(scope="module")
+def kv_files(tmp_path_factory):
+    return write_kvlcc2(tmp_path_factory.mktemp("kvlcc2"), seed=SEED * 100)
+
+
+@pytest.fixture(scope="module")
+def kv_reports(kv_files):
+    return {fold: kvlcc2_fold(kv_files, fold) for fold in (1, 2)}
+
+
+@pytest.mark.parametrize("fold", [1, 2])
+def test_kvlcc2_marin_side_swap(kv_reports, fold):
+    rep = kv_reports[fold]
+    gain = rep["gain"]["mae_psi_relative_reduction"]
+    assert rep["cause"] != "none", (rep["cause"], rep["baseline"]["validation"], rep["extended"])
+    assert gain is not None and gain >= KV_MIN_GAIN, (rep["cause"], gain, rep["baseline"]["validation"],
+                                                      rep["extended"])
+
+
+def test_kvlcc2_same_cause_model_scale_file(kv_files, kv_reports):
+    """Model-scale files (no --scale) and full-scale files with --scale 45.7: the same cause."""
+    assert kvlcc2_fold(kv_files, 1, "model")["cause"] == kv_reports[1]["cause"]
+
+
+def test_kvlcc2_same_cause_without_scale(kv_files, kv_reports):
+    """Full-scale files read without --scale are a Froude-similar ship (320 m): the verdict must not
+    depend on the unit of time.  Step 0.08 sqrt(45.7) s keeps the number of samples per run."""
+    assert kvlcc2_fold(kv_files, 1, "unscaled")["cause"] == kv_reports[1]["cause"]
