@@ -17,16 +17,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_effects_are_read_from_the_diagnosis_catalogue():
-    from pipeline.diagnose.extended import EFFECTS
+    from pipeline.diagnose.effects import CATALOGUE
 
-    cat = catalogue_effects()
-    try:
-        from pipeline.diagnose.effects import CATALOGUE  # the registry, when it exists, wins
-    except ImportError:
-        assert cat == tuple(EFFECTS)
-    else:
-        names = list(CATALOGUE) if isinstance(CATALOGUE, dict) else [getattr(e, "name", e) for e in CATALOGUE]
-        assert cat == tuple(map(str, names))
+    assert catalogue_effects() == tuple(e.name for e in CATALOGUE)
     spec = spec_from_dict({"study": {"kind": "detection_power"}, "detection_power": {"plants": ["tank"]}})
     skipped = not_studied(spec.settings)["tank"]
     assert "nonlinear_yaw_damping" in skipped and "speed_loss" in skipped   # own effect, not injectable
@@ -44,9 +37,12 @@ def test_power_ci_study(tmp_path):
     frame = pd.read_parquet(tmp_path / "results.parquet")
     assert {"plant", "effect", "magnitude", "replicate", "detected", "estimate", "truth_value"} <= set(frame)
     # contract: per effect min_detectable_90 with an interval; clean false_positive_rate with an interval
+    skipped = s["not_studied"].get("truth", {})
     for effect in catalogue_effects():
         m90 = s["effects"][effect]["min_detectable_90"]["truth"]
         assert set(m90) >= {"value", "interval", "method", "note"} and len(m90["interval"]) == 2
+        if effect in skipped:   # not injectable into the linear truth: null, with the reason
+            assert m90["value"] is None and m90["note"] == skipped[effect]
     fp = s["clean"]["false_positive_rate"]["truth"]
     assert fp["n"] == 6 and 0.0 <= fp["interval"][0] <= fp["value"] <= fp["interval"][1] <= 1.0
     # known answers on the linear truth model (tests/test_diagnose_cases.py finds offsets of 1-3 deg):

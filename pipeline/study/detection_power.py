@@ -35,7 +35,6 @@ from __future__ import annotations
 import dataclasses as dc
 import functools
 import html
-import importlib
 import math
 from pathlib import Path
 from typing import Any
@@ -58,18 +57,11 @@ MAGNITUDE_UNIT = {"rudder_offset": "deg", "rudder_delay": "s",
 
 
 def catalogue_effects() -> tuple[str, ...]:
-    """Effect names of the diagnosis catalogue, read at run time: the registry
-    ``pipeline.diagnose.effects.CATALOGUE`` when it exists, else ``pipeline.diagnose.extended.EFFECTS``."""
-    try:
-        mod = importlib.import_module("pipeline.diagnose.effects")
-        cat = mod.CATALOGUE
-    except (ImportError, AttributeError):
-        from pipeline.diagnose.extended import EFFECTS
+    """Effect names of the diagnosis catalogue (``pipeline.diagnose.effects.CATALOGUE``), read at run
+    time so that an effect added there is studied without a change here."""
+    from pipeline.diagnose.effects import CATALOGUE
 
-        return tuple(EFFECTS)
-    if isinstance(cat, dict):
-        return tuple(str(k) for k in cat)
-    return tuple(str(getattr(e, "name", e)) for e in cat)
+    return tuple(e.name for e in CATALOGUE)
 
 
 # ---------------------------------------------------------------- injection
@@ -265,12 +257,19 @@ def summarise(frame: pd.DataFrame, cfg: DetectionPowerConfig, study_seed: int) -
     ok = frame[frame["status"] == "ok"]
     conf = cfg.confidence
     effects: dict[str, Any] = {}
+    skipped = not_studied(cfg)
     for effect in _effects(cfg):
         entry: dict[str, Any] = {"magnitude_unit": MAGNITUDE_UNIT.get(effect, "effect's own unit"),
                                  "min_detectable_90": {}, "detection": {}, "estimate": {}}
         for plant in cfg.plants:
             sub = ok[(ok["plant"] == plant) & (ok["effect"] == effect)]
-            if sub.empty:
+            why = skipped.get(plant, {}).get(effect)
+            if why is not None or sub.empty:
+                # the contract holds min_detectable_90 for every catalogue effect: null, with the reason
+                entry["min_detectable_90"][plant] = {
+                    "value": None, "interval": [None, None], "method": "not studied",
+                    "note": why or "no successful case",
+                }
                 continue
             mags = np.sort(sub["magnitude"].unique())
             rates = []
