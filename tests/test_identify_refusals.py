@@ -57,15 +57,27 @@ def test_nis_far_outside_its_band_is_flagged_with_reason(tmp_path):
     assert main(["identify", str(tmp_path / "n.parquet"), "--out", str(tmp_path / "o")]) == 0
     est = json.loads((tmp_path / "o" / "estimates.json").read_text())
     nis = [f for f in est["flags"] if f["check"] == "nis_mean"]
-    assert nis and nis[0]["value"] > 9 and nis[0]["band"] == [1.0, 9.0]
-    assert "not to be trusted" in nis[0]["reason"]
+    lo, hi = est["consistency"]["nis_95_band"]
+    assert nis and nis[0]["value"] > 9 and nis[0]["band"] == [lo, hi] and lo < 3.0 < hi
+    assert "not to be trusted" in nis[0]["reason"] and "R or process noise Q too small" in nis[0]["reason"]
+    # a filter that over-trusts its measurements follows their noise: negative lag-1 innovations
+    white = [f for f in est["flags"] if f["check"] == "innovation_whiteness"]
+    assert white and all(v < 0 for v in white[0]["value"].values()) and "R too small" in white[0]["reason"]
 
 
 def test_clean_run_carries_no_flags(tmp_path):
-    write_run(tmp_path / "c.parquet", _run())
+    """Data with exactly the noise the filter assumes (process noise Q and measurement noise R of
+    the paper) pass both consistency checks; the same zigzag without process noise has a filter that
+    is too pessimistic (mean NIS below its band) and follows the noise (negative lag-1)."""
+    write_run(tmp_path / "c.parquet", _run(process_noise=(0.02, 0.02, 0.01)))
     assert main(["identify", str(tmp_path / "c.parquet"), "--out", str(tmp_path / "o")]) == 0
     est = json.loads((tmp_path / "o" / "estimates.json").read_text())
     assert est["flags"] == [] and est["window"] == "585 samples (paper setting)"
+    lo, hi = est["consistency"]["nis_95_band"]
+    assert lo < est["consistency"]["nis_mean"] < hi
+    no_q = identify_run(_run(), FilterConfig())
+    assert {f["check"] for f in no_q.flags} == {"nis_mean", "innovation_whiteness"}
+    assert no_q.consistency["nis_mean"] < no_q.consistency["nis_95_band"][0]
 
 
 def test_pure_noise_is_flagged():

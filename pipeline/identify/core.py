@@ -28,6 +28,8 @@ from pipeline.config import FilterConfig
 from pipeline.errors import FilterError, InputError, ModelError
 from pipeline.identify import fast
 from pipeline.identify.baseline import make_filter, run_ffm_ukf
+from pipeline.identify.consistency import consistency as filter_consistency
+from pipeline.identify.consistency import flags as consistency_flags
 from pipeline.identify.fuzzy import CHANNELS, RULES, forgetting_factor
 from pipeline.identify.srukf import srukf_run_reference, ut_weights
 from pipeline.io import Run
@@ -239,16 +241,12 @@ def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: Fi
         idx, idx_err = None, str(exc)
     steps = n - 1
     trace = make_trace(time, delta, Y3, x0, np.sqrt(np.diag(P0)), out)
-    nis = out.nis[np.isfinite(out.nis)]
-    m = len(meas_idx)
-    consistency = {
-        "nis_mean": float(np.mean(nis)), "nis_expected": float(m),
-        "nis_95_band": _nis_band(m, len(nis)),
-        "nis_fraction_above_chi2_95": float(np.mean(nis > _chi2_95(m))),
-        "innovation_rms": {STATE_NAMES[i]: float(np.sqrt(np.mean(out.innov[:, i] ** 2))) for i in meas_idx},
-        "f_mean": float(np.mean(out.f)), "f_min": float(np.min(out.f)),
-    }
-    consistency["nis_flag_band"] = [m / cfg.nis_flag_factor, m * cfg.nis_flag_factor]
+    names = [STATE_NAMES[i] for i in meas_idx]
+    consistency = filter_consistency(out.nis, out.innov[:, meas_idx], names, cfg.consistency_level)
+    consistency["innovation_rms"] = {STATE_NAMES[i]: float(np.sqrt(np.mean(out.innov[:, i] ** 2)))
+                                     for i in meas_idx}
+    consistency["f_mean"], consistency["f_min"] = float(np.mean(out.f)), float(np.min(out.f))
+    consistency["r_std"] = {STATE_NAMES[i]: float(cfg.r_std[i]) for i in meas_idx}
     flags = trust_flags(consistency, idx, idx_err, delta, cfg)
     fails = int(out.chol_failures[-1]) if out.chol_failures is not None and steps else None
     return Identification(
@@ -265,22 +263,16 @@ def trust_flags(consistency: dict[str, Any], indices: dict[str, float] | None, i
                 delta: np.ndarray, cfg: FilterConfig) -> list[dict[str, Any]]:
     """Checks an identification result fails, each ``{"check", "value", "band", "reason"}``.
 
-    - ``nis_mean``: mean NIS outside ``consistency["nis_flag_band"]`` (FilterConfig.nis_flag_factor).
+    - ``nis_mean``: mean NIS outside its chi-square band over the effectively independent steps, and
+      ``innovation_whiteness``: lag-1 autocorrelation of an innovation outside its band
+      (:mod:`pipeline.identify.consistency` says why each band).
     - ``nomoto_K``: K <= 0 (SPEC section 2: positive delta makes r positive, so K > 0 for any ship
       logged in the canonical sign): the run taught the filter nothing true about the rudder.
     - ``nomoto_indices``: no real positive time constants (indices_error).
     - ``rudder_range``: the rudder moved less than FilterConfig.min_rudder_range in the window
       (identify_run refuses this; identify_arrays only flags it).
     """
-    flags: list[dict[str, Any]] = []
-    nis = consistency.get("nis_mean")
-    lo, hi = consistency["nis_flag_band"]
-    if nis is None or not np.isfinite(nis) or not lo <= nis <= hi:
-        flags.append({"check": "nis_mean", "value": nis, "band": [lo, hi],
-                      "reason": f"mean NIS {nis:.3g} where {consistency['nis_expected']:g} is expected: the "
-                                "filter's noise settings do not describe this run's innovations (model "
-                                "mismatch, wrong units or unmodelled effects); estimates and their "
-                                "uncertainties are not to be trusted"})
+    flags: list[dict[str, Any]] = consistency_flags(consistency)
     if indices is not None and not indices.get("K", 0) > 0:
         flags.append({"check": "nomoto_K", "value": indices.get("K"), "band": [0.0, None],
                       "reason": "K <= 0: positive rudder must make the yaw rate positive (SPEC section 2); "
@@ -327,17 +319,6 @@ def identification_window(run: Run, cfg: FilterConfig, samples: int | None = Non
         n = int(np.searchsorted(t, t_end)) + 1
         return n, f"{cfg.window_half_periods:g} zigzag half-periods ({n} samples, {t[n - 1]:.3g} s)"
     return int(cfg.samples), f"{int(cfg.samples)} samples (paper setting)"
-
-
-def _chi2_95(m: int) -> float:
-    from scipy.stats import chi2
-    return float(chi2.ppf(0.95, m))
-
-
-def _nis_band(m: int, n: int) -> list[float]:
-    """Two-sided 95 % band of the mean NIS over n independent steps (chi-square, m n dof, / n)."""
-    from scipy.stats import chi2
-    return [float(chi2.ppf(0.025, m * n) / n), float(chi2.ppf(0.975, m * n) / n)]
 
 
 def make_trace(time, delta, Y3, x0, std0, out: FilterOutput) -> pd.DataFrame:
