@@ -124,6 +124,15 @@ def test_flags_of_the_issue_numbers():
     assert "T1 = 27 +- 51 s" in fl[0]["reason"]
     fl = trust.identified_flags(_vals(), {"invalid_fraction": 0.39, "samples": 20000}, {}, CFG)
     assert checks(fl) == {("invalid_draws", "K, T1, T2, T3, T")} and "39%" in fl[0]["reason"]
+    # with the first-order share (indices stage): the second-order condition concerns T1, T2, T3 only
+    chk = {"invalid_fraction": 0.32, "invalid_fraction_first_order": 0.021, "samples": 20000,
+           "invalid_causes": {"D <= 0": 0.274, "unstable": 0.0, "complex": 0.048}}
+    fl = trust.identified_flags(_vals(), chk, {}, CFG)
+    assert checks(fl) == {("invalid_draws", "T1, T2, T3")} and "D <= 0 27%" in fl[0]["reason"]
+    assert trust.blocking(fl, ("K", "T")) == [] and trust.blocking(fl, ("T1", "T2", "T3")) == fl
+    fl = trust.identified_flags(_vals(), {**chk, "invalid_fraction_first_order": 0.21}, {}, CFG)
+    assert checks(fl) == {("invalid_draws", "T1, T2, T3"), ("invalid_draws", "K, T")}
+    assert len(trust.blocking(fl, ("K", "T"))) == 1
     for nis in (18.0, 0.12):
         est = {"consistency": {"nis_mean": nis, "nis_95_band": [2.80, 3.20]}}
         fl = trust.identified_flags(_vals(), None, est, CFG)
