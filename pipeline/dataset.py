@@ -42,7 +42,7 @@ Dataset names (:func:`dataset_names`): ``virtual`` (the built-in tank, files in 
 ``data/raw/<name>/``, and ``local`` for tank files placed directly in ``data/raw/``.
 The descriptions of ``virtual`` and ``hsva`` are :data:`BUILTIN`; the repository holds the same
 text as data/raw/virtual/dataset.toml and data/raw/hsva/dataset.toml, and it is written back when
-missing (``make clean`` removes data/raw/virtual).
+missing (``make clean`` keeps them: it removes only the virtual tank's generated runs).
 """
 
 from __future__ import annotations
