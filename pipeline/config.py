@@ -88,6 +88,10 @@ class FilterConfig:
     dt: float = 0.08                     # s, model step h
     q_std: tuple[float, ...] = (0.02, 0.02, 0.01, 0, 0, 0, 0, 0, 0)   # process noise std, Q = diag(q)^2
     r_std: tuple[float, float, float] = (0.02, 0.02, 0.01)              # measurement noise std, R = diag(r)^2
+    # Where R comes from: 'paper' (r_std above, the paper's setting) or 'data' (each measured channel's
+    # noise std measured from the identification window by the robust second-difference estimator,
+    # pipeline.identify.core.measured_noise_std): a logger's noise is the data's, not the paper's.
+    measurement_noise: str = "paper"
     alpha: float = 1.0                   # unscented transform spread
     beta: float = 2.0
     kappa: float = 0.0

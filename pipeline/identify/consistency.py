@@ -145,11 +145,16 @@ def flags(cons: dict[str, Any]) -> list[dict[str, Any]]:
     if bad:
         what = ", ".join(f"{k} {w['lag1']:+.2f}" for k, w in bad.items())
         half = next(iter(bad.values()))["band"][1]
-        neg = all(w["lag1"] < 0 for w in bad.values())
-        why = ("negative: the filter's gain is too high and it follows the measurement noise (R too "
-               "small or Q too large for the data)" if neg else
-               "the filter's errors persist from step to step (model mismatch, unmodelled slow effects, "
-               "or correlated logger noise)")
+        neg = [k for k, w in bad.items() if w["lag1"] < 0]
+        pos = [k for k, w in bad.items() if w["lag1"] > 0]
+        parts = []
+        if neg:
+            parts.append(f"negative in {', '.join(neg)}: the filter's gain is too high and it follows the "
+                         "measurement noise (R too small or Q too large for the data)")
+        if pos:
+            parts.append(f"positive in {', '.join(pos)}: the filter's errors persist from step to step "
+                         "(model mismatch, unmodelled slow effects, Q too small, or correlated logger noise)")
+        why = "; ".join(parts)
         out.append({"check": "innovation_whiteness", "value": {k: w["lag1"] for k, w in bad.items()},
                     "band": [-half, half],
                     "reason": f"innovations not white: lag-1 autocorrelation {what} outside +-{half:.2g} "
