@@ -105,3 +105,27 @@ def test_window_scale_free_duration_and_half_periods():
     assert identification_window(run, FilterConfig())[0] == 585     # the paper setting stays
     with pytest.raises(InputError, match="half-periods"):
         identification_window(run, FilterConfig(window_half_periods=50))
+
+
+def test_measured_noise_recovers_the_loggers_noise():
+    """R from the data (measurement_noise = 'data'): the noise a zigzag was logged with is found from
+    the run itself (second differences), and a channel without noise keeps the paper's R."""
+    from pipeline.identify.core import measured_noise_std
+
+    truth = (0.005, 0.05, 0.05)                  # the virtual tank's logger (TankConfig)
+    run = _run(n=1200, noise=truth)
+    Y3 = run.frame[["v", "r", "psi"]].to_numpy()
+    got, src = measured_noise_std(Y3, [0, 1, 2], (0.02, 0.02, 0.01))
+    assert got == pytest.approx(truth, rel=0.08) and src.startswith("measured from the run")
+    Y3[:, 0] = 0.1                                # a constant v: no evidence about its noise
+    got, src = measured_noise_std(Y3, [0, 1, 2], (0.02, 0.02, 0.01))
+    assert got[0] == 0.02 and "for r, psi" in src
+    # the filter with the measured R on data logged with that noise: mean NIS near m, not 18
+    noisy = _run(n=700, noise=truth, process_noise=(0.02, 0.02, 0.01))
+    ident = identify_run(noisy, FilterConfig(measurement_noise="data"))
+    lo, hi = ident.consistency["nis_95_band"]
+    assert lo < ident.consistency["nis_mean"] < hi, ident.consistency
+    paper = identify_run(noisy, FilterConfig())               # the paper's R on the same data
+    assert paper.consistency["nis_mean"] > paper.consistency["nis_95_band"][1]
+    with pytest.raises(InputError, match="measurement_noise"):
+        identify_run(_run(), FilterConfig(measurement_noise="guess"))
