@@ -293,7 +293,7 @@ for a in algorithms:
     band = c.get("nis_95_band")
     if c.get("nis_mean") is not None and band:
         ok = band[0] <= c["nis_mean"] <= band[1]
-        n_eff = (f" over {nb.num(c['nis_n_eff'], 3)} effectively independent steps"
+        n_eff = (f" over {float(c['nis_n_eff']):.0f} effectively independent steps"
                  if c.get("nis_n_eff") is not None else "")
         white = c.get("whiteness") or {}
         not_white = [k for k, w in white.items() if not w.get("white", True)]
