@@ -211,3 +211,15 @@ def test_phase_margin_below_the_floor_is_flagged():
     assert f["check"] == "phase_margin" and "20 deg below 30 deg" in f["reason"]
     assert loop_flags({"phase_margin_deg": 45.0}, cfg) == []
     assert loop_flags({"phase_margin_deg": None}, cfg) == []
+
+
+def test_report_marks_a_set_flag_only_on_the_indices_it_names():
+    from pipeline.report import nb
+
+    fl = [trust.flag("invalid_draws", "T1, T2, T3", 0.25, [0, 0.05], "draws"),
+          trust.flag("relative_uncertainty", "T2", 1.2, [0, 0.5], "wide")]
+    assert nb.flag_marks(fl, "K") == "" and nb.flag_marks(fl, "T") == ""
+    assert nb.flag_marks(fl, "T1") == "invalid draws"
+    assert nb.flag_marks(fl, "T2") == "invalid draws, uncertain"
+    fl.append({"check": "innovation_whiteness", "subject": "filter", "reason": "lag-1"})
+    assert nb.flag_marks(fl, "K") == "innovations not white"
