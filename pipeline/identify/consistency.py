@@ -76,18 +76,24 @@ def effective_sample_size(x: np.ndarray) -> tuple[float, float]:
     return float(min(max(n_eff, 1.0), n)), float(s)
 
 
+def _chi2_ppf(q: float, dof: float) -> float:
+    """Chi-square quantile (scipy.special directly: the scipy.stats wrapper costs 0.2 ms a call, a
+    quarter of an identification in a batch study)."""
+    from scipy.special import gammaincinv
+
+    return 2.0 * float(gammaincinv(dof / 2.0, q))
+
+
 def nis_band(m: int, n_eff: float, level: float = 0.95) -> list[float]:
     """Two-sided ``level`` band of the mean NIS of m channels over n_eff independent steps."""
-    from scipy.stats import chi2
-
     a = 1.0 - level
     dof = m * n_eff
-    return [float(chi2.ppf(a / 2, dof) / n_eff), float(chi2.ppf(1 - a / 2, dof) / n_eff)]
+    return [_chi2_ppf(a / 2, dof) / n_eff, _chi2_ppf(1 - a / 2, dof) / n_eff]
 
 
 def whiteness(innov: np.ndarray, names: list[str], level: float = 0.95) -> dict[str, Any]:
     """Lag-1 autocorrelation of each channel's innovations against +- z(1 - a/(2m))/sqrt(N)."""
-    from scipy.stats import norm
+    from scipy.special import ndtri
 
     innov = np.asarray(innov, dtype=float)
     m = innov.shape[1]
@@ -96,8 +102,10 @@ def whiteness(innov: np.ndarray, names: list[str], level: float = 0.95) -> dict[
         col = innov[:, j]
         col = col[np.isfinite(col)]
         n = len(col)
-        half = float(norm.ppf(1 - (1 - level) / (2 * m)) / math.sqrt(max(n, 1)))
-        rho1 = float(autocorrelation(col, 1)[1]) if n > 2 else float("nan")
+        half = float(ndtri(1 - (1 - level) / (2 * m)) / math.sqrt(max(n, 1)))
+        d = col - col.mean()
+        var = float(d @ d)
+        rho1 = (float(d[:-1] @ d[1:]) / var if var > 0 else 0.0) if n > 2 else float("nan")
         out[name] = {"lag1": rho1, "band": [-half, half], "white": bool(abs(rho1) <= half),
                      "steps": n}
     return out
@@ -109,8 +117,6 @@ def consistency(nis: np.ndarray, innov: np.ndarray, names: list[str], level: flo
     nis (N,) normalised innovation squared per step; innov (N, m) innovations of the m measured
     channels ``names`` (in their data units).
     """
-    from scipy.stats import chi2
-
     nis = np.asarray(nis, dtype=float)
     nis = nis[np.isfinite(nis)]
     m = len(names)
@@ -121,7 +127,7 @@ def consistency(nis: np.ndarray, innov: np.ndarray, names: list[str], level: flo
         "nis_autocorrelation_sum": rho_sum, "nis_n_eff": n_eff,
         "nis_95_band": nis_band(m, n_eff, level),
         "nis_95_band_white": nis_band(m, n, level),
-        "nis_fraction_above_chi2_95": float(np.mean(nis > chi2.ppf(0.95, m))) if n else None,
+        "nis_fraction_above_chi2_95": float(np.mean(nis > _chi2_ppf(0.95, m))) if n else None,
         "whiteness": whiteness(innov, names, level),
         "level": level,
     }
