@@ -15,9 +15,9 @@ The checks and why each threshold (pipeline.config.IndicesConfig):
 
 * ``relative_uncertainty``: one-sigma std / |value| above ``max_rel_std`` (0.5): the 95 % interval
   (about +-2 sigma) then reaches zero, so not even the size of the index is established.
-* ``invalid_draws``: more than ``max_invalid_fraction`` (5 %, the usual 95 % coverage of a
-  one-sigma-based interval) of the Monte Carlo draws from N(estimate, covariance) fall where the
-  indices are not defined, so the Gaussian bounds are local only.  Two conditions
+* ``invalid_draws``: more than ``max_invalid_fraction`` (5 %) of the Monte Carlo draws from
+  N(estimate, covariance) fall where the indices are not defined: a 95 % region of the parameters
+  then reaches models without these indices, so the Gaussian bounds are local only.  Two conditions
   (:func:`pipeline.indices.uncertainty.draw_validity`): real positive T1, T2 for T1, T2, T3 (subject
   "T1, T2, T3"), and K > 0, T > 0 for the first-order K, T (subject "K, T").
 * ``sign``: K <= 0 contradicts the SPEC sign convention (positive rudder gives positive yaw rate) or
