@@ -64,8 +64,12 @@ bench: $(STAMP)
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
+# Removes what the pipeline made, never a committed file: the virtual tank's runs go, its
+# dataset.toml (committed) stays; tests/test_build.py checks every tracked file survives.
 clean:
-	rm -rf $(PROC)/* reports/*.html reports/*/ data/raw/virtual
+	rm -rf $(PROC)/* reports/*.html reports/*/
+	@if [ -d data/raw/virtual ]; then \
+	  find data/raw/virtual -mindepth 1 -maxdepth 1 ! -name dataset.toml -exec rm -rf {} + ; fi
 	@touch $(PROC)/.gitkeep reports/.gitkeep
 
 # ---------------------------------------------------------------- studies on Dask (issue 12)

@@ -293,8 +293,15 @@ for a in algorithms:
     band = c.get("nis_95_band")
     if c.get("nis_mean") is not None and band:
         ok = band[0] <= c["nis_mean"] <= band[1]
+        n_eff = (f" over {float(c['nis_n_eff']):.0f} effectively independent steps"
+                 if c.get("nis_n_eff") is not None else "")
+        white = c.get("whiteness") or {}
+        not_white = [k for k, w in white.items() if not w.get("white", True)]
+        if not_white:
+            ok = False
+            n_eff += f", innovations of {', '.join(not_white)} not white"
         points.append(f"{nb.ALG_LABEL.get(a, a)}: mean NIS {nb.num(c['nis_mean'])} against the band "
-                      f"[{nb.num(band[0])}, {nb.num(band[1])}]: "
+                      f"[{nb.num(band[0])}, {nb.num(band[1])}]{n_eff}: "
                       + ("consistent." if ok else
                          "NOT consistent, so its parameter uncertainties are not to be trusted."))
 if len(algorithms) == 2 and all(est[a].get("timing", {}).get("seconds_per_step") for a in algorithms):

@@ -81,12 +81,17 @@ class FilterConfig:
     min_rudder_range: float = 1.0        # deg; a rudder moving less than this within the window gives
                                          # a rudder moment within the neutral-rudder offset and logging
                                          # noise: b11, b21 (and K) cannot be learnt
-    nis_flag_factor: float = 3.0         # mean NIS beyond [m / f, m f] (m measured channels): the noise
-                                         # settings misstate the innovations by more than sqrt(f) in
-                                         # standard deviation, so estimates and their std are not trusted
+    consistency_level: float = 0.95      # two-sided level of the filter-consistency checks (mean NIS in
+                                         # its chi-square band over the effectively independent steps;
+                                         # lag-1 whiteness of each innovation): the conventional 5 %
+                                         # false-alarm rate per check (pipeline/identify/consistency.py)
     dt: float = 0.08                     # s, model step h
     q_std: tuple[float, ...] = (0.02, 0.02, 0.01, 0, 0, 0, 0, 0, 0)   # process noise std, Q = diag(q)^2
     r_std: tuple[float, float, float] = (0.02, 0.02, 0.01)              # measurement noise std, R = diag(r)^2
+    # Where R comes from: 'paper' (r_std above, the paper's setting) or 'data' (each measured channel's
+    # noise std measured from the identification window by the robust second-difference estimator,
+    # pipeline.identify.core.measured_noise_std): a logger's noise is the data's, not the paper's.
+    measurement_noise: str = "paper"
     alpha: float = 1.0                   # unscented transform spread
     beta: float = 2.0
     kappa: float = 0.0

@@ -28,6 +28,11 @@ the files are.  The SPEC keys, and the project's own (marked *)::
     validate = ["zz_20_p", "zz_10_p"]
     test = []
 
+    [identify]                # * optional; the identification window, scale-free (one of):
+    half_periods = 3.4        #   zigzag half-periods after the first execute (or window_s = 46.8, s
+                              #   at model scale; or samples = 585, the paper setting and the default)
+    measurement_noise = "data"  # R measured from the run ('paper': the paper's R, the default)
+
     [runs.zz_20_p]            # * per-run overrides
     rudder_sign = -1
     test_name = "zigzag 20/20 port"
@@ -42,7 +47,7 @@ Dataset names (:func:`dataset_names`): ``virtual`` (the built-in tank, files in 
 ``data/raw/<name>/``, and ``local`` for tank files placed directly in ``data/raw/``.
 The descriptions of ``virtual`` and ``hsva`` are :data:`BUILTIN`; the repository holds the same
 text as data/raw/virtual/dataset.toml and data/raw/hsva/dataset.toml, and it is written back when
-missing (``make clean`` removes data/raw/virtual).
+missing (``make clean`` keeps them: it removes only the virtual tank's generated runs).
 """
 
 from __future__ import annotations
@@ -77,6 +82,11 @@ model_scale = 37.89
 tank = "virtual tank (3-DOF MMG model)"
 source = "python -m pipeline tank"
 provenance = "virtual"
+
+[identify]
+samples = 585             # the paper setting (the paper case: 20/20 zigzag at 0.08 s; 3.4 half-periods)
+measurement_noise = "data"  # R from the runs' measured noise: the tank logs r and psi with 0.05 deg/s and
+                          # 0.05 deg, 2.5 and 5 times the paper's R (the filter then gave mean NIS 18)
 ''',
     "hsva": '''# Measured KVLCC2 zigzags, HSVA CPMC (SIMMAN 2008), model 1:45.7.
 [ship]
@@ -94,6 +104,10 @@ source = "SIMMAN 2008 free-running tests (CPMC)"
 files_dir = "../../../../shared/data/kvlcc2_hsva"   # relative to this file: ../shared from the project root
 files = ["*.dat"]
 format = "hsva"
+
+[identify]
+half_periods = 3.4        # the paper case's 585 samples are 3.4 half-periods of its 20/20 zigzag;
+                          # the same share of this ship's zigzag (585 samples would be only 2.4 here)
 ''',
 }
 
@@ -115,6 +129,23 @@ class Roles:
     train: tuple[str, ...] = ()
     validate: tuple[str, ...] = ()
     test: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class IdentifySettings:
+    """``[identify]``: the identification window (at most one of samples, window_s s at model scale,
+    half_periods of the zigzag after its first execute) and where R comes from ('paper' or 'data').
+    None: the identify stage's defaults (585 samples, the paper setting; R of the paper)."""
+
+    samples: int | None = None
+    window_s: float | None = None
+    half_periods: float | None = None
+    measurement_noise: str | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {k: v for k, v in (("samples", self.samples), ("window_s", self.window_s),
+                                  ("half_periods", self.half_periods),
+                                  ("measurement_noise", self.measurement_noise)) if v is not None}
 
 
 @dataclass(frozen=True)
@@ -141,6 +172,7 @@ class Dataset:
     rudder_sign: int = 1
     provenance: str | None = None
     roles: Roles = field(default_factory=Roles)
+    identify: IdentifySettings = field(default_factory=IdentifySettings)
     runs: dict[str, RunOverride] = field(default_factory=dict)
     toml_path: Path | None = None         # None: nothing was read (defaults assumed)
 
@@ -199,6 +231,7 @@ _SECTIONS = {
     "data": {"scale": float, "model_scale": float, "tank": str, "source": str, "files_dir": str,
              "files": list, "format": str, "rudder_sign": int, "provenance": str},
     "roles": {"identify": str, "train": list, "validate": list, "test": list},
+    "identify": {"samples": int, "window_s": float, "half_periods": float, "measurement_noise": str},
 }
 _RUN_KEYS = {"rudder_sign": int, "test_name": str, "skip": bool}
 
@@ -223,7 +256,7 @@ def parse_dataset_toml(text: str, *, name: str, folder: Path, path: Path) -> Dat
         raise InputError(f"not valid TOML ({exc})", file=path) from None
     for key in doc:
         if key not in _SECTIONS and key != "runs":
-            raise InputError(f"unknown section [{key}] (known: ship, data, roles, runs)", file=path)
+            raise InputError(f"unknown section [{key}] (known: ship, data, roles, identify, runs)", file=path)
     vals: dict[str, dict[str, Any]] = {}
     for sec, keys in _SECTIONS.items():
         table = doc.get(sec, {})
@@ -265,6 +298,17 @@ def parse_dataset_toml(text: str, *, name: str, folder: Path, path: Path) -> Dat
     r = vals["roles"]
     roles = Roles(identify=r.get("identify"), train=tuple(r.get("train", ())),
                   validate=tuple(r.get("validate", ())), test=tuple(r.get("test", ())))
+    idv = vals["identify"]
+    given = [k for k in ("samples", "window_s", "half_periods") if k in idv]
+    if len(given) > 1:
+        raise InputError(f"[identify] gives {' and '.join(given)}: give one identification window", file=path)
+    for k in given:
+        if not idv[k] > 0:
+            raise InputError(f"[identify] {k} must be positive, got {idv[k]}", file=path)
+    if idv.get("measurement_noise", "paper") not in ("paper", "data"):
+        raise InputError(f"[identify] measurement_noise must be 'paper' or 'data', got "
+                         f"{idv['measurement_noise']!r}", file=path)
+    ident = IdentifySettings(**idv)
     runs: dict[str, RunOverride] = {}
     for rid, table in (doc.get("runs") or {}).items():
         if not isinstance(table, dict):
@@ -281,7 +325,7 @@ def parse_dataset_toml(text: str, *, name: str, folder: Path, path: Path) -> Dat
     return Dataset(name=name, folder=folder, files_dir=files_dir, ship=ship, scale=float(scale),
                    model_scale=model_scale, tank=data.get("tank"), source=data.get("source"),
                    files=tuple(data.get("files", ())), format=fmt, rudder_sign=sign, provenance=prov,
-                   roles=roles, runs=runs, toml_path=path)
+                   roles=roles, identify=ident, runs=runs, toml_path=path)
 
 
 def dataset_folder(name: str, raw_root: Path = DEFAULT_RAW) -> Path:
@@ -307,6 +351,10 @@ scale = 1.0               # ASSUMED: the files are model scale (full-scale files
 # model_scale = 25.0      # the tank model's scale (with model-scale files, gives its Lpp)
 # tank = "my tank"
 # source = "free-running tests"
+
+# [identify]              # the identification window, scale-free (default: 585 samples, the paper's)
+# half_periods = 3.4      # zigzag half-periods after the first execute (or window_s = 46.8, model s)
+# measurement_noise = "data"   # R measured from the run (default "paper": the paper's R)
 '''
 
 

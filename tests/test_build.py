@@ -141,3 +141,37 @@ def test_only_stale_stages_rerun(tmp_path, monkeypatch):
     assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == []
     extra.write_text("X = 2\n")
     assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == ["indices", "control"]
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="GNU make is not installed")
+@pytest.mark.skipif(shutil.which("git") is None or not (ROOT / ".git").exists(),
+                    reason="needs git and a git checkout to know which files are committed")
+def test_make_clean_removes_outputs_and_keeps_every_committed_file(tmp_path):
+    """`make clean` in a copy of the tree's data/ and reports/: the committed files (dataset.toml of
+    the virtual and hsva datasets, .gitkeep) survive byte for byte; what the pipeline made is gone."""
+    tracked = subprocess.run(["git", "ls-files", "data", "reports"], cwd=ROOT, capture_output=True,
+                             text=True, check=True).stdout.split()
+    assert "data/raw/virtual/dataset.toml" in tracked
+    shutil.copy(ROOT / "Makefile", tmp_path / "Makefile")
+    for rel in tracked:
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(ROOT / rel, tmp_path / rel)
+    made = ["data/raw/virtual/kcs_zigzag_20_20_S.csv", "data/raw/virtual/.stamp",
+            "data/processed/virtual/runs/index.json", "data/processed/virtual/.stamps/ingest",
+            "reports/index.html", "reports/virtual/identification.html"]
+    for rel in made:
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text("made by the pipeline")
+    res = subprocess.run(["make", "--no-print-directory", "clean"], cwd=tmp_path,
+                         env={**os.environ, "MAKEFLAGS": ""}, capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
+    for rel in tracked:
+        assert (tmp_path / rel).is_file(), f"make clean deleted the committed file {rel}"
+        assert (tmp_path / rel).read_bytes() == (ROOT / rel).read_bytes(), rel
+    for rel in made:
+        assert not (tmp_path / rel).exists(), f"make clean left {rel}"
+    # and on a tree where the virtual tank never ran (no data/raw/virtual) it still succeeds
+    shutil.rmtree(tmp_path / "data" / "raw" / "virtual")
+    res = subprocess.run(["make", "--no-print-directory", "clean"], cwd=tmp_path,
+                         env={**os.environ, "MAKEFLAGS": ""}, capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr

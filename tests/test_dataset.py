@@ -6,6 +6,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pipeline.cli import main
@@ -169,3 +170,52 @@ def test_hsva_dataset_by_description(hsva_dir, tmp_path, capsys, monkeypatch):
     one = sorted(hsva_dir.glob("*.dat"))[0]
     rc = _ingest(one, "--out", tmp_path / "x", "--scale", "45.7")
     assert rc == 2 and "scale it twice" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text,msg", [
+    ("[identify]\nsamples = 585\nhalf_periods = 3\n", "give one identification window"),
+    ("[identify]\nwindow_s = -4.0\n", "[identify] window_s must be positive"),
+    ("[identify]\nmeasurement_noise = 'guess'\n", "measurement_noise must be 'paper' or 'data'"),
+    ("[identify]\nwindow = 40\n", "unknown key 'window' in [identify]"),
+])
+def test_bad_identify_settings_are_one_line(tmp_path, text, msg):
+    with pytest.raises(InputError) as err:
+        parse_dataset_toml(text, name="x", folder=tmp_path, path=tmp_path / "dataset.toml")
+    assert msg in str(err.value) and "\n" not in str(err.value)
+
+
+def _identify_window(raw, root, name, toml, capsys):
+    (raw / name).mkdir(parents=True)
+    shutil.copy(MARIN, raw / name / "zz_20_s.dat")
+    (raw / name / "dataset.toml").write_text(toml)
+    assert _ingest("--dataset", name, "--raw", raw, "--root", root) == 0, capsys.readouterr().err
+    assert main(["identify", "--dataset", name, "--root", str(root), "--algorithm", "srukf-ffm"]) == 0
+    est = json.loads((root / name / "identify" / "srukf-ffm" / "estimates.json").read_text())
+    index = json.loads((root / name / "runs" / "index.json").read_text())
+    return est, index
+
+
+def test_identification_window_from_the_toml_is_scale_free(tmp_path, capsys):
+    """The same full-scale KVLCC2 zigzag brought to two model scales (1:45.7 and 1:30): a window of
+    zigzag half-periods set in dataset.toml covers the same part of the manoeuvre at both (its sample
+    count scales with sqrt of the scale ratio), where a fixed 585 samples would not.  The toml's
+    measurement_noise = "data" reaches the filter."""
+    raw, root = tmp_path / "raw", tmp_path / "proc"
+    base = EXAMPLE.split("[roles]")[0]
+    out = {}
+    for name, lam in (("s457", 45.7), ("s30", 30.0)):
+        toml = base.replace("scale = 45.7", f"scale = {lam}") + (
+            '[identify]\nhalf_periods = 2.5\nmeasurement_noise = "data"\n')
+        out[name] = _identify_window(raw, root, name, toml, capsys)
+    (e1, i1), (e2, _) = out["s457"], out["s30"]
+    assert i1["identify"] == {"half_periods": 2.5, "measurement_noise": "data"}
+    assert "2.5 zigzag half-periods" in e1["window"] and "2.5 zigzag half-periods" in e2["window"]
+    # Froude time: the 1:30 model's manoeuvre lasts sqrt(45.7/30) = 1.234 times longer at model scale
+    ratio = (e2["samples"] - 1) / (e1["samples"] - 1)
+    assert ratio == pytest.approx(np.sqrt(45.7 / 30.0), rel=0.02), (e1["samples"], e2["samples"])
+    # the full-scale time the window covers is the same at both scales (within a sample)
+    full = [(e["samples"] - 1) * 0.08 * np.sqrt(lam) for e, lam in ((e1, 45.7), (e2, 30.0))]
+    assert full[0] == pytest.approx(full[1], abs=0.08 * np.sqrt(45.7))
+    assert e1["settings"]["measurement_noise"] == "data"
+    assert e1["consistency"]["r_std_source"].startswith("measured from the run")
+    assert e1["settings"]["r_std"] != [0.02, 0.02, 0.01]

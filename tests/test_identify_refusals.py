@@ -57,15 +57,27 @@ def test_nis_far_outside_its_band_is_flagged_with_reason(tmp_path):
     assert main(["identify", str(tmp_path / "n.parquet"), "--out", str(tmp_path / "o")]) == 0
     est = json.loads((tmp_path / "o" / "estimates.json").read_text())
     nis = [f for f in est["flags"] if f["check"] == "nis_mean"]
-    assert nis and nis[0]["value"] > 9 and nis[0]["band"] == [1.0, 9.0]
-    assert "not to be trusted" in nis[0]["reason"]
+    lo, hi = est["consistency"]["nis_95_band"]
+    assert nis and nis[0]["value"] > 9 and nis[0]["band"] == [lo, hi] and lo < 3.0 < hi
+    assert "not to be trusted" in nis[0]["reason"] and "R or process noise Q too small" in nis[0]["reason"]
+    # a filter that over-trusts its measurements follows their noise: negative lag-1 innovations
+    white = [f for f in est["flags"] if f["check"] == "innovation_whiteness"]
+    assert white and all(v < 0 for v in white[0]["value"].values()) and "R too small" in white[0]["reason"]
 
 
 def test_clean_run_carries_no_flags(tmp_path):
-    write_run(tmp_path / "c.parquet", _run())
+    """Data with exactly the noise the filter assumes (process noise Q and measurement noise R of
+    the paper) pass both consistency checks; the same zigzag without process noise has a filter that
+    is too pessimistic (mean NIS below its band) and follows the noise (negative lag-1)."""
+    write_run(tmp_path / "c.parquet", _run(process_noise=(0.02, 0.02, 0.01)))
     assert main(["identify", str(tmp_path / "c.parquet"), "--out", str(tmp_path / "o")]) == 0
     est = json.loads((tmp_path / "o" / "estimates.json").read_text())
     assert est["flags"] == [] and est["window"] == "585 samples (paper setting)"
+    lo, hi = est["consistency"]["nis_95_band"]
+    assert lo < est["consistency"]["nis_mean"] < hi
+    no_q = identify_run(_run(), FilterConfig())
+    assert {f["check"] for f in no_q.flags} == {"nis_mean", "innovation_whiteness"}
+    assert no_q.consistency["nis_mean"] < no_q.consistency["nis_95_band"][0]
 
 
 def test_pure_noise_is_flagged():
@@ -93,3 +105,27 @@ def test_window_scale_free_duration_and_half_periods():
     assert identification_window(run, FilterConfig())[0] == 585     # the paper setting stays
     with pytest.raises(InputError, match="half-periods"):
         identification_window(run, FilterConfig(window_half_periods=50))
+
+
+def test_measured_noise_recovers_the_loggers_noise():
+    """R from the data (measurement_noise = 'data'): the noise a zigzag was logged with is found from
+    the run itself (second differences), and a channel without noise keeps the paper's R."""
+    from pipeline.identify.core import measured_noise_std
+
+    truth = (0.005, 0.05, 0.05)                  # the virtual tank's logger (TankConfig)
+    run = _run(n=1200, noise=truth)
+    Y3 = run.frame[["v", "r", "psi"]].to_numpy()
+    got, src = measured_noise_std(Y3, [0, 1, 2], (0.02, 0.02, 0.01))
+    assert got == pytest.approx(truth, rel=0.08) and src.startswith("measured from the run")
+    Y3[:, 0] = 0.1                                # a constant v: no evidence about its noise
+    got, src = measured_noise_std(Y3, [0, 1, 2], (0.02, 0.02, 0.01))
+    assert got[0] == 0.02 and "for r, psi" in src
+    # the filter with the measured R on data logged with that noise: mean NIS near m, not 18
+    noisy = _run(n=700, noise=truth, process_noise=(0.02, 0.02, 0.01))
+    ident = identify_run(noisy, FilterConfig(measurement_noise="data"))
+    lo, hi = ident.consistency["nis_95_band"]
+    assert lo < ident.consistency["nis_mean"] < hi, ident.consistency
+    paper = identify_run(noisy, FilterConfig())               # the paper's R on the same data
+    assert paper.consistency["nis_mean"] > paper.consistency["nis_95_band"][1]
+    with pytest.raises(InputError, match="measurement_noise"):
+        identify_run(_run(), FilterConfig(measurement_noise="guess"))

@@ -12,6 +12,7 @@ from test_zigzag import simulate_circle, simulate_zigzag
 from pipeline.cli import main
 from pipeline.errors import ModelError
 from pipeline.indices import (
+    draw_validity,
     index_range_over_box,
     indices_with_uncertainty,
     monte_carlo,
@@ -76,7 +77,24 @@ def test_monte_carlo_reports_invalid_mass_of_a_wide_covariance():
     theta = np.array([PAPER_TABLE4[n] for n in PARAM_NAMES])
     mc = monte_carlo(theta, _cov(theta, rel=0.5), samples=4000, seed=2)
     assert 0.05 < mc["rejected"] < 0.95
+    # draw_validity classifies the very same draws (vectorised): the same second-order share
+    val = draw_validity(theta, _cov(theta, rel=0.5), samples=4000, seed=2)
+    assert val["invalid_fraction"] == pytest.approx(mc["rejected"], abs=1e-12)
+    assert sum(val["invalid_causes"].values()) <= val["invalid_fraction"] + 1e-12
     assert mc["K"]["p16"] < mc["K"]["p50"] < mc["K"]["p84"]
+
+
+def test_first_order_indices_are_valid_where_t1_t2_are_complex():
+    # a stable model with an oscillatory yaw mode: D = 2, T1 + T2 = 1, T1 T2 = 0.5 (complex T1, T2),
+    # yet K = num/D = 0.075 1/s and T = T1 + T2 - T3 = 1/3 s are real and positive
+    theta = np.array([-1.0, 1.0, -1.0, -1.0, -0.05, 0.1])
+    val = draw_validity(theta, np.eye(6) * 1e-14, samples=200, seed=0)
+    assert val["invalid_fraction"] == 1.0 and val["invalid_causes"]["complex"] == 1.0
+    assert val["invalid_fraction_first_order"] == 0.0
+    # a course-unstable model (D < 0): no positive T1, T2; its first-order K = num/D is negative
+    unstable = np.array([-1.0, 1.0, 2.0, -1.0, 0.01, 0.2])             # D = 1 - 2 = -1
+    val = draw_validity(unstable, np.eye(6) * 1e-14, samples=200, seed=0)
+    assert val["invalid_causes"]["D <= 0"] == 1.0 and val["invalid_fraction_first_order"] == 1.0
 
 
 def test_zero_covariance_and_fixed_parameters():

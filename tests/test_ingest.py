@@ -192,6 +192,29 @@ def test_marin_full_scale_without_scale_is_refused():
 
 
 # ------------------------------------------------------------------ resampling
+def test_header_lpp_of_a_full_scale_csv_is_scaled_with_the_file(tmp_path, capsys):
+    """A full-scale file stating its ship's Lpp in its header, ingested with --scale: the header's
+    Lpp is at the file's scale, so the run records the model's Lpp = Lpp / scale (and the Froude number
+    of the model-scale run).  The same file without --scale is refused: 230 m is no tank model."""
+    lam, lpp_full = 37.89, 230.0
+    f = _synthetic()
+    s = np.sqrt(lam)
+    full = f.assign(time=f["time"] * s, x0=f["x0"] * lam, y0=f["y0"] * lam, u=f["u"] * s, v=f["v"] * s,
+                    r=f["r"] / s, rpm=f["rpm"] / s)
+    # a ship ingest does not know, so only the header can give the length
+    head = f"# ship: MYSHIP\n# Lpp: {lpp_full:g}\n# test: zigzag 20/20 starboard\n"
+    path = _write_csv(tmp_path / "zz_full.csv", full, header=head)
+    assert main(["ingest", str(path), "--scale", str(lam), "--out", str(tmp_path / "runs")]) == 0
+    meta = read_run(tmp_path / "runs" / "zz_full.parquet").meta
+    assert meta["lpp"] == pytest.approx(lpp_full / lam, rel=1e-12)
+    assert meta["lpp_source"] == "the file's header"
+    assert meta["froude_number"] == pytest.approx(2.0 / np.sqrt(9.81 * lpp_full / lam), rel=0.01)
+    capsys.readouterr()
+    assert main(["ingest", str(path), "--out", str(tmp_path / "runs2")]) == 2
+    err = capsys.readouterr().err
+    assert "Lpp 230 m" in err and "not a tank model" in err and not (tmp_path / "runs2").exists()
+
+
 def _tone_run(dt_in, duration, freqs_amps, jitter=0.0, seed=0):
     t = np.arange(int(round(duration / dt_in)) + 1) * dt_in
     if jitter:

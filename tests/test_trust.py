@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 
 from pipeline.cli import main
-from pipeline.config import ControlConfig, IndicesConfig
+from pipeline.config import ControlConfig, IndicesConfig, TankConfig
 from pipeline.control.stage import run_control
 from pipeline.indices import trust
 from pipeline.indices.stage import choose_control_model
@@ -48,10 +48,13 @@ def test_unknown_length_gives_null_and_a_flag():
     assert lpp == pytest.approx(7.0, rel=1e-3) and not why
 
 
-def _full_scale_csv(src, dest, lam):
-    """Froude-scale a model-scale canonical CSV of the virtual tank to full scale (no Lpp line)."""
+def _full_scale_csv(src, dest, lam, lpp_full):
+    """Froude-scale a model-scale canonical CSV of the virtual tank to full scale, as a user's file of
+    full-scale values: its header states the ship and its full-scale Lpp, and none of the model-scale
+    lines (model Lpp, model scale, logging step) of the tank's file."""
     lines = src.read_text().splitlines()
-    head = [ln for ln in lines if ln.startswith("#") and not ln.lower().startswith(("# lpp", "# dt"))]
+    head = [ln for ln in lines if ln.startswith("#")
+            and not ln.lower().startswith(("# lpp", "# dt", "# scale"))] + [f"# Lpp: {lpp_full:g}"]
     df = pd.read_csv(src, comment="#")
     s = math.sqrt(lam)
     df["time"] *= s
@@ -65,11 +68,6 @@ def _full_scale_csv(src, dest, lam):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="measured after merging ingest-units: ingest refuses (exit 2) the full-scale CSVs this "
-    "test writes (no Lpp header); the new scale checks need the test to state the ship",
-)
 def test_same_runs_model_and_full_scale_give_the_same_primed_indices(tmp_path):
     from pipeline import tank
 
@@ -79,7 +77,7 @@ def test_same_runs_model_and_full_scale_give_the_same_primed_indices(tmp_path):
     for rud, stem in ((20, "zz_20_20_S"), (10, "zz_10_10_S")):
         run = tank.simulate(tank.zigzag(rud, rud, "starboard", duration=90.0))
         tank.write_csv(model / f"{stem}.csv", run)
-        _full_scale_csv(model / f"{stem}.csv", full / f"{stem}.csv", SCALE)
+        _full_scale_csv(model / f"{stem}.csv", full / f"{stem}.csv", SCALE, TankConfig().lpp * SCALE)
     for name, folder, extra in (("m", model, []), ("f", full, ["--scale", str(SCALE)])):
         files = sorted(map(str, folder.glob("*.csv")))
         assert main(["ingest", *files, "--out", str(root / name / "runs"), "--dataset", name, *extra]) == 0
@@ -105,6 +103,11 @@ def test_same_runs_model_and_full_scale_give_the_same_primed_indices(tmp_path):
     k = m["identified"]["srukf-ffm"]["K"]["value"]
     assert m["identified"]["srukf-ffm"]["K_prime"]["value"] == pytest.approx(
         k * entry["lpp"] / entry["approach_speed"], rel=1e-9)
+    # the full-scale files' header Lpp (230 m) became the model's Lpp through --scale
+    runs_f = read_json(root / "f" / "runs" / "index.json")["runs"]
+    entry_f = next(e for e in runs_f if e["run_id"] == "zz_20_20_S")
+    # (the tank's header gives the model Lpp to 5 digits: 6.0702 m against 230 / 37.89 = 6.07020 m)
+    assert entry_f["lpp"] == pytest.approx(entry["lpp"], rel=1e-5) and entry_f["scale_factor"] == SCALE
 
 
 # ------------------------------------------------------------------------------------ flags
@@ -124,6 +127,15 @@ def test_flags_of_the_issue_numbers():
     assert "T1 = 27 +- 51 s" in fl[0]["reason"]
     fl = trust.identified_flags(_vals(), {"invalid_fraction": 0.39, "samples": 20000}, {}, CFG)
     assert checks(fl) == {("invalid_draws", "K, T1, T2, T3, T")} and "39%" in fl[0]["reason"]
+    # with the first-order share (indices stage): the second-order condition concerns T1, T2, T3 only
+    chk = {"invalid_fraction": 0.32, "invalid_fraction_first_order": 0.021, "samples": 20000,
+           "invalid_causes": {"D <= 0": 0.274, "unstable": 0.0, "complex": 0.048}}
+    fl = trust.identified_flags(_vals(), chk, {}, CFG)
+    assert checks(fl) == {("invalid_draws", "T1, T2, T3")} and "D <= 0 27%" in fl[0]["reason"]
+    assert trust.blocking(fl, ("K", "T")) == [] and trust.blocking(fl, ("T1", "T2", "T3")) == fl
+    fl = trust.identified_flags(_vals(), {**chk, "invalid_fraction_first_order": 0.21}, {}, CFG)
+    assert checks(fl) == {("invalid_draws", "T1, T2, T3"), ("invalid_draws", "K, T")}
+    assert len(trust.blocking(fl, ("K", "T"))) == 1
     for nis in (18.0, 0.12):
         est = {"consistency": {"nis_mean": nis, "nis_95_band": [2.80, 3.20]}}
         fl = trust.identified_flags(_vals(), None, est, CFG)
@@ -199,3 +211,15 @@ def test_phase_margin_below_the_floor_is_flagged():
     assert f["check"] == "phase_margin" and "20 deg below 30 deg" in f["reason"]
     assert loop_flags({"phase_margin_deg": 45.0}, cfg) == []
     assert loop_flags({"phase_margin_deg": None}, cfg) == []
+
+
+def test_report_marks_a_set_flag_only_on_the_indices_it_names():
+    from pipeline.report import nb
+
+    fl = [trust.flag("invalid_draws", "T1, T2, T3", 0.25, [0, 0.05], "draws"),
+          trust.flag("relative_uncertainty", "T2", 1.2, [0, 0.5], "wide")]
+    assert nb.flag_marks(fl, "K") == "" and nb.flag_marks(fl, "T") == ""
+    assert nb.flag_marks(fl, "T1") == "invalid draws"
+    assert nb.flag_marks(fl, "T2") == "invalid draws, uncertain"
+    fl.append({"check": "innovation_whiteness", "subject": "filter", "reason": "lag-1"})
+    assert nb.flag_marks(fl, "K") == "innovations not white"

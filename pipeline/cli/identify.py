@@ -29,6 +29,8 @@ def register(sub) -> None:
                    help="identification window as a duration in s at the run's scale (scale-free)")
     p.add_argument("--half-periods", type=float, default=None,
                    help="identification window as a number of zigzag half-periods after the first execute")
+    p.add_argument("--measurement-noise", choices=("paper", "data"), default=None,
+                   help="R of the filter: the paper's setting (default) or measured from the run")
     p.add_argument("--scale", type=float, default=None, help="scale factor of a full-scale raw file")
     p.add_argument("--run-id", default=None, help="catalog mode: identify this run instead of the default")
     p.add_argument("--reference", action="store_true", help="SR-UKF: numpy reference path instead of numba")
@@ -73,6 +75,23 @@ def _summary(ident, where: Path) -> str:
     return line
 
 
+def dataset_settings(cfg: FilterConfig, settings: dict, args, where: Path) -> FilterConfig:
+    """The dataset's ``[identify]`` settings (dataset.toml, recorded in runs/index.json) where the
+    command line gives none: the window (samples, window_s or half_periods) and measurement_noise."""
+    if not isinstance(settings, dict):
+        raise InputError("'identify' must be a table of settings", file=where)
+    if all(x is None for x in (args.samples, args.window_s, args.half_periods)):
+        if settings.get("window_s") is not None:
+            cfg = dataclasses.replace(cfg, window_s=float(settings["window_s"]))
+        elif settings.get("half_periods") is not None:
+            cfg = dataclasses.replace(cfg, window_half_periods=float(settings["half_periods"]))
+        elif settings.get("samples") is not None:
+            cfg = dataclasses.replace(cfg, samples=int(settings["samples"]))
+    if args.measurement_noise is None and settings.get("measurement_noise") is not None:
+        cfg = dataclasses.replace(cfg, measurement_noise=str(settings["measurement_noise"]))
+    return cfg
+
+
 def _run(args) -> int:
     from pipeline.identify import identify_run
     from pipeline.runinfo import choose_runs
@@ -90,6 +109,8 @@ def _run(args) -> int:
         cfg = dataclasses.replace(cfg, window_half_periods=args.half_periods)
     if args.reference:
         cfg = dataclasses.replace(cfg, fast=False)
+    if args.measurement_noise is not None:
+        cfg = dataclasses.replace(cfg, measurement_noise=args.measurement_noise)
     if args.samples is not None and args.samples < 10:
         raise InputError(f"--samples must be at least 10, got {args.samples}")
     if args.run is not None:
@@ -103,6 +124,7 @@ def _run(args) -> int:
         return 0
     cat = catalog(args)
     index = read_json(cat.runs_index)
+    cfg = dataset_settings(cfg, index.get("identify") or {}, args, cat.runs_index)
     entries = index.get("runs") or []
     try:
         ident_id, _ = choose_runs(entries, args.run_id or (index.get("roles") or {}).get("identify"))

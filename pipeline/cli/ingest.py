@@ -151,6 +151,7 @@ def _run(args) -> int:
         index["ship"] = ds.particulars()
         index["roles"] = {"identify": ds.roles.identify, "train": list(ds.roles.train),
                           "validate": list(ds.roles.validate), "test": list(ds.roles.test)}
+        index["identify"] = ds.identify.as_dict()
     index["runs"] = []
     with atomic_dir(args.out) as tmp:
         for f, run in zip(files, runs, strict=True):

@@ -18,6 +18,7 @@ from pipeline.indices.nomoto_kt import graphical_kt, integral_kt
 from pipeline.indices.stage import analyse_run, build
 from pipeline.indices.turning import turning_metrics
 from pipeline.indices.uncertainty import (
+    draw_validity,
     index_range_over_box,
     indices_with_uncertainty,
     monte_carlo,
@@ -27,7 +28,8 @@ from pipeline.indices.uncertainty import (
 from pipeline.indices.zigzag import zigzag_metrics
 
 __all__ = [
-    "IndicesConfig", "analyse_run", "build", "graphical_kt", "imo_check", "index_range_over_box",
-    "indices_with_uncertainty", "integral_kt", "monte_carlo", "overshoot_limits", "propagate",
+    "IndicesConfig", "analyse_run", "build", "draw_validity", "graphical_kt", "imo_check",
+    "index_range_over_box", "indices_with_uncertainty", "integral_kt", "monte_carlo", "overshoot_limits",
+    "propagate",
     "rounding_half_widths", "turning_metrics", "zigzag_metrics",
 ]

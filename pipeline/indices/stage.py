@@ -31,7 +31,7 @@ from pipeline.indices import trust
 from pipeline.indices.imo import imo_check
 from pipeline.indices.nomoto_kt import graphical_kt, integral_kt
 from pipeline.indices.turning import turning_metrics
-from pipeline.indices.uncertainty import monte_carlo, propagate
+from pipeline.indices.uncertainty import draw_validity, monte_carlo, propagate
 from pipeline.indices.zigzag import zigzag_metrics
 from pipeline.io import Run
 from pipeline.model import INDEX_NAMES, PAPER_GRAPHICAL, PAPER_TABLE4, PAPER_TABLE7
@@ -94,7 +94,9 @@ def identified(estimates: dict[str, Any], config: IndicesConfig | None = None) -
     check = None
     if cov is not None:
         mc = monte_carlo(estimates["parameters"], cov, cfg.mc_samples, cfg.seed)
-        check = {"samples": cfg.mc_samples, "seed": cfg.seed, "invalid_fraction": mc.pop("rejected"),
+        valid = draw_validity(estimates["parameters"], cov, cfg.mc_samples, cfg.seed)
+        mc.pop("rejected")      # the same draws: draw_validity gives the share and its causes
+        check = {"samples": cfg.mc_samples, "seed": cfg.seed, **valid,
                  "percentiles_16_50_84": {n: [mc[n]["p16"], mc[n]["p50"], mc[n]["p84"]] for n in INDEX_NAMES}}
     return {"indices": vals, "method": used, "check": check}
 

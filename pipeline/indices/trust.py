@@ -16,14 +16,17 @@ The checks and why each threshold (pipeline.config.IndicesConfig):
 * ``relative_uncertainty``: one-sigma std / |value| above ``max_rel_std`` (0.5): the 95 % interval
   (about +-2 sigma) then reaches zero, so not even the size of the index is established.
 * ``invalid_draws``: more than ``max_invalid_fraction`` (5 %) of the Monte Carlo draws from
-  N(estimate, covariance) give no real positive time constants: the parameters sit near the edge of
-  the stable region and the Gaussian bounds are local only.
+  N(estimate, covariance) fall where the indices are not defined: a 95 % region of the parameters
+  then reaches models without these indices, so the Gaussian bounds are local only.  Two conditions
+  (:func:`pipeline.indices.uncertainty.draw_validity`): real positive T1, T2 for T1, T2, T3 (subject
+  "T1, T2, T3"), and K > 0, T > 0 for the first-order K, T (subject "K, T").
 * ``sign``: K <= 0 contradicts the SPEC sign convention (positive rudder gives positive yaw rate) or
   means a reversed rudder; T <= 0 is an unstable or non-physical first-order response.
 * ``ill_conditioned``: a graphical (standard-method) T longer than the zigzag period: the response
   never approaches steady turning within a cycle, so the fit fixes only K/T and K, T separately are
   ill-conditioned (e.g. K = 8 1/s with T = 578 s).
-* identify-side flags (NIS outside its chi-square band, too little excitation, ...) come from
+* identify-side flags (mean NIS outside its chi-square band over the effectively independent steps,
+  innovations not white, too little excitation, ...: pipeline/identify/consistency.py) come from
   ``estimates.json`` ``"flags"`` and are carried over unchanged; an estimates file without that key
   is checked here against its own ``consistency.nis_95_band``.
 """
@@ -109,13 +112,27 @@ def identified_flags(vals: dict[str, dict[str, float | None]], check: dict | Non
                             f"the value (above {cfg.max_rel_std:.0%}), its 95 % interval reaches zero"))
     out += sign_flags({n: d.get("value") for n, d in vals.items()})
     if check and _finite(check.get("invalid_fraction")) is not None:
+        lim = cfg.max_invalid_fraction
+        n = check.get("samples")
         frac = float(check["invalid_fraction"])
-        if frac > cfg.max_invalid_fraction:
-            lim = cfg.max_invalid_fraction
-            out.append(flag("invalid_draws", "K, T1, T2, T3, T", frac, [0.0, lim],
-                            f"{frac:.0%} of {check.get('samples')} parameter draws from the filter "
-                            f"covariance give no real positive time constants (above {lim:.0%}): the model "
-                            "is near the edge of stability and the one-sigma bounds are local only"))
+        first = _finite(check.get("invalid_fraction_first_order"))
+        # second-order validity (real positive T1, T2) concerns T1, T2, T3; K and T have their own
+        # condition (K > 0, T > 0, pipeline.indices.uncertainty.draw_validity).  A check without the
+        # first-order share (older indices.json) holds the whole set to the second-order condition.
+        subject = "T1, T2, T3" if first is not None else "K, T1, T2, T3, T"
+        if frac > lim:
+            causes = check.get("invalid_causes") or {}
+            why = ", ".join(f"{k} {v:.0%}" for k, v in causes.items() if v > 0)
+            out.append(flag("invalid_draws", subject, frac, [0.0, lim],
+                            f"{frac:.0%} of {n} parameter draws from the filter covariance give no real "
+                            f"positive time constants T1, T2 (above {lim:.0%}"
+                            + (f"; {why}" if why else "") + "): the second-order model is near the edge "
+                            "of its valid region and the one-sigma bounds of T1, T2, T3 are local only"))
+        if first is not None and first > lim:
+            out.append(flag("invalid_draws", "K, T", first, [0.0, lim],
+                            f"{first:.0%} of {n} parameter draws from the filter covariance give K <= 0 "
+                            f"or T <= 0 (above {lim:.0%}): not even the sign of the first-order "
+                            "response is established"))
     return out
 
 
@@ -181,14 +198,15 @@ def integral_uncertainty_flags(row: dict[str, Any], cfg: IndicesConfig) -> list[
 
 
 def blocking(flags: list[dict[str, Any]], names: tuple[str, ...]) -> list[dict[str, Any]]:
-    """The flags that forbid designing from indices ``names``: any flag about one of them, about the
-    whole set (invalid draws) or about the filter (NIS, excitation ...).  Missing primes do not."""
+    """The flags that forbid designing from indices ``names``: any flag whose subject (one name or a
+    comma-separated list) names one of them, or about the filter (NIS, whiteness, excitation ...).
+    Missing primes do not."""
     out = []
     for f in flags:
         if f.get("check") == "prime_unavailable":
             continue
         subj = str(f.get("subject", ""))
-        if subj == "filter" or "," in subj or subj in names:
+        if subj == "filter" or {s.strip() for s in subj.split(",")} & set(names):
             out.append(f)
     return out
 

@@ -140,6 +140,47 @@ def monte_carlo(params, cov, samples: int = 20000, seed: int = 0) -> dict[str, d
     return out
 
 
+def draw_validity(params, cov, samples: int = 20000, seed: int = 0) -> dict[str, float]:
+    """Which Gaussian draws N(params, cov) give a usable model, for the first- and second-order indices.
+
+    The same seeded draws as :func:`monte_carlo`.  With D = a11 a22 - a12 a21, num = a21 b11 - a11 b21:
+
+    * second order (T1, T2, T3 of Eq. 6) needs real positive T1, T2: D > 0, T1 + T2 = -(a11 + a22)/D
+      > 0 and (T1 + T2)^2 >= 4 T1 T2.  ``invalid_fraction`` is the share of draws without them, with
+      its causes: ``D <= 0`` (one negative time constant: a course-unstable model), ``unstable``
+      (T1 + T2 <= 0), ``complex`` (a stable but oscillatory yaw mode).
+    * first order (K, T of the Nomoto K/(1 + T s), what the first-order CGSA uses) needs only
+      K = num/D > 0 and T = T1 + T2 - T3 = -(a11 + a22)/D - b21/num > 0, which are real for complex
+      T1, T2 as well.  ``invalid_fraction_first_order`` is the share of draws with K <= 0 or T <= 0
+      (a reversed rudder response or an unstable first-order ship).
+
+    A zigzag fixes K and K/T well but hardly the spiral stability D: the a11-a12 and a21-a22 pairs are
+    nearly collinear (sway follows yaw), so the covariance is a long ridge along which D crosses zero
+    while K and T stay put.  Checking K and T against the second-order condition would flag them for
+    the uncertainty of T1, T2, T3.
+    """
+    theta = as_theta(params)
+    rng = np.random.default_rng(seed)
+    d = theta + rng.standard_normal((samples, 6)) @ _sqrt_cov(cov).T
+    a11, a12, a21, a22, b11, b21 = d.T
+    det = a11 * a22 - a12 * a21
+    num = a21 * b11 - a11 * b21
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = -(a11 + a22) / det
+        k = num / det
+        t = s - b21 / num
+        disc = s * s - 4.0 / det
+    det_bad = ~(det > 0)
+    unstable = ~det_bad & ~(s > 0)
+    cplx = ~det_bad & ~unstable & (disc < 0)
+    second_bad = det_bad | unstable | cplx | ~(np.abs(k) > 0)
+    first_bad = ~(np.isfinite(k) & np.isfinite(t) & (k > 0) & (t > 0))
+    return {"invalid_fraction": float(second_bad.mean()),
+            "invalid_fraction_first_order": float(first_bad.mean()),
+            "invalid_causes": {"D <= 0": float(det_bad.mean()), "unstable": float(unstable.mean()),
+                               "complex": float(cplx.mean())}}
+
+
 def rounding_half_widths(printed: dict[str, str]) -> dict[str, float]:
     """Half a unit of the last printed digit of each value, e.g. '0.0099' -> 5e-5."""
     return {k: 0.5 * float(Decimal(1).scaleb(Decimal(str(v).strip()).as_tuple().exponent))

@@ -363,7 +363,8 @@ def num(x: Any, digits: int = 3, unit: str = "") -> str:
 
 CHECK_LABEL = {"relative_uncertainty": "uncertain", "invalid_draws": "invalid draws", "nis": "NIS",
                "sign": "sign", "ill_conditioned": "ill-conditioned", "prime_unavailable": "no K', T'",
-               "excitation": "excitation", "phase_margin": "phase margin", "rejected": "not used"}
+               "excitation": "excitation", "phase_margin": "phase margin", "rejected": "not used",
+               "nis_mean": "NIS", "innovation_whiteness": "innovations not white"}
 
 
 def flag_marks(flags: list[dict] | None, subject: str | None = None) -> str:
@@ -371,7 +372,7 @@ def flag_marks(flags: list[dict] | None, subject: str | None = None) -> str:
     out = []
     for f in flags or []:
         subj = str(f.get("subject", ""))
-        if subject is None or subj == subject or subj == "filter" or "," in subj:
+        if subject is None or subj == "filter" or subject in {x.strip() for x in subj.split(",")}:
             lab = CHECK_LABEL.get(str(f.get("check")), str(f.get("check")).replace("_", " "))
             if lab not in out:
                 out.append(lab)
