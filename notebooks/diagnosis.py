@@ -40,12 +40,14 @@ named = list((dg.get("extended") or {}).get("effects") or [])
 measured_on = [str(r) for r in gain_block.get("measured_on") or []]
 iv = dt.interval(gain_block.get("interval_95"))
 ship = particulars.summary(data.index)
-scale_words = ("model scale" if particulars.particulars(data.index).get("files_scale_factor") in (None, 1, 1.0)
+applied = particulars.particulars(data.index).get("files_scale_factor")
+scale_words = ("model scale" if applied in (None, 1, 1.0)
                else "model scale (full-scale files Froude-scaled at ingest)")
 has_gain = isinstance(gain, (int, float))
 if cause != "none":
     head = (f"Cause: <b>{nb.esc(dt.effect_label(cause))}</b>"
-            + (f" (extended model: {nb.esc(' + '.join(map(dt.effect_label, named)))})" if len(named) > 1 else ""))
+            + (f" (extended model: {nb.esc(' + '.join(map(dt.effect_label, named)))})"
+               if len(named) > 1 else ""))
 else:
     head = "Cause: <b>none</b>: no effect of the catalogue brings a real, material held-out gain"
 if has_gain and (named or cause != "none"):
@@ -65,7 +67,8 @@ nb.note(f"Ship and scale: {ship}. Every number below is at {scale_words}, in the
 # %%
 base = dg.get("baseline") or {}
 ext = dg.get("extended") or {}
-stab_rows = [{"model": "linear baseline (first fold)", "training runs": ", ".join(dg.get("training_runs") or []),
+stab_rows = [{"model": "linear baseline (first fold)",
+              "training runs": ", ".join(dg.get("training_runs") or []),
               "course stability": dt.stability_words(base.get("parameters"), base.get("course_stable"))}]
 for k, fr in enumerate(dg.get("folds") or []):
     if k == 0:
@@ -77,7 +80,8 @@ for k, fr in enumerate(dg.get("folds") or []):
 if named:
     stab_rows.append({"model": "extended model (its linear part)",
                       "training runs": ", ".join(dg.get("training_runs") or []),
-                      "course stability": dt.stability_words(ext.get("parameters"), ext.get("course_stable"))})
+                      "course stability": dt.stability_words(ext.get("parameters"),
+                                                             ext.get("course_stable"))})
 nb.table(pd.DataFrame(stab_rows).set_index("model"),
          "Course stability of the fitted models, baseline first then each fold, from the poles of the "
          "fitted state matrix (a pole with a positive real part = course-unstable).")
@@ -152,7 +156,8 @@ else:
 # %%
 method = str(gain_block.get("method") or "")
 if has_gain:
-    nb.note(f"On the runs no choice has seen, the extended model {dt.gain_sentence(gain, gain_block.get('interval_95'))}"
+    nb.note("On the runs no choice has seen, the extended model "
+            + dt.gain_sentence(gain, gain_block.get("interval_95"))
             + f" (free-run MAE of psi); measured on {', '.join(measured_on)}."
             + (f" How: {method}." if method else ""))
 else:
@@ -194,10 +199,12 @@ if not named:
 for e in named:
     f = by_eff.get(e, {})
     j = joint.get(e) or {}
-    est = dt.estimate_text(j.get("estimate") or f.get("estimate"), j.get("uncertainty") or f.get("uncertainty"))
+    est = dt.estimate_text(j.get("estimate") or f.get("estimate"),
+                           j.get("uncertainty") or f.get("uncertainty"))
     words = [f"<h3>{nb.esc(dt.effect_label(e))}</h3>",
-             f"<p><b>In plain words:</b> "
-             f"{nb.esc(dt.plain(f.get('physical') or 'no reading written', (f.get('estimate') or {}).keys()))}."
+             "<p><b>In plain words:</b> "
+             + nb.esc(dt.plain(f.get("physical") or "no reading written", (f.get("estimate") or {}).keys()))
+             + "."
              "</p>"]
     if e == "rudder_offset":
         extra = dt.offset_words(j.get("estimate") or f.get("estimate"), ext.get("parameters"))
@@ -315,8 +322,9 @@ for rid in runs_drawn:
     pb = next((p for p in base.get("per_run") or [] if p.get("run_id") == rid), {})
     pe = next((p for p in ext.get("per_run") or [] if p.get("run_id") == rid), {})
     nb.show(fig, f"Validation run {data.run_label(rid)}: heading, yaw rate and logged rudder; the "
-            f"measurement (dark), the linear baseline (blue dashed, MAE psi {dt.num(pb.get('mae_psi_deg'), 3)} "
-            f"deg) and the extended model (red, MAE psi {dt.num(pe.get('mae_psi_deg'), 3)} deg), both "
+            f"measurement (dark), the linear baseline (blue dashed, MAE psi "
+            f"{dt.num(pb.get('mae_psi_deg'), 3)} deg) and the extended model (red, MAE psi "
+            f"{dt.num(pe.get('mae_psi_deg'), 3)} deg), both "
             "free-run from the first sample. This run chose the effects; the honest gain is measured on "
             "the runs listed above.")
 
@@ -371,7 +379,8 @@ if named and has_gain:
     points.append(
         f"The linear model's main error is {dt.effect_label(cause)}"
         + (f" (with {', '.join(dt.effect_label(e) for e in named if e != cause)})" if len(named) > 1 else "")
-        + f": on validation it cut the heading error by {dt.pct(gain_block.get('validation_mae_psi_relative_reduction'))}; "
+        + ": on validation it cut the heading error by "
+        + f"{dt.pct(gain_block.get('validation_mae_psi_relative_reduction'))}; "
         + f"on the runs no choice has seen, adding it {dt.gain_sentence(gain, gain_block.get('interval_95'))}"
         + f", measured on {len(measured_on)} run{'s' if len(measured_on) != 1 else ''} no choice has seen ("
         + ", ".join(data.short_label(r) for r in measured_on) + ").")
@@ -386,10 +395,12 @@ elif named:
     points.append(f"Named: {', '.join(map(dt.effect_label, named))}; no run was left unseen by the choice, "
                   "so its gain is not measured honestly.")
 else:
-    points.append("No effect of the catalogue brings a real, material held-out gain: the linear model is kept"
-                  + (f" (held-out change with the nested selection {dt.pct(gain)})" if has_gain else "") + ".")
+    points.append("No effect of the catalogue brings a real, material held-out gain: the linear model is "
+                  "kept" + (f" (the nested selection's held-out change: {dt.gain_text(gain)})"
+                            if has_gain else "") + ".")
 if rejected:
-    points.append(f"{len(rejected)} effects rejected: " + ", ".join(f"{n} {k}" for k, n in counts.items()) + ".")
+    points.append(f"{len(rejected)} effects rejected: "
+                  + ", ".join(f"{n} {k}" for k, n in counts.items()) + ".")
 if causes:
     points.append(f"Stability: {stab.get('folds_agreeing')} of {stab.get('total')} repeated selections name "
                   f"the same cause ({dt.effect_label(cause)}).")

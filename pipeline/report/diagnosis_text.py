@@ -286,7 +286,8 @@ def ladder_rows(dg: dict) -> list[dict]:
                      "validation MAE psi (deg)": rung.get("validation_mae_psi_deg"),
                      "test MAE psi (deg)": tm,
                      "test gain over baseline": gain_text(tg) if i else "",
-                     "test gain 95 % interval": (interval(rung.get("test_interval_95")) or "n/a") if i else ""})
+                     "test gain 95 % interval": (interval(rung.get("test_interval_95")) or "n/a")
+                     if i else ""})
     return rows
 
 
