@@ -107,7 +107,8 @@ if lrows:
              + ("" if any(r["test MAE psi (deg)"] is not None for r in lrows) else
                 " Without test runs the stage measures the honest gain by nested leave-one-run-out, "
                 "which has no per-step test error; see the honest gain below."))
-    lad_raw = dg.get("ladder") or []
+lad_raw = dg.get("ladder") or []
+if len(lrows) > 1:
     tv = [r["test MAE psi (deg)"] for r in lrows]
     has_test = any(isinstance(v, (int, float)) for v in tv)
     fig, axes = plt.subplots(1, 2 if has_test else 1, figsize=(11 if has_test else 7, 0.9 + 0.5 * len(lrows)),
@@ -145,6 +146,8 @@ if lrows:
             + (" on the validation runs (open circles) and the test runs (red squares). Right: the "
                "relative gain of each step over the baseline on the test runs, with its 95 % bootstrap "
                "interval over blocks." if has_test else " on the validation runs (which chose it)."))
+elif lrows:
+    nb.note("The ladder has one step: no effect was added to the linear baseline.")
 else:
     nb.note("The stage wrote no model ladder.")
 
@@ -155,7 +158,12 @@ else:
 
 # %%
 method = str(gain_block.get("method") or "")
-if has_gain:
+nested_all_none = bool(gain_block.get("nested")) and not any(n.get("effects") for n in gain_block["nested"])
+if has_gain and not named and nested_all_none:
+    nb.note(f"No nested selection chose an effect, so on the runs held out ({', '.join(measured_on)}) the "
+            "model is the linear baseline and the held-out error is unchanged."
+            + (f" How: {method}." if method else ""))
+elif has_gain:
     nb.note("On the runs no choice has seen, the extended model "
             + dt.gain_sentence(gain, gain_block.get("interval_95"))
             + f" (free-run MAE of psi); measured on {', '.join(measured_on)}."
@@ -232,35 +240,41 @@ for e in named:
 
 # %% [markdown]
 # ## Residuals that make the case
-# Held-out residuals (measured minus model) on the validation runs: the baseline on the left, the
-# extended model on the right, on the same axes. A structured residual that the extended model
-# flattens is the evidence for the effect.
+# Held-out residuals (measured minus model) on the validation runs: the baseline on the left and, when
+# an effect is named, the extended model on the right, on the same axes. A structured residual that the
+# extended model flattens is the evidence for the effect.
 
 # %%
 runs_drawn = list(dict.fromkeys(series.run_id))[:max_runs_plotted]
 has_r = all(c in series for c in ("r", "r_baseline", "r_extended"))
-styles = ["-", "--", ":", "-."]
-fig, axes = plt.subplots(2 if has_r else 1, 2, figsize=(11, 6 if has_r else 3.2), sharex=True,
-                         sharey="row", squeeze=False)
-for col, (model, colour) in enumerate((("baseline", "tab:blue"), ("extended", "tab:red"))):
+SHADES = {"baseline": ("tab:blue", "#9ecae1", "#08306b", "#6baed6"),
+          "extended": ("tab:red", "#fc9272", "#67000d", "#fb6a4a")}
+models = (("baseline", "linear baseline"),)
+if named:
+    models += (("extended", "extended: " + " + ".join(map(dt.effect_label, named))),)
+fig, axes = plt.subplots(2 if has_r else 1, len(models), figsize=(5.5 * len(models) + 1.5, 6 if has_r else 3),
+                         sharex=True, sharey="row", squeeze=False)
+for col, (model, title) in enumerate(models):
     for i, rid in enumerate(runs_drawn):
         s = series[series.run_id == rid]
-        axes[0, col].plot(s.time, s.psi - s[f"psi_{model}"], color=colour, ls=styles[i % 4], lw=1.0,
+        colour = SHADES[model][i % 4]
+        axes[0, col].plot(s.time, s.psi - s[f"psi_{model}"], color=colour, lw=1.0,
                           label=data.short_label(rid))
         if has_r:
-            axes[1, col].plot(s.time, s.r - s[f"r_{model}"], color=colour, ls=styles[i % 4], lw=1.0)
-    axes[0, col].set_title("linear baseline" if model == "baseline" else
-                           "extended: " + (" + ".join(map(dt.effect_label, named)) or "no effect added"))
+            axes[1, col].plot(s.time, s.r - s[f"r_{model}"], color=colour, lw=0.8)
+    axes[0, col].set_title(title)
     for a in axes[:, col]:
         a.axhline(0, color="k", lw=0.5)
     axes[-1, col].set_xlabel(nb.label("time"))
+    nb.legend_outside(axes[0, col], title="validation run")
 axes[0, 0].set_ylabel("psi error (deg)")
 if has_r:
     axes[1, 0].set_ylabel("r error (deg/s)")
-nb.legend_outside(axes[0, 1], title="validation run")
 nb.show(fig, "Held-out heading error (top) and yaw-rate error (bottom) over time on the validation runs, "
-        "line style per run: the linear baseline (left, blue) and the extended model (right, red), on "
-        "the same axes. Error = measured minus free-run model.")
+        "one shade per run: the linear baseline"
+        + (" (left, blues) and the extended model (right, reds), on the same axes" if named else
+           " (no effect is named, so there is no extended model to compare)")
+        + ". Error = measured minus free-run model.")
 
 for e in named:
     sx = dt.signature_x(series, e) if has_r else None
@@ -275,12 +289,15 @@ for e in named:
         cx, my = dt.binned(x, yerr)
         a.plot(cx, my, "-o", ms=3, color="k", lw=1.2)
         a.axhline(0, color="k", lw=0.5)
+        a.axhline(float(np.nanmean(yerr)), color="0.3", lw=1.0, ls="--")
         a.set_xlabel(xlabel)
-        a.set_title("linear baseline" if model == "baseline" else "extended model")
+        a.set_title(("linear baseline" if model == "baseline" else "extended model")
+                    + f": mean r error {dt.num(float(np.nanmean(yerr)), 2, 'deg/s')}")
     axes[0].set_ylabel("r error (deg/s)")
     nb.show(fig, f"{dt.effect_label(e)}: held-out yaw-rate error against the effect's signature "
             f"({xlabel}) on the validation runs, baseline left, extended model right; dots every sample, "
-            "black line the mean in bins. The trend the baseline leaves is what the effect explains.")
+            "black line the mean in bins, dashed grey the overall mean. The trend (or, for an offset, the "
+            "mean) the baseline leaves is what the effect explains.")
 
 res_b = (base.get("residuals") or {}).get("correlation") or {}
 res_e = (ext.get("residuals") or {}).get("correlation") or {}
@@ -305,14 +322,16 @@ for rid in runs_drawn:
     ax = axes[0]
     ax.plot(s.time, s.psi, color="0.2", lw=1.4, label=data.source_label)
     ax.plot(s.time, s.psi_baseline, color="tab:blue", lw=1.0, ls="--", label="linear baseline")
-    ax.plot(s.time, s.psi_extended, color="tab:red", lw=1.0, label="extended model")
+    if named:
+        ax.plot(s.time, s.psi_extended, color="tab:red", lw=1.0, label="extended model")
     ax.set_ylabel(nb.label("psi"))
     nb.legend_outside(ax)
     ax.set_title(data.run_label(rid))
     if has_r:
         axes[1].plot(s.time, s.r, color="0.2", lw=1.4)
         axes[1].plot(s.time, s.r_baseline, color="tab:blue", lw=1.0, ls="--")
-        axes[1].plot(s.time, s.r_extended, color="tab:red", lw=1.0)
+        if named:
+            axes[1].plot(s.time, s.r_extended, color="tab:red", lw=1.0)
         axes[1].set_ylabel(nb.label("r"))
     axd = axes[-1]
     if "delta" in s:
@@ -323,9 +342,10 @@ for rid in runs_drawn:
     pe = next((p for p in ext.get("per_run") or [] if p.get("run_id") == rid), {})
     nb.show(fig, f"Validation run {data.run_label(rid)}: heading, yaw rate and logged rudder; the "
             f"measurement (dark), the linear baseline (blue dashed, MAE psi "
-            f"{dt.num(pb.get('mae_psi_deg'), 3)} deg) and the extended model (red, MAE psi "
-            f"{dt.num(pe.get('mae_psi_deg'), 3)} deg), both "
-            "free-run from the first sample. This run chose the effects; the honest gain is measured on "
+            f"{dt.num(pb.get('mae_psi_deg'), 3)} deg)"
+            + (f" and the extended model (red, MAE psi {dt.num(pe.get('mae_psi_deg'), 3)} deg)"
+               if named else "")
+            + ", free-run from the first sample. This run chose the effects; the honest gain is measured on "
             "the runs listed above.")
 
 # %% [markdown]

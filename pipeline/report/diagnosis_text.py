@@ -44,9 +44,13 @@ SIGNATURE = {
     "rudder_asymmetry": ("delta", "logged rudder delta (deg)"),
 }
 
-#: parameter-key unit suffixes of diagnosis.json -> unit text (longest first)
-_UNIT_SUFFIX = (("_s_per_deg2", "s/deg^2"), ("_per_deg2", "1/deg^2"), ("_per_deg", "1/deg"),
-                ("_deg_s", "deg/s"), ("_m_s", "m/s"), ("_deg", "deg"), ("_s", "s"), ("_m", "m"))
+#: parameter-key unit suffixes of diagnosis.json -> unit text (the stage writes units only in the key
+#: names; matched longest first).  Keys without a suffix are dimensionless.
+_UNIT_SUFFIX = tuple(sorted({
+    "_s_per_deg2": "s/deg^2", "_per_deg2": "1/deg^2", "_per_deg": "1/deg", "_s_per_m_deg": "s/(m deg)",
+    "_s2_per_deg2": "s^2/deg^2", "_s_per_m2": "s/m^2", "_deg_per_m2": "deg/m^2", "_per_m": "1/m",
+    "_deg_s": "deg/s", "_m_s": "m/s", "_deg": "deg", "_s": "s", "_m": "m",
+}.items(), key=lambda kv: -len(kv[0])))
 
 
 def effect_label(name: Any) -> str:
@@ -103,11 +107,12 @@ def interval(iv: Any, percent: bool = True, digits: int = 3) -> str:
 
 
 def param_label(key: str) -> str:
-    """'n_rrr_s_per_deg2' -> 'n_rrr (s/deg^2)', 'offset_deg' -> 'offset (deg)'."""
+    """'n_rrr_s_per_deg2' -> 'n_rrr (s/deg^2)', 'offset_deg' -> 'offset (deg)', 'asymmetry' ->
+    'asymmetry (-)' (the coefficient's symbol is kept as written: n_rrr is a symbol, not a word)."""
     for suffix, unit in _UNIT_SUFFIX:
         if key.endswith(suffix) and len(key) > len(suffix):
-            return f"{key[: -len(suffix)].replace('_', ' ')} ({unit})"
-    return key.replace("_", " ")
+            return f"{key[: -len(suffix)]} ({unit})"
+    return f"{key} (-)"
 
 
 def estimate_text(estimate: dict | None, uncertainty: dict | None) -> str:
