@@ -26,11 +26,13 @@ data = nb.Data(root, dataset)
 dg = data.json("diagnose/diagnosis.json")
 series = data.frame("diagnose/series.parquet", ("run_id", "time", "psi"))
 settings = dg.get("settings") or {}
+shown_settings = {k: (", ".join(map(dt.effect_label, v)) if k == "catalogue" and isinstance(v, list) else v)
+                  for k, v in settings.items()}
 display(nb.banner(data, "Model diagnosis", {
     "training runs": ", ".join(dg.get("training_runs") or []),
     "validation runs": ", ".join(dg.get("validation_runs") or []),
     "test runs": ", ".join(dg.get("test_runs") or []) or "none (nested leave-one-run-out)",
-    **settings}))
+    **shown_settings}))
 
 # %%
 gain_block = dg.get("gain") or {}
