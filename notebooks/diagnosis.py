@@ -85,7 +85,8 @@ if named:
                       "course stability": dt.stability_words(ext.get("parameters"),
                                                              ext.get("course_stable"))})
 nb.table(pd.DataFrame(stab_rows).set_index("model"),
-         "Course stability of the fitted models, baseline first then each fold, from the poles of the "
+         "Course stability of the fitted models: the baseline of each fold in fold order, then the extended "
+         "model; from the poles of the "
          "fitted state matrix (a pole with a positive real part = course-unstable).")
 bp, bu = base.get("parameters") or {}, base.get("uncertainty") or {}
 if bp:
