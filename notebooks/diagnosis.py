@@ -392,7 +392,8 @@ if causes:
 # %%
 base_stab = dt.stability_words(base.get("parameters"), base.get("course_stable")).split(":")[0]
 rejected = [r for r in rows if r["verdict"] != "named"]
-counts = pd.Series([r["verdict"] for r in rejected]).value_counts() if rejected else pd.Series(dtype=int)
+tests = {v: sum(v in dt.failed_tests(f, settings) for f in findings if not f.get("significant"))
+         for v in dt.VERDICTS[1:]}
 points = [
     f"Ship: {ship}; data at {scale_words}.",
     f"The linear baseline is {base_stab} and its held-out heading error is "
@@ -422,8 +423,8 @@ else:
                   "kept" + (f" (the nested selection's held-out change: {dt.gain_text(gain)})"
                             if has_gain else "") + ".")
 if rejected:
-    points.append(f"{len(rejected)} effects rejected: "
-                  + ", ".join(f"{n} {k}" for k, n in counts.items()) + ".")
+    points.append(f"{len(rejected)} effects rejected (one may fail several tests): "
+                  + ", ".join(f"{n} {k}" for k, n in tests.items() if n) + ".")
 if causes:
     points.append(f"Stability: {stab.get('folds_agreeing')} of {stab.get('total')} repeated selections name "
                   f"the same cause ({dt.effect_label(cause)}).")

@@ -310,6 +310,9 @@ def test_diagnosis_words_and_verdicts():
                    "rudder_asymmetry": "immaterial", "speed_loss": "failed a fold",
                    "rudder_delay": "not significant",
                    "sway_yaw_coupling": "immaterial", "rudder_lag": "not tried"}
+    assert dt.failed_tests(doc["findings"][5], doc["settings"]) == ("immaterial", "failed a fold",
+                                                                     "not significant")
+    assert dt.failed_tests(doc["findings"][0], doc["settings"]) == ("named",)
     # a gain below the threshold is immaterial even with everything else passing
     f = dict(doc["findings"][4], validation_gain=0.05, validation_gain_folds=[0.04, 0.06], block_t=3.0)
     assert dt.verdict(f, doc["settings"]) == ("immaterial", "held-out gain +5 % below the 10 % threshold")

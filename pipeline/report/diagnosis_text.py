@@ -133,13 +133,14 @@ def estimate_text(estimate: dict | None, uncertainty: dict | None) -> str:
 VERDICTS = ("named", "immaterial", "failed a fold", "not significant", "not tried", "fit failed")
 
 
-def verdict(f: dict, settings: dict | None = None) -> tuple[str, str]:
+def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> tuple[str, ...]:
     """(verdict, reason in words) of one finding of diagnosis.json.
 
     The verdict is the first that applies, in this order: named (significant); not tried (the data
     cannot carry it); fit failed; immaterial (below its physical floor, a heading cut below the noise
     level, or a relative gain below the threshold); failed a fold (not better in every fold); not
     significant (block t-test).  The reason lists every test it failed, with its numbers.
+    ``all_tests``: return every verdict it earns instead (see :func:`failed_tests`).
     """
     s = settings or {}
     ev = str(f.get("evidence") or "")
@@ -172,7 +173,16 @@ def verdict(f: dict, settings: dict | None = None) -> tuple[str, str]:
         reasons.append(("not significant", f"block t = {num(t, 2)} below {num(tc, 3)} ({dof} dof)"))
     if not reasons:
         return "not significant", "another effect already explained the same error"
+    if all_tests:
+        return tuple(dict.fromkeys(v for v, _ in reasons))
     return reasons[0][0], "; ".join(dict.fromkeys(r for _, r in reasons))
+
+
+def failed_tests(f: dict, settings: dict | None = None) -> tuple[str, ...]:
+    """Every verdict a rejected finding earns (an effect may be immaterial AND fail a fold), in the
+    order of :data:`VERDICTS`; a named effect gives ('named',)."""
+    out = verdict(f, settings, all_tests=True)
+    return out if isinstance(out, tuple) and all(x in VERDICTS for x in out) else (out[0],)
 
 
 def floor_measured(floor: Any) -> str:
