@@ -1,8 +1,9 @@
 # %% [markdown]
 # # Diagnosis: what the linear model gets wrong
-# The linear sway-yaw model (SPEC section 5) fitted on training runs is simulated free-run on held-out
-# runs; each candidate effect (rudder offset, nonlinear yaw damping, rudder delay, speed loss) is tried as
-# an extension and kept only when the held-out gain is real.
+# The linear sway-yaw model (SPEC section 5), fitted on training runs, is simulated free-run on runs it
+# has not seen. Effects of the catalogue (SPEC section 7) are added one at a time, each kept only when
+# it cuts the held-out heading error materially, significantly and in every fold. The effects are
+# chosen on the validation runs; the gain is reported on runs no choice has seen.
 
 # %% tags=["parameters"]
 # Parameters (papermill injects the real values after this cell)
@@ -12,216 +13,419 @@ max_runs_plotted = 6          # validation runs drawn
 
 
 # %%
-import numpy as np  # noqa: F401  (for analysts who dig further)
+import numpy as np
 import pandas as pd
 import matplotlib.pyplot as plt
-from IPython.display import display
+from IPython.display import HTML, display
 from pipeline.report import nb
+from pipeline.report import diagnosis_text as dt
+from pipeline.report import particulars
 nb.setup()
 data = nb.Data(root, dataset)
 
 dg = data.json("diagnose/diagnosis.json")
 series = data.frame("diagnose/series.parquet", ("run_id", "time", "psi"))
-display(nb.banner(data, "Model diagnosis", {"training runs": ", ".join(dg.get("training_runs") or []),
-                                            "validation runs": ", ".join(dg.get("validation_runs") or []),
-                                            **(dg.get("settings") or {})}))
-
+settings = dg.get("settings") or {}
+shown_settings = {k: (", ".join(map(dt.effect_label, v)) if k == "catalogue" and isinstance(v, list) else v)
+                  for k, v in settings.items()}
+display(nb.banner(data, "Model diagnosis", {
+    "training runs": ", ".join(dg.get("training_runs") or []),
+    "validation runs": ", ".join(dg.get("validation_runs") or []),
+    "test runs": ", ".join(dg.get("test_runs") or []) or "none (nested leave-one-run-out)",
+    **shown_settings}))
 
 # %%
-from IPython.display import HTML
-
-
-def effect_name(e):
-    return str(e).replace("_", " ") if e and e != "none" else "none"
-
-
-def interval(iv, pct=True):
-    if not (isinstance(iv, (list, tuple)) and len(iv) == 2):
-        return ""
-    f = (lambda x: f"{100 * x:.0f} %") if pct else (lambda x: nb.num(x, 3))
-    return f"[{f(iv[0])}, {f(iv[1])}]"
-
-
 gain_block = dg.get("gain") or {}
 gain = gain_block.get("mae_psi_relative_reduction")
 cause = dg.get("cause", "none")
-base_v = (dg.get("baseline") or {}).get("validation") or {}
-ext_v = (dg.get("extended") or {}).get("validation") or {}
-iv = interval(gain_block.get("interval_95"))
-measured_on = gain_block.get("measured_on") or []
-msg = (f"<div style='font-size:1.3em;margin:6px 0'>Cause: <b>{nb.esc(effect_name(cause))}</b>"
-       + (f" &middot; held-out free-run MAE of psi reduced by <b>{100 * gain:.0f} %</b>"
-          + (f" (95 % interval {nb.esc(iv)})" if iv else "")
-          + f" ({nb.esc(nb.num(base_v.get('mae_psi_deg')))} deg to "
-          f"{nb.esc(nb.num(ext_v.get('mae_psi_deg')))} deg)"
-          if isinstance(gain, (int, float)) and cause != "none"
-          else " (no effect brings a real, material held-out gain)")
-       + "</div>")
-display(HTML(msg))
-if measured_on:
-    nb.note("The gain is measured on runs no choice has seen: " + ", ".join(map(str, measured_on)) + ".")
-if dg.get("summary"):
-    nb.note(dg["summary"])
+named = list((dg.get("extended") or {}).get("effects") or [])
+measured_on = [str(r) for r in gain_block.get("measured_on") or []]
+iv = dt.interval(gain_block.get("interval_95"))
+ship = particulars.summary(data.index)
+applied = particulars.particulars(data.index).get("files_scale_factor")
+scale_words = ("model scale" if applied in (None, 1, 1.0)
+               else "model scale (full-scale files Froude-scaled at ingest)")
+has_gain = isinstance(gain, (int, float))
+if cause != "none":
+    head = (f"Cause: <b>{nb.esc(dt.effect_label(cause))}</b>"
+            + (f" (extended model: {nb.esc(' + '.join(map(dt.effect_label, named)))})"
+               if len(named) > 1 else ""))
+else:
+    head = "Cause: <b>none</b>: no effect of the catalogue brings a real, material held-out gain"
+if has_gain and (named or cause != "none"):
+    bm, em = gain_block.get("baseline_mae_psi_deg"), gain_block.get("extended_mae_psi_deg")
+    head += (f" &middot; on {len(measured_on)} run{'s' if len(measured_on) != 1 else ''} no choice has seen, "
+             f"the extended model <b>{nb.esc(dt.gain_sentence(gain, gain_block.get('interval_95')))}</b>"
+             + (f" ({nb.esc(dt.num(bm, 3))} deg to {nb.esc(dt.num(em, 3))} deg)"
+                if isinstance(bm, (int, float)) and isinstance(em, (int, float)) else ""))
+display(HTML(f"<div style='font-size:1.3em;margin:6px 0'>{head}</div>"))
+nb.note(f"Ship and scale: {ship}. Every number below is at {scale_words}, in the units of the logged "
+        "data (deg, deg/s, m/s, s). Residuals are measured minus model.")
 
 # %% [markdown]
-# ## Every effect tried
+# ## The baseline: the linear model
+# Fitted without forcing stability: a course-unstable ship is reported as such, not hidden.
 
 # %%
-UNIT_SUFFIX = (("_s_per_deg2", "s/deg^2"), ("_deg_s", "deg/s"), ("_m_s", "m/s"), ("_deg", "deg"),
-               ("_s", "s"), ("_m", "m"))
-
-
-def param_name(key):
-    """'n_rrr_s_per_deg2' -> 'n_rrr (s/deg^2)': the unit suffix of a diagnosis key as a unit."""
-    for suffix, unit in UNIT_SUFFIX:
-        if key.endswith(suffix):
-            return f"{key[: -len(suffix)]} ({unit})"
-    return key
-
-
-def estimate_text(f):
-    est, unc = f.get("estimate") or {}, f.get("uncertainty") or {}
-    parts = []
-    for k, v in est.items():
-        name = param_name(k)
-        if isinstance(v, (int, float)) and not isinstance(v, bool):
-            u = unc.get(k)
-            pm = f" +- {nb.num(u, 2)}" if isinstance(u, (int, float)) else ""
-            parts.append(f"{name} = {nb.num(v, 4)}{pm}")
-        else:
-            parts.append(f"{name} = {v}")
-    return "; ".join(parts)
-
-
-def stability_text(st):
-    if st is None:
-        return None
-    if isinstance(st, dict):
-        return "; ".join(f"{k.replace('_', ' ')}: {nb.num(v) if isinstance(v, (int, float)) else v}"
-                         for k, v in st.items())
-    return nb.num(st) if isinstance(st, (int, float)) else str(st)
-
-
-findings = sorted(dg.get("findings") or [], key=lambda f: -(f.get("validation_gain") or -1e9))
-has = {k: any(k in f for f in findings) for k in ("material", "physical", "stability",
-                                                  "validation_gain_in_extended")}
-rows = []
-for f in findings:
-    row = {"effect": effect_name(f.get("effect")), "significant": bool(f.get("significant"))}
-    if has["material"]:
-        row["material"] = bool(f.get("material"))
-    pct = (lambda x: 100 * x if isinstance(x, (int, float)) else None)  # noqa: E731
-    row["held-out gain (%)"] = pct(f.get("validation_gain"))
-    if has["validation_gain_in_extended"]:
-        row["worth in extended model (%)"] = pct(f.get("validation_gain_in_extended"))
-    if has["stability"]:
-        row["stability across folds"] = stability_text(f.get("stability"))
-    row["estimate (+- 1 sigma)"] = estimate_text(f)
-    if has["physical"]:
-        row["what it means physically"] = f.get("physical") or ""
-    row["evidence"] = f.get("evidence") or ""
-    rows.append(row)
-if rows:
-    nb.table(pd.DataFrame(rows).set_index("effect"),
-             "Every effect tried, largest held-out gain first. Held-out gain: relative reduction of the "
-             "mean free-run MAE of psi on the validation runs; significant needs a real gain and an "
-             "estimate clearly different from zero"
-             + ("; material: the gain is large enough to matter" if has["material"] else "")
-             + ("; worth in extended model: the gain of the extended model over the same model refitted "
-                "without that effect" if has["validation_gain_in_extended"] else "") + ".")
-
-ladder = dg.get("ladder") or []
-if ladder:
-    lrows = [{"model": l.get("model"),
-              "effects": ", ".join(map(effect_name, l.get("effects") or [])) or "none",
-              "validation MAE psi (deg)": l.get("validation_mae_psi_deg"),
-              "test MAE psi (deg)": l.get("test_mae_psi_deg"),
-              "test 95 % interval (deg)": interval(l.get("test_interval_95"), pct=False)} for l in ladder]
-    nb.table(pd.DataFrame(lrows).set_index("model"),
-             "The model ladder, in the order it was climbed: each model's free-run MAE of psi on the "
-             "validation runs (which chose it) and on the test runs (which no choice has seen), with the "
-             "test interval.")
-
-vrows = []
-ext_name = "extended: " + " + ".join(map(effect_name, (dg.get("extended") or {}).get("effects") or [])) \
-    if (dg.get("extended") or {}).get("effects") else "extended (no effect added)"
-per = {}
-for label_, key in (("baseline (linear)", "baseline"), (ext_name, "extended")):
-    v = (dg.get(key) or {}).get("validation") or {}
-    vrows.append({"run": "all validation runs", "model": label_,
-                  **{k: x for k, x in v.items() if not isinstance(x, (list, dict))}})
-    for p_ in (dg.get(key) or {}).get("per_run") or []:
-        rid = p_.get("run_id") or p_.get("run") or "?"
-        vrows.append({"run": rid, "model": label_, **{k: x for k, x in p_.items()
-                                                      if k not in ("run_id", "run") and
-                                                      not isinstance(x, (list, dict))}})
-vt = pd.DataFrame(vrows)
-ALL = "all validation runs"
-vt["_o"] = [(r != ALL, data.sort_key(r) if r != ALL else (), m != "baseline (linear)")
-            for r, m in zip(vt["run"], vt["model"], strict=True)]
-vt = vt.sort_values("_o").drop(columns="_o")
-vt = vt.rename(columns={"mae_psi_deg": "MAE psi (deg)", "mse_r": "MSE r ((deg/s)^2)",
-                                         "mse_v": "MSE v ((m/s)^2)"})
-nb.table(vt.set_index(["run", "model"]),
-         "Free-run errors of the baseline and the extended model on the validation runs: all together "
-         "first, then run by run in rudder-angle order, baseline above extended.")
+base = dg.get("baseline") or {}
+ext = dg.get("extended") or {}
+stab_rows = [{"model": "linear baseline (first fold)",
+              "training runs": ", ".join(dg.get("training_runs") or []),
+              "course stability": dt.stability_words(base.get("parameters"), base.get("course_stable"))}]
+for k, fr in enumerate(dg.get("folds") or []):
+    if k == 0:
+        continue
+    b_ = fr.get("baseline") or {}
+    stab_rows.append({"model": f"linear baseline (fold {k + 1}, reversed roles)",
+                      "training runs": ", ".join(fr.get("training_runs") or []),
+                      "course stability": dt.stability_words(b_.get("parameters"), b_.get("course_stable"))})
+if named:
+    stab_rows.append({"model": "extended model (its linear part)",
+                      "training runs": ", ".join(dg.get("training_runs") or []),
+                      "course stability": dt.stability_words(ext.get("parameters"),
+                                                             ext.get("course_stable"))})
+nb.table(pd.DataFrame(stab_rows).set_index("model"),
+         "Course stability of the fitted models: the baseline of each fold in fold order, then the extended "
+         "model; from the poles of the "
+         "fitted state matrix (a pole with a positive real part = course-unstable).")
+bp, bu = base.get("parameters") or {}, base.get("uncertainty") or {}
+if bp:
+    ptab = pd.DataFrame([{"parameter": k, "baseline": v, "+- 1 sigma": bu.get(k),
+                          "extended model": (ext.get("parameters") or {}).get(k)} for k, v in bp.items()])
+    nb.table(ptab.set_index("parameter"),
+             "Linear parameters of the baseline (with one standard error) and of the extended model, in "
+             "the order of SPEC section 5 (v in m/s, r in deg/s, delta in deg, time in s).")
 
 # %% [markdown]
-# ## Measured against baseline and extended model, free-run
+# ## The model ladder
+# The baseline, then each effect in the order the stepwise selection added (or dropped) it.
 
 # %%
-for rid in list(dict.fromkeys(series.run_id))[:max_runs_plotted]:
+lrows = dt.ladder_rows(dg)
+if lrows:
+    lad = pd.DataFrame(lrows).set_index("step")
+    nb.table(lad, "The model ladder, in the order it was climbed (step 0 = the linear baseline): free-run "
+             "MAE of psi on the validation runs (which chose each step; mean over folds) and on the test "
+             "runs (which no choice has seen) with its 95 % bootstrap interval over blocks."
+             + ("" if any(r["test MAE psi (deg)"] is not None for r in lrows) else
+                " Without test runs the stage measures the honest gain by nested leave-one-run-out, "
+                "which has no per-step test error; see the honest gain below."))
+lad_raw = dg.get("ladder") or []
+if len(lrows) > 1:
+    tv = [r["test MAE psi (deg)"] for r in lrows]
+    has_test = any(isinstance(v, (int, float)) for v in tv)
+    fig, axes = plt.subplots(1, 2 if has_test else 1, figsize=(11 if has_test else 7, 0.9 + 0.5 * len(lrows)),
+                             sharey=True, squeeze=False)
+    y = np.arange(len(lrows))[::-1]
+    ax = axes[0, 0]
+    ax.plot([r["validation MAE psi (deg)"] for r in lrows], y, "o", mfc="none", color="0.3", ms=7,
+            label="validation runs (chose the step)")
+    if has_test:
+        ax.plot([np.nan if v is None else v for v in tv], y, "s", color="tab:red",
+                label="test runs (no choice saw them)")
+    ax.set_yticks(y)
+    ax.set_yticklabels([f"{r['step']}: {r['model']}" for r in lrows])
+    ax.set_xlabel("free-run MAE of psi (deg)")
+    ax.set_xlim(left=0)
+    ax.set_ylim(-0.6, len(lrows) - 0.4)
+    if has_test:
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.35 - 0.05 * len(lrows)), frameon=False, ncol=1)
+        ag = axes[0, 1]
+        base_t = tv[0]
+        for yi, rung, v in zip(y, lad_raw, tv, strict=True):
+            if yi == y[0] or not isinstance(v, (int, float)) or not base_t:
+                continue
+            g = 1.0 - v / base_t
+            ivr = rung.get("test_interval_95") or [g, g]
+            ag.errorbar([100 * g], [yi], xerr=[[100 * (g - ivr[0])], [100 * (ivr[1] - g)]], fmt="s",
+                        color="tab:red", capsize=4)
+        ag.axvline(0, color="k", lw=0.8)
+        ag.set_xlabel("test gain over the baseline (%), 95 % interval")
+        ag.set_title("right of 0: better than the baseline", fontsize=9)
+    else:
+        nb.legend_outside(ax)
+    nb.show(fig, "The model ladder, top to bottom in the order it was climbed. Left: held-out heading "
+            "error of each step"
+            + (" on the validation runs (open circles) and the test runs (red squares). Right: the "
+               "relative gain of each step over the baseline on the test runs, with its 95 % bootstrap "
+               "interval over blocks." if has_test else " on the validation runs (which chose it)."))
+elif lrows:
+    nb.note("The ladder has one step: no effect was added to the linear baseline.")
+else:
+    nb.note("The stage wrote no model ladder.")
+
+# %% [markdown]
+# ## The honest gain
+# Selection and reporting are separate: the effects are chosen on the validation runs, and the gain
+# is measured on runs that no choice has seen.
+
+# %%
+method = str(gain_block.get("method") or "")
+nested_all_none = bool(gain_block.get("nested")) and not any(n.get("effects") for n in gain_block["nested"])
+if has_gain and not named and nested_all_none:
+    nb.note(f"No nested selection chose an effect, so on the runs held out ({', '.join(measured_on)}) the "
+            "model is the linear baseline and the held-out error is unchanged."
+            + (f" How: {method}." if method else ""))
+elif has_gain:
+    nb.note("On the runs no choice has seen, the extended model "
+            + dt.gain_sentence(gain, gain_block.get("interval_95"))
+            + f" (free-run MAE of psi); measured on {', '.join(measured_on)}."
+            + (f" How: {method}." if method else ""))
+else:
+    nb.note("No honest gain could be measured"
+            + (f": {method}." if method else "."))
+per_run = gain_block.get("per_run") or []
+if per_run:
+    pr = pd.DataFrame([{"run": p.get("run_id"), "baseline MAE psi (deg)": p.get("baseline_mae_psi_deg"),
+                        "extended MAE psi (deg)": p.get("extended_mae_psi_deg"),
+                        "gain": dt.gain_text(p.get("gain"))}
+                       for p in per_run])
+    pr["_o"] = [data.sort_key(r) for r in pr["run"]]
+    pr = pr.sort_values("_o").drop(columns="_o").set_index("run")
+    nb.table(pr, "The runs the honest gain is measured on, in rudder-angle order: free-run MAE of psi of "
+             "the baseline and of the extended model (refitted on all selection runs), and the relative "
+             "gain on each.")
+nested = gain_block.get("nested") or []
+if nested:
+    nr = pd.DataFrame([{"held-out run": (n.get("measured_on") or ["?"])[0],
+                        "effects chosen without it": " + ".join(map(dt.effect_label, n.get("effects") or []))
+                        or "none",
+                        "gain on it": dt.gain_text(n.get("gain"))}
+                       for n in nested])
+    nr["_o"] = [data.sort_key(r) for r in nr["held-out run"]]
+    nr = nr.sort_values("_o").drop(columns="_o").set_index("held-out run")
+    nb.table(nr, "Nested leave-one-run-out, in rudder-angle order: each run held out in turn, the whole "
+             "selection repeated on the others, the chosen model measured on the held-out run.")
+
+# %% [markdown]
+# ## The named effects, read physically
+
+# %%
+findings = dg.get("findings") or []
+by_eff = {f.get("effect"): f for f in findings}
+joint = ext.get("effect_estimates") or {}
+if not named:
+    nb.note("No effect is named: the linear model is kept. The effects tried and why each was "
+            "rejected are listed below.")
+for e in named:
+    f = by_eff.get(e, {})
+    j = joint.get(e) or {}
+    est = dt.estimate_text(j.get("estimate") or f.get("estimate"),
+                           j.get("uncertainty") or f.get("uncertainty"))
+    words = [f"<h3>{nb.esc(dt.effect_label(e))}</h3>",
+             "<p><b>In plain words:</b> "
+             + nb.esc(dt.plain(f.get("physical") or "no reading written", (f.get("estimate") or {}).keys()))
+             + "."
+             "</p>"]
+    if e == "rudder_offset":
+        extra = dt.offset_words(j.get("estimate") or f.get("estimate"), ext.get("parameters"))
+        if extra:
+            words.append(f"<p><b>What it does to the ship ({nb.esc(scale_words)}):</b> {nb.esc(extra)}. "
+                         "A yaw moment in N m needs the yaw inertia (including added inertia), which the "
+                         "data do not give.</p>")
+    words.append(f"<p><b>Estimate</b> (one standard error, in the extended model): {nb.esc(est or 'n/a')}. "
+                 f"<b>Worth in the final model</b> (held-out heading error when it is removed): "
+                 f"{nb.esc(dt.pct(f.get('validation_gain_in_extended', f.get('validation_gain'))))}"
+                 + (", per fold " + nb.esc(", ".join(dt.pct(g, True) for g in f.get("validation_gain_folds")))
+                    if f.get("validation_gain_folds") else "")
+                 + f"; cut {nb.esc(dt.num(f.get('abs_gain_deg'), 2, 'deg'))}; block t "
+                 f"{nb.esc(dt.num(f.get('block_t'), 3))} against {nb.esc(dt.num(f.get('block_t_crit'), 3))}. "
+                 f"<b>Physical floor:</b> {nb.esc(dt.floor_reason(f.get('floor')) or 'n/a')}; measured: "
+                 f"{nb.esc(dt.floor_measured(f.get('floor')))}.</p>")
+    display(HTML("".join(words)))
+    frows = [{"fold": k + 1, "estimate": dt.estimate_text(x.get("estimate"), x.get("uncertainty")),
+              "held-out gain": dt.gain_text(x.get("gain"))}
+             for k, x in enumerate(f.get("folds") or [])]
+    if len(frows) > 1:
+        nb.table(pd.DataFrame(frows).set_index("fold"),
+                 f"{dt.effect_label(e)}: estimate and worth in each fold, fold order (fold 2 swaps the "
+                 "training and validation runs).")
+
+# %% [markdown]
+# ## Residuals that make the case
+# Held-out residuals (measured minus model) on the validation runs: the baseline on the left and, when
+# an effect is named, the extended model on the right, on the same axes. A structured residual that the
+# extended model flattens is the evidence for the effect.
+
+# %%
+runs_drawn = list(dict.fromkeys(series.run_id))[:max_runs_plotted]
+has_r = all(c in series for c in ("r", "r_baseline", "r_extended"))
+SHADES = {"baseline": ("tab:blue", "#9ecae1", "#08306b", "#6baed6"),
+          "extended": ("tab:red", "#fc9272", "#67000d", "#fb6a4a")}
+models = (("baseline", "linear baseline"),)
+if named:
+    models += (("extended", "extended: " + " + ".join(map(dt.effect_label, named))),)
+fig, axes = plt.subplots(2 if has_r else 1, len(models), figsize=(5.5 * len(models) + 1.5, 6 if has_r else 3),
+                         sharex=True, sharey="row", squeeze=False)
+for col, (model, title) in enumerate(models):
+    for i, rid in enumerate(runs_drawn):
+        s = series[series.run_id == rid]
+        colour = SHADES[model][i % 4]
+        axes[0, col].plot(s.time, s.psi - s[f"psi_{model}"], color=colour, lw=1.0,
+                          label=data.short_label(rid))
+        if has_r:
+            axes[1, col].plot(s.time, s.r - s[f"r_{model}"], color=colour, lw=0.8)
+    axes[0, col].set_title(title)
+    for a in axes[:, col]:
+        a.axhline(0, color="k", lw=0.5)
+    axes[-1, col].set_xlabel(nb.label("time"))
+    nb.legend_outside(axes[0, col], title="validation run")
+axes[0, 0].set_ylabel("psi error (deg)")
+if has_r:
+    axes[1, 0].set_ylabel("r error (deg/s)")
+nb.show(fig, "Held-out heading error (top) and yaw-rate error (bottom) over time on the validation runs, "
+        "one shade per run: the linear baseline"
+        + (" (left, blues) and the extended model (right, reds), on the same axes" if named else
+           " (no effect is named, so there is no extended model to compare)")
+        + ". Error = measured minus free-run model.")
+
+for e in named:
+    sx = dt.signature_x(series, e) if has_r else None
+    if sx is None:
+        nb.note(f"{dt.effect_label(e)}: its signature cannot be drawn from the series the stage wrote.")
+        continue
+    x, xlabel = sx
+    fig, axes = plt.subplots(1, 2, figsize=(11, 3.6), sharex=True, sharey=True)
+    for a, (model, colour) in zip(axes, (("baseline", "tab:blue"), ("extended", "tab:red")), strict=True):
+        yerr = (series.r - series[f"r_{model}"]).to_numpy()
+        a.plot(x, yerr, ".", ms=2, color=colour, alpha=0.25)
+        cx, my = dt.binned(x, yerr)
+        a.plot(cx, my, "-o", ms=3, color="k", lw=1.2)
+        a.axhline(0, color="k", lw=0.5)
+        a.axhline(float(np.nanmean(yerr)), color="0.3", lw=1.0, ls="--")
+        a.set_xlabel(xlabel)
+        a.set_title(("linear baseline" if model == "baseline" else "extended model")
+                    + f": mean r error {dt.num(float(np.nanmean(yerr)), 2, 'deg/s')}")
+    axes[0].set_ylabel("r error (deg/s)")
+    nb.show(fig, f"{dt.effect_label(e)}: held-out yaw-rate error against the effect's signature "
+            f"({xlabel}) on the validation runs, baseline left, extended model right; dots every sample, "
+            "black line the mean in bins, dashed grey the overall mean. The trend (or, for an offset, the "
+            "mean) the baseline leaves is what the effect explains.")
+
+res_b = (base.get("residuals") or {}).get("correlation") or {}
+res_e = (ext.get("residuals") or {}).get("correlation") or {}
+if res_b:
+    rs = pd.DataFrame([{"effect signature": dt.effect_label(k), "baseline": v, "extended model": res_e.get(k)}
+                       for k, v in res_b.items()])
+    rs["_o"] = -rs["baseline"].abs()
+    rs = rs.sort_values("_o").drop(columns="_o").set_index("effect signature")
+    nb.table(rs, "Correlation of each effect's signature with the one-step yaw-acceleration error on the "
+             "validation runs, largest baseline correlation (in size) first; the extended model should "
+             "leave little. Signatures together explain "
+             f"{dt.pct((base.get('residuals') or {}).get('explained_fraction'))} of the baseline's error and "
+             f"{dt.pct((ext.get('residuals') or {}).get('explained_fraction'))} of the extended model's.")
+
+# %% [markdown]
+# ## Measured against baseline and extended model, free-run, run by run
+
+# %%
+for rid in runs_drawn:
     s = series[series.run_id == rid]
-    has_r = all(c in s for c in ("r", "r_baseline", "r_extended"))
-    fig, axes = plt.subplots(3 if has_r else 2, 1, figsize=(10, 7.5 if has_r else 5.5), sharex=True)
+    fig, axes = plt.subplots(3 if has_r else 2, 1, figsize=(10, 7.0 if has_r else 5.0), sharex=True)
     ax = axes[0]
-    ax.plot(s.time, s.psi, color="0.2", label=data.source_label)
-    for c, col, lab in (("psi_baseline", "tab:blue", "baseline (linear)"),
-                        ("psi_extended", "tab:red", "extended")):
-        if c in s:
-            ax.plot(s.time, s[c], color=col, lw=1.0, label=lab)
+    ax.plot(s.time, s.psi, color="0.2", lw=1.4, label=data.source_label)
+    ax.plot(s.time, s.psi_baseline, color="tab:blue", lw=1.0, ls="--", label="linear baseline")
+    if named:
+        ax.plot(s.time, s.psi_extended, color="tab:red", lw=1.0, label="extended model")
     ax.set_ylabel(nb.label("psi"))
     nb.legend_outside(ax)
     ax.set_title(data.run_label(rid))
     if has_r:
-        axes[1].plot(s.time, s.r, color="0.2")
-        axes[1].plot(s.time, s.r_baseline, color="tab:blue", lw=1.0)
-        axes[1].plot(s.time, s.r_extended, color="tab:red", lw=1.0)
+        axes[1].plot(s.time, s.r, color="0.2", lw=1.4)
+        axes[1].plot(s.time, s.r_baseline, color="tab:blue", lw=1.0, ls="--")
+        if named:
+            axes[1].plot(s.time, s.r_extended, color="tab:red", lw=1.0)
         axes[1].set_ylabel(nb.label("r"))
-    axr = axes[-1]
-    for c, col, lab in (("psi_baseline", "tab:blue", "baseline residual"),
-                        ("psi_extended", "tab:red", "extended residual")):
-        if c in s:
-            axr.plot(s.time, s.psi - s[c], color=col, lw=1.0, label=lab)
+    axd = axes[-1]
     if "delta" in s:
-        ax2 = axr.twinx()
-        ax2.plot(s.time, s.delta, color="0.6", lw=0.8)
-        ax2.set_ylabel(nb.label("delta") + ", grey")
-        ax2.set_zorder(0)
-        ax2.grid(False)
-    axr.set_ylabel("psi residual (deg)")
-    axr.set_xlabel(nb.label("time"))
-    nb.legend_outside(axr)
-    nb.show(fig, f"Validation run {data.run_label(rid)}: free-run heading (and yaw rate) of the "
-            "baseline linear model and of the extended model against the measurement; bottom, the "
-            "heading residuals (measured minus model) with the rudder in grey. A residual that grows "
-            "or follows the rudder is what the model gets wrong; the extended model should flatten it.")
+        axd.plot(s.time, s.delta, color="0.4", lw=1.0)
+        axd.set_ylabel(nb.label("delta"))
+    axd.set_xlabel(nb.label("time"))
+    pb = next((p for p in base.get("per_run") or [] if p.get("run_id") == rid), {})
+    pe = next((p for p in ext.get("per_run") or [] if p.get("run_id") == rid), {})
+    nb.show(fig, f"Validation run {data.run_label(rid)}: heading, yaw rate and logged rudder; the "
+            f"measurement (dark), the linear baseline (blue dashed, MAE psi "
+            f"{dt.num(pb.get('mae_psi_deg'), 3)} deg)"
+            + (f" and the extended model (red, MAE psi {dt.num(pe.get('mae_psi_deg'), 3)} deg)"
+               if named else "")
+            + ", free-run from the first sample. This run chose the effects; the honest gain is measured on "
+            "the runs listed above.")
+
+# %% [markdown]
+# ## Every effect tried, and why it was kept or rejected
+
+# %%
+order = {v: i for i, v in enumerate(dt.VERDICTS)}
+rows = []
+for f in findings:
+    v, why = dt.verdict(f, settings)
+    g = f.get("validation_gain")
+    rows.append({"effect": dt.effect_label(f.get("effect")), "verdict": v, "reason": why,
+                 "judged": str(f.get("judged") or ""),
+                 "held-out gain": dt.gain_text(g),
+                 "estimate (+- 1 sigma)": dt.estimate_text(f.get("estimate"), f.get("uncertainty")) or "n/a",
+                 "what the fit says physically": dt.plain(f.get("physical"), (f.get("estimate") or {}).keys())
+                 or "n/a",
+                 "_o": (order.get(v, 99), -(g if isinstance(g, (int, float)) else -1e9))})
+if rows:
+    tab = pd.DataFrame(rows).sort_values("_o").drop(columns="_o").set_index("effect")
+    nb.table(tab, "Every effect of the catalogue, named effects first, then by verdict (immaterial, failed a "
+             "fold, not significant, not tried, fit failed) and within a verdict by held-out gain, "
+             "largest first. Held-out gain: the relative cut of the validation runs' free-run MAE of psi "
+             "when the effect is added to the model it was judged against (for a named effect: when it is "
+             "removed from the final model).")
+
+stab = dg.get("stability") or {}
+causes = stab.get("causes") or []
+if causes:
+    st = pd.DataFrame([{"selection": str(c.get("fold")), "cause": dt.effect_label(c.get("cause")),
+                        "effects": " + ".join(map(dt.effect_label, c.get("effects") or [])) or "none",
+                        "agrees": c.get("cause") == cause} for c in causes])
+    nb.table(st.set_index("selection"),
+             f"Stability of the verdict: the selection repeated {len(causes)} times "
+             "(each run held out in turn, or each fold alone), in the order the stage ran them; "
+             f"{stab.get('folds_agreeing')} of {stab.get('total')} name the same cause.")
 
 # %% [markdown]
 # ## Conclusion
 
 # %%
-sig = [f for f in findings if f.get("significant")]
+base_stab = dt.stability_words(base.get("parameters"), base.get("course_stable")).split(":")[0]
+rejected = [r for r in rows if r["verdict"] != "named"]
+tests = {v: sum(v in dt.failed_tests(f, settings) for f in findings if not f.get("significant"))
+         for v in dt.VERDICTS[1:]}
 points = [
-    (f"The linear model's main error is {effect_name(cause)}: adding it cuts the held-out free-run heading "
-     f"error by {100 * gain:.0f} %" + (f" (95 % interval {iv})" if iv else "")
-     + (f", measured on {', '.join(map(str, measured_on))}" if measured_on else "") + ".")
-    if isinstance(gain, (int, float)) and cause != "none" else
-    "No effect of the catalogue brings a real, material held-out gain: the linear model is kept.",
-    f"{len(sig)} of {len(findings)} effects tried are significant"
-    + (": " + ", ".join(effect_name(f.get("effect")) for f in sig) if sig else "") + ".",
+    f"Ship: {ship}; data at {scale_words}.",
+    f"The linear baseline is {base_stab} and its held-out heading error is "
+    f"{dt.num((base.get('validation') or {}).get('mae_psi_deg'), 3, 'deg')} on the validation runs.",
 ]
-if ladder:
-    points.append(f"Model ladder: {len(ladder)} models, the last one "
-                  f"{nb.num(ladder[-1].get('test_mae_psi_deg'), 3, 'deg')} MAE of psi on the test runs.")
+if named and has_gain:
+    points.append(
+        f"The linear model's main error is {dt.effect_label(cause)}"
+        + (f" (with {', '.join(dt.effect_label(e) for e in named if e != cause)})" if len(named) > 1 else "")
+        + ": on validation it cut the heading error by "
+        + f"{dt.pct(gain_block.get('validation_mae_psi_relative_reduction'))}; "
+        + f"on the runs no choice has seen, adding it {dt.gain_sentence(gain, gain_block.get('interval_95'))}"
+        + f", measured on {len(measured_on)} run{'s' if len(measured_on) != 1 else ''} no choice has seen ("
+        + ", ".join(data.short_label(r) for r in measured_on) + ").")
+    f0 = by_eff.get(cause, {})
+    if f0.get("physical"):
+        points.append(f"Read physically: {dt.plain(f0['physical'], (f0.get('estimate') or {}).keys())}.")
+    if base.get("course_stable") and ext.get("course_stable") is False:
+        points.append("The extended model's linear part is course-unstable where the baseline's is stable: "
+                      "the named effect holds the model only at large yaw rates, which is how it can fail on "
+                      "small manoeuvres.")
+elif named:
+    points.append(f"Named: {', '.join(map(dt.effect_label, named))}; no run was left unseen by the choice, "
+                  "so its gain is not measured honestly.")
+else:
+    points.append("No effect of the catalogue brings a real, material held-out gain: the linear model is "
+                  "kept" + (f" (the nested selection's held-out change: {dt.gain_text(gain)})"
+                            if has_gain else "") + ".")
+if rejected:
+    points.append(f"{len(rejected)} effects rejected (one may fail several tests): "
+                  + ", ".join(f"{n} {k}" for k, n in tests.items() if n) + ".")
+if causes:
+    points.append(f"Stability: {stab.get('folds_agreeing')} of {stab.get('total')} repeated selections name "
+                  f"the same cause ({dt.effect_label(cause)}).")
 nb.conclusion(points)

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.catalog import Catalog
-from pipeline.io import Run, read_json, write_frame, write_json, write_run
+from pipeline.io import Run, write_frame, write_json, write_run
 from pipeline.model import PAPER_TABLE4, PARAM_NAMES, nomoto_indices, simulate
 
 DT = 0.08
@@ -55,8 +55,9 @@ def make_catalog(root: Path, dataset: str = "tiny", provenance: str = "virtual",
     """Write every stage output of a tiny dataset (two zigzags) in the catalog.py schemas.
 
     ``ids``: run ids of the 20/20 and the 10/10 zigzag; ``ship``, ``test_names``: header text;
-    ``rich_diagnosis``: diagnosis.json also holds the model ladder, each finding's physical sentence,
-    material flag and stability, and the gain's interval and measured_on runs (issue 11's keys).
+    ``rich_diagnosis``: diagnosis.json in the full schema of the diagnosis stage (issue 11): model
+    ladder, physical words, floors, per-fold gains, honest gain per run, stability
+    (:func:`rich_diagnosis_doc`).
     """
     id20, id10 = ids
     cat = Catalog(root=Path(root), dataset=dataset)
@@ -184,17 +185,128 @@ def make_catalog(root: Path, dataset: str = "tiny", provenance: str = "virtual",
                      "validation": {"mae_psi_deg": 1.6, "mse_r": 0.2, "mse_v": 0.001}},
         "gain": {"mae_psi_relative_reduction": 0.61}})
     if rich_diagnosis:
-        doc = read_json(cat.diagnose_dir / "diagnosis.json")
-        doc["findings"][0].update(physical="the rudder's neutral angle is 1.5 deg to port of the logged zero",
-                                  material=True, stability={"folds_agreeing": 2, "folds": 2})
-        doc["findings"][1].update(physical="no measurable steering-gear delay", material=False,
-                                  stability={"folds_agreeing": 0, "folds": 2})
-        doc["gain"].update(interval_95=[0.48, 0.70], measured_on=[id10 + "-test"])
-        doc["ladder"] = [
-            {"model": "linear", "effects": [], "validation_mae_psi_deg": 4.1, "test_mae_psi_deg": 4.3,
-             "test_interval_95": [3.9, 4.8]},
-            {"model": "linear + offset", "effects": ["rudder_offset"], "validation_mae_psi_deg": 1.6,
-             "test_mae_psi_deg": 1.7, "test_interval_95": [1.4, 2.1]}]
-        write_json(cat.diagnose_dir / "diagnosis.json", doc)
+        write_json(cat.diagnose_dir / "diagnosis.json", rich_diagnosis_doc(id20, id10))
     return cat
 
+
+
+#: the honest gain's test run in the rich diagnosis (a run the diagnosis held out of every choice)
+RICH_TEST_SUFFIX = "-test"
+
+
+def rich_diagnosis_doc(id20: str, id10: str) -> dict:
+    """A diagnosis.json in the schema pipeline/diagnose/core.py writes (SPEC section 7 plus issue 11's
+    keys), with known numbers the report tests check against:
+
+    - cause rudder_offset, extended model rudder offset + nonlinear yaw damping;
+    - ladder: baseline (validation 4.1, test 4.3 deg), +rudder_offset (1.9, 2.0), +nonlinear_yaw_damping
+      (1.6, 1.7); each rung's test_interval_95 is the interval of its relative gain over the baseline;
+    - the baseline of fold 1 is course-stable, fold 2's is course-UNSTABLE (a pole at +0.02 1/s);
+    - findings: the two named effects, rudder_asymmetry immaterial (below its floor), speed_loss failed
+      a fold, rudder_delay not significant, sway_yaw_coupling a divergent fit (gain -2000 %),
+      rudder_lag not tried;
+    - honest gain 0.61 [0.48, 0.70] on the test run ``id10 + RICH_TEST_SUFFIX``.
+    """
+    test = id10 + RICH_TEST_SUFFIX
+    stable = {"a11": -0.3, "a12": 0.01, "a21": -2.0, "a22": -0.5, "b11": 0.002, "b21": 0.05}
+    unstable = {"a11": -0.3, "a12": 0.01, "a21": 3.0, "a22": 0.1, "b11": 0.002, "b21": 0.05}
+    settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "alpha": 0.05, "block_T": 2.0, "block_s": 16.0,
+                "time_scale_s": 8.0, "heading_noise_deg": 0.03, "max_effects": 4,
+                "catalogue": ["rudder_offset", "nonlinear_yaw_damping"], "two_fold": True}
+
+    def judged(effect, gain, folds, material, t, floor, physical, estimate, unc, cut):
+        return {"effect": effect, "form": "x", "significant": False, "material": material,
+                "floor": floor + " [the stated reason]", "physical": physical, "estimate": estimate,
+                "uncertainty": unc, "z": 1.0, "validation_gain": gain, "validation_gain_folds": folds,
+                "validation_gain_in_extended": None, "abs_gain_deg": cut, "block_t": t, "block_t_crit": 1.7,
+                "blocks": 22, "judged": "added to the final model", "folds": [],
+                "evidence": "Not named: see the verdict."}
+
+    named = [
+        {"effect": "rudder_offset", "form": "constant", "significant": True, "material": True,
+         "floor": "|offset| 1.50 deg (floor 0.3 deg) [three encoder resolutions]",
+         "physical": "the rudder's neutral angle is 1.5 deg to port of the logged zero",
+         "estimate": {"offset_deg": -1.5, "offset_share_of_max_rudder": 0.075},
+         "uncertainty": {"offset_deg": 0.05}, "z": 30.0, "validation_gain": 0.55,
+         "validation_gain_folds": [0.57, 0.53], "validation_gain_in_extended": 0.55, "abs_gain_deg": 1.4,
+         "block_t": 6.0, "block_t_crit": 1.7, "blocks": 22, "judged": "in the final model (drop-one worth)",
+         "folds": [{"estimate": {"offset_deg": -1.5}, "uncertainty": {"offset_deg": 0.05}, "gain": 0.57},
+                   {"estimate": {"offset_deg": -1.4}, "uncertainty": {"offset_deg": 0.06}, "gain": 0.53}],
+         "evidence": "Held-out heading error +55 % when removed."},
+        {"effect": "nonlinear_yaw_damping", "form": "cubic", "significant": True, "material": True,
+         "floor": "changes the peak yaw rate of the largest manoeuvre by 12% (floor 5%) [ITTC precision]",
+         "physical": "yaw damping grows with the rate of turn (cubic form, n_rrr_s_per_deg2 = -0.02)",
+         "estimate": {"n_rrr_s_per_deg2": -0.02, "r_max_deg_s": 3.0, "form": "cubic"},
+         "uncertainty": {"n_rrr_s_per_deg2": 0.002}, "z": 10.0, "validation_gain": 0.16,
+         "validation_gain_folds": [0.15, 0.17], "validation_gain_in_extended": 0.16, "abs_gain_deg": 0.3,
+         "block_t": 3.0, "block_t_crit": 1.7, "blocks": 22, "judged": "in the final model (drop-one worth)",
+         "folds": [], "evidence": "Held-out heading error +16 % when removed."},
+    ]
+    rejected = [
+        judged("rudder_asymmetry", 0.12, [0.1, 0.14], False, 2.5, "|asymmetry| 0.4% (floor 3%)",
+               "the rudder is 0.4 % more effective to starboard", {"asymmetry": 0.004},
+               {"asymmetry": 0.001}, 0.2),
+        judged("speed_loss", 0.11, [0.3, -0.05], True, 2.0, "exponent", "the ship slowed by 10 %",
+               {"speed_exponent": 0.3}, {"speed_exponent": 0.1}, 0.15),
+        judged("rudder_delay", 0.12, [0.1, 0.14], True, 1.2, "dead time 0.3 s (floor 0.12 s)",
+               "the rudder acts 0.30 s after it is logged", {"delay_s": 0.3}, {"delay_s": 0.2}, 0.2),
+        judged("sway_yaw_coupling", -20.0, [-0.1, -40.0], True, -2.0, "peak", "cross terms",
+               {"n_vrr_s_per_m_deg": 3.0}, {"n_vrr_s_per_m_deg": 1.0}, -50.0),
+        {"effect": "rudder_lag", "significant": False, "material": False, "estimate": {}, "uncertainty": {},
+         "validation_gain": None, "validation_gain_folds": None, "z": None, "physical": "",
+         "floor": "lag", "evidence": "Not tried: the runs have no rudder command."},
+    ]
+    per_base = [{"run_id": id20, "mae_psi_deg": 3.9, "mse_r": 0.7, "mse_v": 0.002},
+                {"run_id": id10, "mae_psi_deg": 4.3, "mse_r": 0.9, "mse_v": 0.002}]
+    per_ext = [{"run_id": id20, "mae_psi_deg": 1.5, "mse_r": 0.2, "mse_v": 0.001},
+               {"run_id": id10, "mae_psi_deg": 1.7, "mse_r": 0.2, "mse_v": 0.001}]
+    fold_names = [f"train {id20}, validate {id10}", f"train {id10}, validate {id20}"]
+    return {
+        "cause": "rudder_offset",
+        "findings": named + rejected,
+        "baseline": {"parameters": stable, "uncertainty": {k: 0.1 * abs(v) for k, v in stable.items()},
+                     "course_stable": True, "validation": {"mae_psi_deg": 4.1, "mse_r": 0.8, "mse_v": 0.002},
+                     "per_run": per_base,
+                     "residuals": {"correlation": {"rudder_offset": 0.6, "nonlinear_yaw_damping": -0.3},
+                                   "explained_fraction": 0.5, "mean_psi_error_deg": 1.0,
+                                   "r_error_vs_r": 0.1}},
+        "extended": {"effects": ["rudder_offset", "nonlinear_yaw_damping"],
+                     "forms": {"rudder_offset": "constant", "nonlinear_yaw_damping": "cubic"},
+                     "parameters": stable, "uncertainty": {k: 0.1 * abs(v) for k, v in stable.items()},
+                     "effect_estimates": {"rudder_offset": {"estimate": {"offset_deg": -1.5},
+                                                            "uncertainty": {"offset_deg": 0.05},
+                                                            "form": "constant"}},
+                     "course_stable": True,
+                     "validation": {"mae_psi_deg": 1.6, "mse_r": 0.2, "mse_v": 0.001}, "per_run": per_ext,
+                     "residuals": {"correlation": {"rudder_offset": 0.05, "nonlinear_yaw_damping": -0.02},
+                                   "explained_fraction": 0.05, "mean_psi_error_deg": 0.0,
+                                   "r_error_vs_r": 0.0}},
+        "gain": {"mae_psi_relative_reduction": 0.61, "interval_95": [0.48, 0.70], "measured_on": [test],
+                 "method": "test runs: models refitted on all selection runs, free-run on the test runs",
+                 "baseline_mae_psi_deg": 4.3, "extended_mae_psi_deg": 1.7,
+                 "per_run": [{"run_id": test, "baseline_mae_psi_deg": 4.3, "extended_mae_psi_deg": 1.7,
+                              "gain": 0.6046511627906976}],
+                 "nested": [], "validation_mae_psi_relative_reduction": 0.61},
+        "ladder": [
+            {"model": "baseline", "effects": [], "validation_mae_psi_deg": 4.1, "test_mae_psi_deg": 4.3,
+             "test_interval_95": [0.0, 0.0]},
+            {"model": "+rudder_offset", "effects": ["rudder_offset"], "validation_mae_psi_deg": 1.9,
+             "test_mae_psi_deg": 2.0, "test_interval_95": [0.41, 0.63]},
+            {"model": "+nonlinear_yaw_damping", "effects": ["rudder_offset", "nonlinear_yaw_damping"],
+             "validation_mae_psi_deg": 1.6, "test_mae_psi_deg": 1.7, "test_interval_95": [0.48, 0.70]},
+        ],
+        "stability": {"folds_agreeing": 1, "total": 2,
+                      "causes": [{"fold": fold_names[0], "cause": "rudder_offset",
+                                  "effects": ["rudder_offset", "nonlinear_yaw_damping"]},
+                                 {"fold": fold_names[1], "cause": "nonlinear_yaw_damping",
+                                  "effects": ["nonlinear_yaw_damping"]}],
+                      "rule": "each fold alone"},
+        "course_stable": [True, False],
+        "folds": [{"training_runs": [id20], "validation_runs": [id10], "course_stable": True,
+                   "baseline": {"parameters": stable, "course_stable": True}},
+                  {"training_runs": [id10], "validation_runs": [id20], "course_stable": False,
+                   "baseline": {"parameters": unstable, "course_stable": False}}],
+        "summary": "Held-out heading error +55 % when removed.",
+        "training_runs": [id20], "validation_runs": [id10], "test_runs": [test],
+        "provenance": "virtual", "settings": settings,
+    }

@@ -52,7 +52,8 @@ class _Tags(HTMLParser):
 def rendered(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("evil")
     root = tmp / "proc"
-    make_catalog(root, "evil", "virtual", ids=EVIL_IDS, ship=EVIL_SHIP, test_names=EVIL_TESTS)
+    make_catalog(root, "evil", "virtual", ids=EVIL_IDS, ship=EVIL_SHIP, test_names=EVIL_TESTS,
+                 rich_diagnosis=True)   # every section of the diagnosis report, hostile run ids in it
     outs = []
     for k in range(2):
         out = tmp / f"reports{k}"

@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import re
 import sys
+from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -32,7 +34,8 @@ CONTENT = {   # notebook: (least number of embedded PNG figures, texts the page 
     "indices": (2, ["K (1/s)", "T1 (s)", "K' (-)", "T' (-)", "1st overshoot (deg)", "period (s)",
                     "first overshoot", "Autopilot designed from", "Conclusion"]),
     "control": (1, ["Kp", "rise time (s)", "paper", "wave seed", "Designed from", "Conclusion"]),
-    "diagnosis": (1, ["held-out gain (%)", "rudder offset", "61 %", "extended: rudder offset", "Conclusion"]),
+    "diagnosis": (3, ["held-out gain", "rudder offset", "cuts the heading error by 61 %", "The model ladder",
+                      "Every effect tried", "course stability", "Conclusion"]),
 }
 
 
@@ -160,23 +163,180 @@ def test_reports_from_the_real_stages(tmp_path):
     assert "Table 5" in ident and "Table 6" in ident and "paper Table 4" in ident
 
 
+class _Visible(HTMLParser):
+    """The text a reader sees (hidden code cells, styles and scripts left out) and every table as
+    (caption, rows of cell texts), from a rendered report."""
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.text: list[str] = []
+        self.tables: list[tuple[str, list[list[str]]]] = []
+        self._hidden = 0          # depth inside a code cell's input wrapper
+        self._divs: list[bool] = []
+        self._skip = 0
+        self._cell: list[str] | None = None
+        self._row: list[str] | None = None
+        self._caption: list[str] | None = None
+
+    def handle_starttag(self, tag, attrs):
+        cls = dict(attrs).get("class") or ""
+        if tag == "div":
+            hide = "jp-Cell-inputWrapper" in cls
+            self._divs.append(hide)
+            self._hidden += hide
+        elif tag in ("style", "script"):
+            self._skip += 1
+        elif tag == "table" and not self._hidden:
+            self.tables.append(("", []))
+        elif tag == "caption":
+            self._caption = []
+        elif tag == "tr":
+            self._row = []
+        elif tag in ("td", "th"):
+            self._cell = []
+
+    def handle_endtag(self, tag):
+        if tag == "div" and self._divs:
+            self._hidden -= self._divs.pop()
+        elif tag in ("style", "script"):
+            self._skip -= 1
+        elif tag == "caption" and self._caption is not None and self.tables:
+            self.tables[-1] = ("".join(self._caption).strip(), self.tables[-1][1])
+            self._caption = None
+        elif tag in ("td", "th") and self._cell is not None and self._row is not None:
+            self._row.append(" ".join("".join(self._cell).split()))
+            self._cell = None
+        elif tag == "tr" and self._row is not None and self.tables and not self._hidden:
+            self.tables[-1][1].append(self._row)
+            self._row = None
+
+    def handle_data(self, data):
+        if self._hidden or self._skip:
+            return
+        self.text.append(data)
+        for buf in (self._cell, self._caption):
+            if buf is not None:
+                buf.append(data)
+
+    def table(self, caption_start: str) -> list[list[str]]:
+        """Body rows (index cell first) of the one table whose caption starts with ``caption_start``
+        after its number; header rows dropped."""
+        (rows,) = [r for c, r in self.tables if re.sub(r"^Table \d+\. ", "", c).startswith(caption_start)]
+        # pandas writes two header rows: column labels (first cell empty) and the index name (only
+        # the first cell filled); body rows have their index label and at least one value
+        return [r for r in rows if r and r[0] and any(r[1:])]
+
+
 @pytest.mark.slow
 def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
-    """Issue 11's keys, when present, are rendered; today's diagnosis.json (without them) renders too
-    (the catalog test above)."""
+    """The full diagnosis.json of the stage (report_catalog.rich_diagnosis_doc): the ladder table holds
+    the stage's ladder row by row, in order; the named effects are read physically with units; every
+    effect has its verdict, sorted as the caption says; a course-unstable fold is reported; the honest
+    gain carries its interval and test run; no raw dict, None or internal effect name is shown."""
+    from report_catalog import RICH_TEST_SUFFIX, rich_diagnosis_doc
+
     root = tmp_path / "proc"
     make_catalog(root, "tiny", "virtual", rich_diagnosis=True)
+    doc = rich_diagnosis_doc("zz20", "zz10")
     out = tmp_path / "reports"
     assert main(["report", "--datasets", "tiny", "--root", str(root), "--out", str(out),
                  "--notebooks", "diagnosis"]) == 0
     page = (out / "diagnosis-tiny.html").read_text(encoding="utf-8")
-    for text in ("model ladder", "linear + offset", "[1.4, 2.1]", "95 % interval [48 %, 70 %]",
-                 "zz10-test", "neutral angle is 1.5 deg to port", "material", "stability across folds",
-                 "folds agreeing: 2", "Conclusion"):
-        assert text in page, text
+    v = _Visible()
+    v.feed(page)
+    text = " ".join(" ".join(v.text).split())
+
+    # the ladder: one row per rung of diagnosis.json, in its order, with its numbers
+    ladder = v.table("The model ladder")
+    assert len(ladder) == len(doc["ladder"])
+    base_test = doc["ladder"][0]["test_mae_psi_deg"]
+    for i, (row, rung) in enumerate(zip(ladder, doc["ladder"], strict=True)):
+        step, model, effects, val, test, gain, iv = row
+        assert step == str(i)
+        assert val == f"{rung['validation_mae_psi_deg']:.4g}" and test == f"{rung['test_mae_psi_deg']:.4g}"
+        if i == 0:
+            assert model == "linear baseline" and effects == "none" and gain == "" and iv == ""
+        else:
+            added = rung["model"].lstrip("+")
+            assert model == "adds " + added.replace("_", " ")
+            assert gain == f"{100 * (1 - rung['test_mae_psi_deg'] / base_test):+.0f} %"
+            lo, hi = rung["test_interval_95"]
+            assert iv == f"[{100 * lo:.0f} %, {100 * hi:.0f} %]"        # a gain interval, in %
+    assert ladder[2][2] == "rudder offset + nonlinear yaw damping"
+
+    # every effect: named first, then by verdict, each verdict by held-out gain (the caption's order)
+    verdicts = [(r[0], r[1]) for r in v.table("Every effect of the catalogue")]
+    assert verdicts == [("rudder offset", "named"), ("nonlinear yaw damping", "named"),
+                        ("rudder asymmetry (port/starboard)", "immaterial"),
+                        ("sway-yaw cross terms", "immaterial"), ("speed loss in turns", "failed a fold"),
+                        ("rudder dead time", "not significant"), ("steering-gear lag", "not tried")]
+    assert "-2000 % (diverges)" in text
+    assert "below its physical floor (|asymmetry| 0.4% (floor 3%))" in text
+    assert "worse in a fold (per fold +30 %, -5 %)" in text
+    assert "block t = 1.2 below 1.7 (21 dof)" in text
+
+    # physical words with units; the offset's consequence in numbers (b21 x offset = 0.075 deg/s^2)
+    assert "the rudder's neutral angle is 1.5 deg to port of the logged zero" in text
+    assert "n_rrr (s/deg^2) = -0.02" in text
+    assert "1.5 deg of rudder to port, a yaw acceleration of 0.075 deg/s^2" in text
+    assert "offset (deg) = -1.5 +- 0.05" in text
+
+    # stability: fold 2's baseline is course-unstable and says so, with its pole
+    stab = v.table("Course stability of the fitted models")
+    assert stab[0][-1].startswith("course-stable") and stab[1][-1].startswith("course-UNSTABLE")
+    assert "1 of 2 name the same cause" in text
+
+    # the honest gain, its interval, the run it is measured on
+    test_run = "zz10" + RICH_TEST_SUFFIX
+    assert "cuts the heading error by 61 % (95 % interval [48 %, 70 %])" in text
+    assert v.table("The runs the honest gain")[0][0] == test_run
+
+    # no raw dicts, None or internal names anywhere a reader looks
+    for bad in ("None", "{'", "rudder_offset", "nonlinear_yaw_damping", "n_rrr_s_per_deg2", "nan"):
+        assert not re.search(rf"(?<![\w_]){re.escape(bad)}(?![\w_])", text), bad
     (concl,) = re.findall(r"class=.conclusion.[^>]*>(.*?)</div>", page, flags=re.S)
-    assert "61 %" in concl and "zz10-test" in concl
-    assert "None" not in concl and "{" not in concl          # no raw dicts, no None
+    assert "61 %" in concl and test_run in concl
+
+
+def test_diagnosis_words_and_verdicts():
+    """The report's reading of diagnosis.json: known answers, without rendering."""
+    from report_catalog import rich_diagnosis_doc
+
+    from pipeline.report import diagnosis_text as dt
+
+    doc = rich_diagnosis_doc("a", "b")
+    got = {f["effect"]: dt.verdict(f, doc["settings"])[0] for f in doc["findings"]}
+    assert got == {"rudder_offset": "named", "nonlinear_yaw_damping": "named",
+                   "rudder_asymmetry": "immaterial", "speed_loss": "failed a fold",
+                   "rudder_delay": "not significant",
+                   "sway_yaw_coupling": "immaterial", "rudder_lag": "not tried"}
+    assert dt.failed_tests(doc["findings"][5], doc["settings"]) == ("immaterial", "failed a fold",
+                                                                     "not significant")
+    assert dt.failed_tests(doc["findings"][0], doc["settings"]) == ("named",)
+    # a gain below the threshold is immaterial even with everything else passing
+    f = dict(doc["findings"][4], validation_gain=0.05, validation_gain_folds=[0.04, 0.06], block_t=3.0)
+    assert dt.verdict(f, doc["settings"]) == ("immaterial", "held-out gain +5 % below the 10 % threshold")
+    # poles: [[-0.3, 0.01], [3, 0.1]] has eigenvalues (-0.2 +- sqrt(0.28)) / 2: +0.1646 1/s
+    words = dt.stability_words(doc["folds"][1]["baseline"]["parameters"], False)
+    assert words.startswith("course-UNSTABLE: its slowest pole is +0.165 1/s")
+    assert "doubles in 4.21 s" in words
+    # steady turn of a decoupled model: r = b21 delta / -a22 = 0.1 x 2 / 0.5 = 0.4 deg/s
+    diag = {"a11": -1.0, "a12": 0.0, "a21": 0.0, "a22": -0.5, "b11": 0.0, "b21": 0.1}
+    assert dt.steady_turn(diag, 2.0) == pytest.approx(0.4)
+    assert dt.steady_turn(doc["folds"][1]["baseline"]["parameters"], 2.0) is None    # unstable: none
+    assert "to port" in dt.offset_words({"offset_deg": -1.0}, diag)
+    assert "0.2 deg/s (12 deg per minute) to starboard" in dt.offset_words({"offset_deg": 1.0}, diag)
+    assert dt.gain_sentence(-1.48, [-2.19, -0.41]).startswith("makes the heading error WORSE by 148 %")
+    assert dt.gain_text(-20.0) == "-2000 % (diverges)" and dt.gain_text(None) == "n/a"
+    assert dt.param_label("y_vvr_s_per_m_deg") == "y_vvr (s/(m deg))"
+    assert dt.param_label("asymmetry") == "asymmetry (-)"
+    assert dt.plain("k n_rrr_s_per_deg2 = 1", ["n_rrr_s_per_deg2"]) == "k n_rrr (s/deg^2) = 1"
+    rows = dt.ladder_rows({"ladder": [{"model": "baseline", "effects": []},
+                                      {"model": "+rudder_offset-speed_loss", "effects": ["rudder_offset"]}]})
+    assert rows[1]["model"] == "adds rudder offset drops speed loss in turns"
+    assert rows[1]["test gain over baseline"] == "n/a"
+    cx, my = dt.binned(np.linspace(-1, 1, 200), 2 * np.linspace(-1, 1, 200))
+    assert np.allclose(my, 2 * cx, atol=0.02)
 
 
 def test_reports_rerender_only_what_changed(tmp_path, monkeypatch):

@@ -288,7 +288,8 @@ def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True
     styler = styler.set_table_styles([{"selector": "caption", "props": "caption-side: top; "
                                        "text-align: left; font-weight: bold; padding: 4px 0;"}])
     # words read left to right, numbers stay right-aligned (class selectors: no cell ids needed)
-    text = {c: [{"selector": "td", "props": "text-align: left;"}]
+    text = {c: [{"selector": "td", "props": "text-align: left;"},
+                {"selector": "th", "props": "text-align: left;"}]
             for c in df.columns if not pd.api.types.is_numeric_dtype(df[c])}
     if text:
         styler = styler.set_table_styles(text, overwrite=False)

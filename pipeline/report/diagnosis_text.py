@@ -1,0 +1,355 @@
+"""Plain words and tables of the diagnosis report, from diagnosis.json (SPEC section 7) alone.
+
+Pure functions of the stage's output (no file access), so the notebook stays thin and every
+sentence a reviewer reads can be tested.  Nothing here returns a raw dict, ``None`` or an internal
+key: missing numbers become "n/a" and effect names become words.
+
+Units: heading psi deg, yaw rate r deg/s, sway v m/s, rudder delta deg, time s (SPEC section 2).
+Residuals are measured minus model.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+#: effect name -> words for the reader (SPEC section 7's catalogue; an unknown effect gets its name
+#: with spaces, so a new effect of the open catalogue still reads as words)
+EFFECT_WORDS = {
+    "rudder_offset": "rudder offset",
+    "nonlinear_yaw_damping": "nonlinear yaw damping",
+    "rudder_delay": "rudder dead time",
+    "rudder_lag": "steering-gear lag",
+    "speed_loss": "speed loss in turns",
+    "nonlinear_sway_damping": "nonlinear sway damping",
+    "sway_yaw_coupling": "sway-yaw cross terms",
+    "rudder_saturation": "rudder saturation (stall)",
+    "rudder_asymmetry": "rudder asymmetry (port/starboard)",
+}
+
+#: the signature an effect leaves in the residuals of a model without it: (column of the series
+#: table to put on the x axis, axis label).  "ddelta" is the rudder rate d(delta)/dt and "vr" the
+#: product v r, both derived in :func:`signature_x`.
+SIGNATURE = {
+    "rudder_offset": ("delta", "logged rudder delta (deg)"),
+    "nonlinear_yaw_damping": ("r", "measured yaw rate r (deg/s)"),
+    "rudder_delay": ("ddelta", "rudder rate d(delta)/dt (deg/s)"),
+    "rudder_lag": ("ddelta", "rudder rate d(delta)/dt (deg/s)"),
+    "speed_loss": ("u", "surge speed u (m/s)"),
+    "nonlinear_sway_damping": ("v", "measured sway speed v (m/s)"),
+    "sway_yaw_coupling": ("vr", "v r (m/s x deg/s)"),
+    "rudder_saturation": ("delta", "logged rudder delta (deg)"),
+    "rudder_asymmetry": ("delta", "logged rudder delta (deg)"),
+}
+
+#: parameter-key unit suffixes of diagnosis.json -> unit text (the stage writes units only in the key
+#: names; matched longest first).  Keys without a suffix are dimensionless.
+_UNIT_SUFFIX = tuple(sorted({
+    "_s_per_deg2": "s/deg^2", "_per_deg2": "1/deg^2", "_per_deg": "1/deg", "_s_per_m_deg": "s/(m deg)",
+    "_s2_per_deg2": "s^2/deg^2", "_s_per_m2": "s/m^2", "_deg_per_m2": "deg/m^2", "_per_m": "1/m",
+    "_deg_s": "deg/s", "_m_s": "m/s", "_deg": "deg", "_s": "s", "_m": "m",
+}.items(), key=lambda kv: -len(kv[0])))
+
+
+def effect_label(name: Any) -> str:
+    """'nonlinear_yaw_damping' -> 'nonlinear yaw damping'; 'none' / empty -> 'none'."""
+    if not name or name == "none":
+        return "none"
+    return EFFECT_WORDS.get(str(name), str(name).replace("_", " "))
+
+
+def num(x: Any, digits: int = 3, unit: str = "") -> str:
+    """A number for a sentence ('n/a' when absent or not finite), with its unit."""
+    if x is None or isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)):
+        return "n/a"
+    if not math.isfinite(float(x)):
+        return "n/a"
+    return f"{float(x):.{digits}g}" + (f" {unit}" if unit else "")
+
+
+def pct(x: Any, signed: bool = False) -> str:
+    """0.61 -> '61 %' ('n/a' when absent)."""
+    if not isinstance(x, (int, float)) or isinstance(x, bool) or not math.isfinite(float(x)):
+        return "n/a"
+    return f"{100 * x:+.0f} %" if signed else f"{100 * x:.0f} %"
+
+
+def gain_text(g: Any) -> str:
+    """A relative gain for a table cell or sentence: '+55 %', '-148 %', and for a model whose error
+    grows more than tenfold '-205363 % (diverges)' (a free-run that leaves the data is no estimate)."""
+    if not isinstance(g, (int, float)) or isinstance(g, bool) or not math.isfinite(float(g)):
+        return "n/a"
+    return pct(g, True) + (" (diverges)" if g < -9.0 else "")
+
+
+def gain_sentence(g: Any, iv: Any = None) -> str:
+    """'cuts the heading error by 55 % (95 % interval [48 %, 70 %])' or, for a negative gain,
+    'makes the heading error WORSE by 148 % (95 % interval of the cut [-219 %, -41 %])'."""
+    if not isinstance(g, (int, float)) or isinstance(g, bool):
+        return "has no measured gain"
+    ivt = interval(iv)
+    if g >= 0:
+        return f"cuts the heading error by {pct(g)}" + (f" (95 % interval {ivt})" if ivt else "")
+    return (f"makes the heading error WORSE by {pct(-g)}" + (" (diverges)" if g < -9.0 else "")
+            + (f" (95 % interval of the cut {ivt})" if ivt else ""))
+
+
+def interval(iv: Any, percent: bool = True, digits: int = 3) -> str:
+    """[a, b] as '[48 %, 70 %]' or '[3.9, 4.8]'; '' when there is none."""
+    if not (isinstance(iv, (list, tuple)) and len(iv) == 2
+            and all(isinstance(x, (int, float)) for x in iv)):
+        return ""
+    if percent:
+        return f"[{pct(iv[0])}, {pct(iv[1])}]"
+    return f"[{num(iv[0], digits)}, {num(iv[1], digits)}]"
+
+
+def param_label(key: str) -> str:
+    """'n_rrr_s_per_deg2' -> 'n_rrr (s/deg^2)', 'offset_deg' -> 'offset (deg)', 'asymmetry' ->
+    'asymmetry (-)' (the coefficient's symbol is kept as written: n_rrr is a symbol, not a word)."""
+    for suffix, unit in _UNIT_SUFFIX:
+        if key.endswith(suffix) and len(key) > len(suffix):
+            return f"{key[: -len(suffix)]} ({unit})"
+    return f"{key} (-)"
+
+
+def estimate_text(estimate: dict | None, uncertainty: dict | None) -> str:
+    """'offset (deg) = -1.19 +- 0.03; ...': the fitted parameters with one standard error; derived
+    numbers (non-parameters, e.g. the share of the largest rudder) are left to the physical words."""
+    est, unc = estimate or {}, uncertainty or {}
+    parts = []
+    for k, v in est.items():
+        if k not in unc or not isinstance(v, (int, float)) or isinstance(v, bool):
+            continue
+        u = unc.get(k)
+        pm = f" +- {num(u, 2)}" if isinstance(u, (int, float)) and math.isfinite(u) else ""
+        parts.append(f"{param_label(k)} = {num(v, 3)}{pm}")
+    return "; ".join(parts)
+
+
+# ------------------------------------------------------------------------------- verdicts
+VERDICTS = ("named", "immaterial", "failed a fold", "not significant", "not tried", "fit failed")
+
+
+def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> tuple[str, ...]:
+    """(verdict, reason in words) of one finding of diagnosis.json.
+
+    The verdict is the first that applies, in this order: named (significant); not tried (the data
+    cannot carry it); fit failed; immaterial (below its physical floor, a heading cut below the noise
+    level, or a relative gain below the threshold); failed a fold (not better in every fold); not
+    significant (block t-test).  The reason lists every test it failed, with its numbers.
+    ``all_tests``: return every verdict it earns instead (see :func:`failed_tests`).
+    """
+    s = settings or {}
+    ev = str(f.get("evidence") or "")
+    if f.get("significant"):
+        return "named", "passes every test: gain, every fold, above noise and floor, significant"
+    if f.get("validation_gain") is None:
+        if ev.lower().startswith("not tried"):
+            return "not tried", ev[len("not tried"):].lstrip(": ").rstrip(".") or "not applicable"
+        return "fit failed", "its fit failed in some fold, so it was not judged"
+    reasons: list[tuple[str, str]] = []
+    if f.get("material") is False:
+        reasons.append(("immaterial", "below its physical floor (" + floor_measured(f.get("floor")) + ")"))
+    noise = s.get("heading_noise_deg")
+    floor_abs = max(2.0 * noise if isinstance(noise, (int, float)) else 0.0,
+                    s.get("min_abs_gain_deg") or 0.0)
+    cut = f.get("abs_gain_deg")
+    if isinstance(cut, (int, float)) and floor_abs > 0 and cut < floor_abs:
+        reasons.append(("immaterial", f"heading cut {num(cut, 2)} deg below the noise level "
+                        f"{num(floor_abs, 2)} deg"))
+    g, gmin = f.get("validation_gain"), s.get("min_gain")
+    if isinstance(g, (int, float)) and isinstance(gmin, (int, float)) and g < gmin:
+        reasons.append(("immaterial", f"held-out gain {gain_text(g)} below the {pct(gmin)} threshold"))
+    folds = [x for x in f.get("validation_gain_folds") or [] if isinstance(x, (int, float))]
+    if folds and min(folds) <= 0:
+        reasons.append(("failed a fold", "worse in a fold (per fold " + ", ".join(gain_text(x) for x in folds)
+                        + ")"))
+    t, tc = f.get("block_t"), f.get("block_t_crit")
+    if isinstance(t, (int, float)) and isinstance(tc, (int, float)) and not t >= tc:
+        dof = (f.get("blocks") or 0) - 1
+        reasons.append(("not significant", f"block t = {num(t, 2)} below {num(tc, 3)} ({dof} dof)"))
+    if not reasons:
+        return "not significant", "another effect already explained the same error"
+    if all_tests:
+        return tuple(dict.fromkeys(v for v, _ in reasons))
+    return reasons[0][0], "; ".join(dict.fromkeys(r for _, r in reasons))
+
+
+def failed_tests(f: dict, settings: dict | None = None) -> tuple[str, ...]:
+    """Every verdict a rejected finding earns (an effect may be immaterial AND fail a fold), in the
+    order of :data:`VERDICTS`; a named effect gives ('named',)."""
+    out = verdict(f, settings, all_tests=True)
+    return out if isinstance(out, tuple) and all(x in VERDICTS for x in out) else (out[0],)
+
+
+def floor_measured(floor: Any) -> str:
+    """The measured side of a finding's ``floor`` text ('|offset| 0.09 deg (floor 0.3 deg)'), one
+    per distinct fold reading; the stated reason in brackets is left to :func:`floor_reason`."""
+    text = str(floor or "").split(" [")[0]
+    return "; ".join(dict.fromkeys(x.strip() for x in text.split(";") if x.strip())) or "n/a"
+
+
+def floor_reason(floor: Any) -> str:
+    """The stated physical reason of a finding's floor (the bracketed part of ``floor``)."""
+    text = str(floor or "")
+    return text.split(" [", 1)[1].rstrip("]") if " [" in text else ""
+
+
+def plain(text: Any, keys: Any = ()) -> str:
+    """A stage sentence with its parameter keys as words: 'n_rrr_s_per_deg2 = -0.03' ->
+    'n_rrr (s/deg^2) = -0.03' (keys: the parameter names of the finding)."""
+    out = str(text or "")
+    for k in sorted(keys or (), key=len, reverse=True):
+        if "_" in str(k):
+            out = out.replace(str(k), param_label(str(k)))
+    return out
+
+
+# ------------------------------------------------------------------------------- the baseline
+def poles(params: dict | None) -> list[complex] | None:
+    """Eigenvalues (1/s) of the linear sway-yaw model's state matrix [[a11, a12], [a21, a22]].
+
+    Eigenvalues do not depend on the state units (a similarity transform), so SPEC's mixed units
+    (v m/s, r deg/s) give the poles in 1/s directly."""
+    p = params or {}
+    try:
+        a = np.array([[p["a11"], p["a12"]], [p["a21"], p["a22"]]], dtype=float)
+    except (KeyError, TypeError, ValueError):
+        return None
+    if not np.all(np.isfinite(a)):
+        return None
+    return [complex(x) for x in np.linalg.eigvals(a)]
+
+
+def stability_words(params: dict | None, course_stable: Any) -> str:
+    """One sentence on the baseline's course stability, with the slowest pole and its time scale."""
+    ev = poles(params)
+    if ev is None:
+        return ("course stability not reported" if course_stable is None else
+                ("course-stable" if course_stable else "course-UNSTABLE"))
+    lead = max(ev, key=lambda z: z.real)
+    lam = lead.real
+    if lam > 0:
+        return (f"course-UNSTABLE: its slowest pole is +{num(lam, 3)} 1/s, so with the rudder held a "
+                f"heading disturbance doubles in {num(math.log(2) / lam, 3)} s (fitted as it is, "
+                "stability not forced)")
+    if lam == 0:
+        return "marginally course-stable (a pole at zero)"
+    return (f"course-stable: its slowest pole is {num(lam, 3)} 1/s, a yaw time constant of "
+            f"{num(-1.0 / lam, 3)} s")
+
+
+def steady_turn(params: dict | None, delta_deg: float) -> float | None:
+    """Steady yaw rate (deg/s) of the linear model for a constant rudder ``delta_deg`` (deg); None for
+    a singular or unstable model (no steady turn is reached)."""
+    p = params or {}
+    ev = poles(p)
+    if ev is None or max(z.real for z in ev) >= 0:
+        return None
+    a = np.array([[p["a11"], p["a12"]], [p["a21"], p["a22"]]], dtype=float)
+    b = np.array([p["b11"], p["b21"]], dtype=float)
+    x = -np.linalg.solve(a, b * delta_deg)
+    return float(x[1])
+
+
+def offset_words(est: dict | None, params: dict | None) -> str:
+    """What a rudder offset does to the ship, in numbers: the yaw acceleration it gives on a straight
+    course (b21 x offset, deg/s^2) and, for a course-stable model, the steady turn it holds."""
+    e, p = est or {}, params or {}
+    off = e.get("offset_deg")
+    if not isinstance(off, (int, float)):
+        return ""
+    side = "starboard" if off > 0 else "port"
+    acc = p.get("b21") * off if isinstance(p.get("b21"), (int, float)) else None
+    words = f"{num(abs(off), 2)} deg of rudder to {side}"
+    if acc is not None:
+        words += f", a yaw acceleration of {num(abs(acc), 2)} deg/s^2 on a straight course"
+    rr = steady_turn(p, off)
+    if rr is not None:
+        words += (f"; with the rudder logged at zero the model turns steadily at {num(abs(rr), 2)} deg/s "
+                  f"({num(abs(rr) * 60, 2)} deg per minute) to {side}")
+    return words
+
+
+# ------------------------------------------------------------------------------- tables
+def ladder_rows(dg: dict) -> list[dict]:
+    """The model ladder in the order it was climbed: step, model (in words), effects, validation and
+    test MAE of psi (deg), and the test gain over the baseline with its 95 % interval.
+
+    The stage's ``test_interval_95`` of a rung is the bootstrap interval of that rung's RELATIVE
+    gain over the baseline on the test runs (pipeline/diagnose/core.py ``_honest_gain``: 0 for the
+    baseline itself), not an interval of the MAE in deg; it is shown as such."""
+    rows = []
+    lad = dg.get("ladder") or []
+    base_test = lad[0].get("test_mae_psi_deg") if lad else None
+    for i, rung in enumerate(dg.get("ladder") or []):
+        effs = [effect_label(e) for e in rung.get("effects") or []]
+        name = str(rung.get("model") or "")
+        if i == 0 or not effs:
+            words = "linear baseline"
+        elif name.startswith(("+", "-")):
+            words = " ".join(("adds " if tok[0] == "+" else "drops ") + effect_label(tok[1:])
+                             for tok in _split_moves(name))
+        else:
+            words = name
+        tm = rung.get("test_mae_psi_deg")
+        tg = (1.0 - tm / base_test) if isinstance(tm, (int, float)) and base_test else None
+        rows.append({"step": i, "model": words, "effects": " + ".join(effs) or "none",
+                     "validation MAE psi (deg)": rung.get("validation_mae_psi_deg"),
+                     "test MAE psi (deg)": tm,
+                     "test gain over baseline": gain_text(tg) if i else "",
+                     "test gain 95 % interval": (interval(rung.get("test_interval_95")) or "n/a")
+                     if i else ""})
+    return rows
+
+
+def _split_moves(name: str) -> list[str]:
+    """'+rudder_offset-speed_loss' -> ['+rudder_offset', '-speed_loss'] (effect names hold no +/-)."""
+    out, cur = [], ""
+    for ch in name:
+        if ch in "+-" and cur:
+            out.append(cur)
+            cur = ""
+        cur += ch
+    if cur:
+        out.append(cur)
+    return out
+
+
+def signature_x(frame, effect: str):
+    """(x values, axis label) of ``effect``'s signature from the series table (columns time, delta,
+    r, v, u per SPEC units), or None when the columns are missing."""
+    col, lab = SIGNATURE.get(effect, ("time", "time (s)"))
+    if col == "ddelta":
+        parts = [np.gradient(g["delta"].to_numpy(), g["time"].to_numpy())
+                 for _, g in frame.groupby("run_id", sort=False)]
+        return np.concatenate(parts), lab
+    if col == "vr":
+        if "v" not in frame or frame["v"].isna().all():
+            return None
+        return (frame["v"] * frame["r"]).to_numpy(), lab
+    if col not in frame or frame[col].isna().all():
+        return None
+    return frame[col].to_numpy(), lab
+
+
+def binned(x, y, bins: int = 15):
+    """Bin centres and mean y per bin over the range of x (bins with fewer than 5 points dropped):
+    the trend a residual cloud shows against a signature."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if x.size < 10 or np.ptp(x) == 0:
+        return np.array([]), np.array([])
+    edges = np.linspace(x.min(), x.max(), bins + 1)
+    idx = np.clip(np.digitize(x, edges) - 1, 0, bins - 1)
+    cs, ms = [], []
+    for b in range(bins):
+        m = idx == b
+        if m.sum() >= 5:
+            cs.append(0.5 * (edges[b] + edges[b + 1]))
+            ms.append(float(y[m].mean()))
+    return np.array(cs), np.array(ms)
