@@ -25,6 +25,7 @@ the divergence.  Dimensionless under Froude scaling, so a run at full scale give
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,7 +33,7 @@ from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
 from pipeline.diagnose.effects import BY_NAME, NAMES, Context, Terms
-from pipeline.diagnose.extended import predict_segments, simulate_terms
+from pipeline.diagnose.extended import OEBatch, predict_segments, simulate_terms
 from pipeline.errors import InputError, ModelError
 from pipeline.io import Run
 from pipeline.model import PARAM_NAMES
@@ -389,6 +390,41 @@ def sandwich_cov(J: np.ndarray, e: np.ndarray, clusters: np.ndarray) -> np.ndarr
     return B @ meat @ B
 
 
+def oe_batch(series: list[Series], sc: dict, layout: Layout, u_ref) -> OEBatch:
+    """:func:`_oe_residuals` of many parameter vectors of ``layout`` in one kernel call (the same
+    numbers, bit for bit; held to it by tests/test_model_definition.py)."""
+    runs = [
+        (s.t, s.delta, s.x0, s.psi, s.r, s.v, _u_ratio(s, u_ref), 1.0 / np.sqrt(s.t.size)) for s in series
+    ]
+    return OEBatch(runs, (sc["psi"], sc["r"], sc["v"]), layout.unpack)
+
+
+#: least_squares takes a map-like ``workers`` for its finite-difference columns from SciPy 1.16 on
+_HAS_WORKERS = "workers" in inspect.signature(least_squares).parameters
+
+
+def _batched(batch: OEBatch, q: np.ndarray | None = None, free=None) -> dict:
+    """``workers`` for least_squares: its forward-difference Jacobian hands every perturbed parameter
+    vector to this map, which evaluates them all in one :class:`OEBatch` call.  SciPy still forms the
+    steps and the differences itself, so the Jacobian is the one it would compute column by column
+    (same residuals, same bits).  ``q``/``free``: the full vector when only ``free`` entries are fitted.
+    Empty (SciPy < 1.16): column by column, the same numbers, slower."""
+    if not _HAS_WORKERS:
+        return {}
+
+    def expand(x):
+        if q is None:
+            return x
+        z = q.copy()
+        z[free] = x
+        return z
+
+    def workers(_fun, xs):
+        return list(batch(np.array([expand(x) for x in xs])))
+
+    return {"workers": workers}
+
+
 #: trust-region sub-problem solver: "lsmr" (matrix-vector products only) rather than "exact" (an SVD of
 #: the whole Jacobian per iteration, which a multithreaded BLAS on a loaded 2-core machine made 90 %
 #: of the diagnosis time); the parameters are few and well scaled (x_scale="jac")
@@ -430,9 +466,10 @@ def fit_structure(
     eps = 1e-9 * np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0)))
     p0 = np.clip(p0, lo + eps, hi - eps)
 
+    batch = oe_batch(series, sc, layout, u_ref)
+
     def oe(p):
-        th, tm, _ = layout.unpack(p)
-        return _oe_residuals(series, sc, th, tm, u_ref)
+        return batch(p)[0]
 
     horizon = max(10, int(round(ctx.t_ship / series[0].h)))
 
@@ -475,6 +512,7 @@ def fit_structure(
                 method="trf",
                 tr_solver=_TR,
                 **_TOL,
+                **_batched(batch, q, free),
             )
             if np.isfinite(rr.cost) and rr.cost < best_cost:
                 best_cost = rr.cost
@@ -482,7 +520,15 @@ def fit_structure(
                 best[free] = rr.x
         p0 = best
     res = least_squares(
-        oe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL
+        oe,
+        p0,
+        bounds=(lo, hi),
+        x_scale="jac",
+        max_nfev=max_nfev,
+        method="trf",
+        tr_solver=_TR,
+        **_TOL,
+        **_batched(batch),
     )
     if not (np.all(np.isfinite(res.x)) and np.isfinite(res.cost)):
         raise ModelError("the diagnosis fit produced no finite result")
