@@ -25,7 +25,9 @@ the divergence.  Dimensionless under Froude scaling, so a run at full scale give
 
 from __future__ import annotations
 
+import functools
 import inspect
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -437,6 +439,28 @@ _TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-8}
 _TIME_GRID = (0.0, 0.03, 0.07, 0.12, 0.2)
 
 
+#: fits already made in the current :func:`memoised` call: {key: (series kept alive, result or error)}
+_MEMO: ContextVar[dict | None] = ContextVar("diagnose_fit_memo", default=None)
+
+
+def memoised(func):
+    """Decorator: within one call of ``func`` (one diagnosis), :func:`fit_structure` of the same runs
+    (the same objects), structure, context, start (its exact parameter vector) and settings returns
+    the fit already made instead of refitting.  The fit is a deterministic function of these, so the
+    result is the same bits; the nested cross-validation repeats many of the main selection's fits
+    (an inner fold that trains on the same runs)."""
+
+    @functools.wraps(func)
+    def inner(*args, **kwargs):
+        token = _MEMO.set({})
+        try:
+            return func(*args, **kwargs)
+        finally:
+            _MEMO.reset(token)
+
+    return inner
+
+
 def fit_structure(
     series: list[Series],
     structure: Structure,
@@ -447,6 +471,30 @@ def fit_structure(
 ) -> FitResult:
     """Fit the linear model plus ``structure`` on ``series`` (module docstring).  ``start``: a fit of
     a nested structure (its values are reused, new parameters start at their start values)."""
+    memo = _MEMO.get()
+    if memo is None:
+        return _fit_structure(series, structure, ctx, start, max_nfev, block_T)
+    key = (
+        tuple(id(s) for s in series),
+        structure_of(*structure),
+        ctx,
+        None if start is None else (start.structure, tuple(start.names), start.p.tobytes()),
+        max_nfev,
+        block_T,
+    )
+    hit = memo.get(key)
+    if hit is None:
+        try:
+            hit = (list(series), _fit_structure(series, structure, ctx, start, max_nfev, block_T))
+        except ModelError as err:
+            hit = (list(series), err)
+        memo[key] = hit
+    if isinstance(hit[1], ModelError):
+        raise hit[1]
+    return hit[1]
+
+
+def _fit_structure(series, structure, ctx, start, max_nfev, block_T) -> FitResult:
     layout = Layout(structure_of(*structure), ctx)
     lo, hi = layout.bounds()
     u_ref = reference_speed(series) if any(e == "speed_loss" for e, _ in layout.structure) else None
