@@ -479,15 +479,34 @@ class OEBatch:
         self.r_off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
         self.n_res = int(sizes.sum())
         self.scratch = np.empty((int(self.ns.max()), 3))
+        self._seen: dict = {}
+
+    def _inputs(self, terms: Terms, k: int):
+        """(lag, sub-steps, rudder half grid, speed half grid) of run k: made once per instance and
+        input-effect values (a finite-difference column moves one parameter, the rest repeat)."""
+        key = (k, float(terms.lag_s), float(terms.delay_s), float(terms.speed_exponent))
+        hit = self._seen.get(key)
+        if hit is None:
+            lag, m = _lag_and_substeps(terms, self.hs[k], 1)
+            hit = (
+                lag,
+                m,
+                half_grid(self.t[k], self.d[k], terms.delay_s),
+                speed_half(self.t[k], self.ratios[k], terms.speed_exponent),
+            )
+            if len(self._seen) > 4096:
+                self._seen.clear()
+            self._seen[key] = hit
+        return hit
 
     def __call__(self, P) -> np.ndarray:
         """Residuals (len(P), n_res) of the parameter vectors ``P`` (rows)."""
         P = np.atleast_2d(np.asarray(P, dtype=float))
         nc, nk = P.shape[0], len(self.t)
         cols = [self.unpack(p)[:2] for p in P]
-        nf = len(cols[0][1].feat_coef)
+        codes, eqs, _ = _arrays(cols[0][1])
         thetas = np.empty((nc, 6))
-        coefs = np.empty((nc, nf))
+        coefs = np.empty((nc, codes.size))
         lags = np.empty((nc, nk))
         ms = np.empty((nc, nk), dtype=np.int64)
         offsets, asyms, cubics = np.empty(nc), np.empty(nc), np.empty(nc)
@@ -495,30 +514,24 @@ class OEBatch:
         s_off = np.empty((nc, nk), dtype=np.int64)
         a_parts, s_parts, a_at, s_at = [], [], {}, {}
         a_len = s_len = 0
-        codes = eqs = None
         for c, (th, terms) in enumerate(cols):
-            thetas[c] = as_theta(th)
-            cd, eq, cf = _arrays(terms)
-            if codes is None:
-                codes, eqs = cd, eq
-            coefs[c] = cf
-            offsets[c] = float(terms.offset_deg)
-            asyms[c] = float(terms.asymmetry)
-            cubics[c] = float(terms.rudder_cubic_per_deg2)
+            thetas[c] = th
+            coefs[c] = terms.feat_coef
+            offsets[c] = terms.offset_deg
+            asyms[c] = terms.asymmetry
+            cubics[c] = terms.rudder_cubic_per_deg2
             for k in range(nk):
-                lags[c, k], ms[c, k] = _lag_and_substeps(terms, self.hs[k], 1)
-                a = half_grid(self.t[k], self.d[k], terms.delay_s)
+                lags[c, k], ms[c, k], a, s = self._inputs(terms, k)
                 if id(a) not in a_at:
-                    a_at[id(a)] = (a_len, a)
+                    a_at[id(a)] = a_len
                     a_parts.append(a)
                     a_len += a.size
-                a_off[c, k] = a_at[id(a)][0]
-                s = speed_half(self.t[k], self.ratios[k], terms.speed_exponent)
+                a_off[c, k] = a_at[id(a)]
                 if id(s) not in s_at:
-                    s_at[id(s)] = (s_len, s)
+                    s_at[id(s)] = s_len
                     s_parts.append(s)
                     s_len += s.size
-                s_off[c, k] = s_at[id(s)][0]
+                s_off[c, k] = s_at[id(s)]
         res = np.empty((nc, self.n_res))
         _oe_batch(
             res,

@@ -192,18 +192,26 @@ class Layout:
             hi.append(b)
         return np.array(lo), np.array(hi)
 
+    def _forms(self):
+        # (effect object, form) per effect: unpack runs once per residual evaluation
+        cached = self.__dict__.get("_forms_cache")
+        if cached is None or cached[0] != self.structure:
+            cached = (self.structure, [(BY_NAME[e], BY_NAME[e].form(f)) for e, f in self.structure])
+            self.__dict__["_forms_cache"] = cached
+        return cached[1]
+
     def unpack(self, p: np.ndarray) -> tuple[np.ndarray, Terms, dict]:
         theta = np.asarray(p[:6], dtype=float)
         terms = Terms()
         values: dict[str, dict] = {}
         i = 6
-        for e, f in self.structure:
-            form = BY_NAME[e].form(f)
+        for eff, form in self._forms():
+            e = eff.name
             vals = {}
             for prm in form.params:
                 vals[prm.name] = float(p[i])
                 i += 1
-            BY_NAME[e].apply(form, vals, terms)
+            eff.apply(form, vals, terms)
             values[e] = vals
         return theta, terms, values
 
