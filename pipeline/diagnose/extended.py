@@ -470,7 +470,10 @@ class OEBatch:
         self.psi = np.concatenate([np.asarray(x[3], dtype=float) for x in runs])
         self.r = np.concatenate([np.asarray(x[4], dtype=float) for x in runs])
         self.v = np.concatenate(
-            [np.asarray(x[5], dtype=float) if x[5] is not None else np.zeros(t.size) for x, t in zip(runs, self.t)]
+            [
+                np.zeros(t.size) if x[5] is None else np.asarray(x[5], dtype=float)
+                for x, t in zip(runs, self.t, strict=True)
+            ]
         )
         self.has_v = np.array([x[5] is not None for x in runs], dtype=np.bool_)
         self.ws = np.array([float(x[7]) for x in runs])
