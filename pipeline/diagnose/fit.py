@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import functools
 import inspect
+from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
 
@@ -419,7 +420,7 @@ def _batched(batch: OEBatch, q: np.ndarray | None = None, free=None) -> dict:
     steps and the differences itself, so the Jacobian is the one it would compute column by column
     (same residuals, same bits).  ``q``/``free``: the full vector when only ``free`` entries are fitted.
     Empty (SciPy < 1.16): column by column, the same numbers, slower."""
-    if not _HAS_WORKERS:
+    if not _HAS_WORKERS or _PLAIN.get():
         return {}
 
     def expand(x):
@@ -451,6 +452,21 @@ _TIME_GRID = (0.0, 0.03, 0.07, 0.12, 0.2)
 _MEMO: ContextVar[dict | None] = ContextVar("diagnose_fit_memo", default=None)
 
 
+#: set by :func:`plain_fits`
+_PLAIN: ContextVar[bool] = ContextVar("diagnose_plain_fits", default=False)
+
+
+@contextmanager
+def plain_fits():
+    """Within: fits as before the speed devices (residuals and finite-difference columns one by
+    one from Python, no memo); the same numbers, for the benchmark's same-run baseline and tests."""
+    token = _PLAIN.set(True)
+    try:
+        yield
+    finally:
+        _PLAIN.reset(token)
+
+
 def memoised(func):
     """Decorator: within one call of ``func`` (one diagnosis), :func:`fit_structure` of the same runs
     (the same objects), structure, context, start (its exact parameter vector) and settings returns
@@ -480,7 +496,7 @@ def fit_structure(
     """Fit the linear model plus ``structure`` on ``series`` (module docstring).  ``start``: a fit of
     a nested structure (its values are reused, new parameters start at their start values)."""
     memo = _MEMO.get()
-    if memo is None:
+    if memo is None or _PLAIN.get():
         return _fit_structure(series, structure, ctx, start, max_nfev, block_T)
     key = (
         tuple(id(s) for s in series),
@@ -525,6 +541,9 @@ def _fit_structure(series, structure, ctx, start, max_nfev, block_T) -> FitResul
     batch = oe_batch(series, sc, layout, u_ref)
 
     def oe(p):
+        if _PLAIN.get():
+            th, tm, _ = layout.unpack(p)
+            return _oe_residuals(series, sc, th, tm, u_ref)
         return batch(p)[0]
 
     horizon = max(10, int(round(ctx.t_ship / series[0].h)))
