@@ -497,7 +497,7 @@ class OEBatch:
                 half_grid(self.t[k], self.d[k], terms.delay_s),
                 speed_half(self.t[k], self.ratios[k], terms.speed_exponent),
             )
-            if len(self._seen) > 4096:
+            if len(self._seen) > 256:  # a time parameter being fitted makes new values each step
                 self._seen.clear()
             self._seen[key] = hit
         return hit
