@@ -21,6 +21,11 @@ scale of the data does not change it).
 Time scale T_ship (:func:`ship_time_scale`): |T| of a first-order Nomoto model r' = (K delta - r)/T
 fitted by equation error on the training runs; for a course-unstable ship it is the time scale of
 the divergence.  Dimensionless under Froude scaling, so a run at full scale gives the same T/duration.
+
+Speed, the same numbers bit for bit (tests/test_diagnose_speed.py, tests/test_model_definition.py):
+the forward-difference Jacobian's columns are evaluated in one numba call (:func:`oe_batch` handed to
+least_squares as its ``workers`` map; SciPy still forms steps and differences), and within one
+diagnosis a fit of the same runs, structure and start is made once (:func:`memoised`).
 """
 
 from __future__ import annotations
