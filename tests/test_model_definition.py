@@ -110,3 +110,56 @@ def test_identify_python_transitions_are_model_step(where):
     for theta in _random_params(10):
         x = np.concatenate([RNG.normal(0, [0.1, 2.0, 30.0]), theta])
         np.testing.assert_allclose(call(x)[:3], step(x[:3], -7.0, theta, 0.08), rtol=1e-13, atol=1e-13)
+
+
+def _diag_series():
+    """Two short truth runs (a 20/20 and a 10/10 zigzag, surge speed logged) as diagnosis series; the
+    second without a sway channel (v None: its residual block has no v rows)."""
+    import dataclasses as dc
+
+    from pipeline.diagnose import TruthConfig, zigzag_truth
+    from pipeline.diagnose.fit import series_from_run
+
+    cfg = TruthConfig(seed=11, rudder_offset=1.0, speed_loss_k=0.2)
+    runs = [zigzag_truth(a, a, side, 30.0, dc.replace(cfg, seed=11 + j)) for j, (a, side) in enumerate(
+        [(20, "starboard"), (10, "port")]
+    )]
+    series = [series_from_run(r) for r in runs]
+    series[1] = dc.replace(series[1], v=None)
+    return series
+
+
+@pytest.mark.parametrize("which", ["each form alone", "every effect together"])
+def test_diagnosis_batch_kernel_is_the_free_run_residual_bit_for_bit(which):
+    """The fit's batched residual kernel (extended._oe_batch via fit.oe_batch, one call for every
+    finite-difference column) gives exactly the bits of the one-by-one free-run residuals
+    (fit._oe_residuals: extended.simulate_terms, itself held to rhs above), for every effect form,
+    a lag small enough to be dropped and one needing RK4 sub-steps, a run without sway."""
+    from pipeline.diagnose.core import _context
+    from pipeline.diagnose.effects import CATALOGUE
+    from pipeline.diagnose.fit import Layout, _oe_residuals, _scales, oe_batch, reference_speed, structure_of
+
+    series = _diag_series()
+    ctx = _context(series)
+    sc, u_ref = _scales(series), reference_speed(series)
+    if which == "each form alone":
+        structures = [structure_of((e.name, f.name)) for e in CATALOGUE for f in e.forms]
+    else:
+        structures = [structure_of(*[(e.name, e.forms[-1].name) for e in CATALOGUE])]
+    for st in structures:
+        layout = Layout(st, ctx)
+        lo, hi = layout.bounds()
+        theta = np.array(list(PAPER_TABLE4.values()))
+        P = []
+        for _ in range(4):
+            extra = [RNG.uniform(max(a, -0.5), min(b, 0.5)) for a, b in zip(lo[6:], hi[6:], strict=True)]
+            P.append(np.concatenate([theta * RNG.uniform(0.7, 1.3, 6), extra]))
+        for i, n in enumerate(layout.names):
+            if n == "lag_s":  # one below h/20 (taken as none), one needing sub-steps (< h/2)
+                P[0][i], P[1][i] = 0.001, 0.02
+        P = np.array(P)
+        got = oe_batch(series, sc, layout, u_ref)(P)
+        for p, row in zip(P, got, strict=True):
+            th, terms, _ = layout.unpack(p)
+            want = _oe_residuals(series, sc, th, terms, u_ref)
+            assert np.array_equal(row, want), (st, np.max(np.abs(row - want)))

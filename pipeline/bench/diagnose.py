@@ -3,14 +3,19 @@ truth model with a 2 deg rudder offset and cubic damping, 80 s each) with the fu
 both folds, the nested cross-validation of the gain and the per-fold stability selections.
 Wall time of :func:`pipeline.diagnose.diagnose` after a warm-up that compiles the numba kernels (so
 the figure is the method, not the compiler); issue 11's target: < 30 s on the project's 2-core machine.
+Beside it (not in quick mode) the same case with plain fits (:func:`~pipeline.diagnose.fit.plain_fits`:
+no batched finite differences, no memo) as the same-run baseline, its ratio, and whether the two
+reports are the same bytes.
 """
 
 from __future__ import annotations
 
 import dataclasses as dc
+import json
 import time
 
 from pipeline.diagnose import CATALOGUE, TruthConfig, diagnose, zigzag_truth
+from pipeline.diagnose.fit import plain_fits
 from pipeline.diagnose.truth import damping_for_cut
 
 
@@ -23,7 +28,7 @@ def run(quick: bool = False) -> list[dict]:
     t0, c0 = time.perf_counter(), time.process_time()
     rep = diagnose(runs[:2], runs[2:]).report
     sec, cpu = time.perf_counter() - t0, time.process_time() - c0
-    return [
+    out = [
         {
             "name": f"diagnosis, 4 runs x 80 s, {len(CATALOGUE)} effects",
             "value": sec,
@@ -33,3 +38,35 @@ def run(quick: bool = False) -> list[dict]:
             f"extended {'+'.join(rep['extended']['effects'])}",
         }
     ]
+    if quick:
+        return out
+    # same-run baseline: the fits as before the speed devices (one residual evaluation per Python
+    # call, finite-difference columns one by one, no memo); the report must be the same bytes
+    t0, c0 = time.perf_counter(), time.process_time()
+    with plain_fits():
+        plain = diagnose(runs[:2], runs[2:]).report
+    sec0, cpu0 = time.perf_counter() - t0, time.process_time() - c0
+    same = _dump(plain) == _dump(rep)
+    out += [
+        {
+            "name": "diagnosis, same case, plain fits (baseline)",
+            "value": sec0,
+            "unit": "s",
+            "note": f"CPU {cpu0:.1f} s; report "
+            + ("identical" if same else "DIFFERENT (a speed device changed a number)"),
+        },
+        {
+            "name": "speed-up of the diagnosis over plain fits (CPU)",
+            "value": cpu0 / max(cpu, 1e-9),
+            "unit": "x",
+            "note": f"wall {sec0 / max(sec, 1e-9):.2f} x; same run",
+        },
+    ]
+    return out
+
+
+def _dump(report: dict) -> str:
+    def enc(o):
+        return o.tolist() if hasattr(o, "tolist") else repr(o)
+
+    return json.dumps(report, sort_keys=True, default=enc)

@@ -38,6 +38,7 @@ from pipeline.diagnose.fit import (
     _derivs,
     _u_ratio,
     is_stable,
+    memoised,
     reference_speed,
     series_from_run,
     ship_time_scale,
@@ -234,6 +235,7 @@ def _per_run(series, pb, pe) -> list[dict]:
 # ---------------------------------------------------------------- the diagnosis
 
 
+@memoised
 def diagnose(
     train: list[Run],
     validate: list[Run],

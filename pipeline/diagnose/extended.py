@@ -367,3 +367,203 @@ def simulate_extended(
         terms.feat_eq.append(1)
         terms.feat_coef.append(float(n_rrr_s_per_deg2))
     return simulate_terms(theta, terms, x0, t, d, u_ratio=u_ratio, substeps=substeps)
+
+
+# ---------------------------------------------------------------- many parameter vectors in one call
+
+
+@njit(cache=True)
+def _oe_batch(
+    res,
+    thetas,
+    coefs,
+    lags,
+    ms,
+    offsets,
+    asyms,
+    cubics,
+    codes,
+    eqs,
+    a_buf,
+    a_off,
+    s_buf,
+    s_off,
+    x0s,
+    hs,
+    ns,
+    m_off,
+    psi,
+    r,
+    v,
+    has_v,
+    ws,
+    sc_psi,
+    sc_r,
+    sc_v,
+    r_off,
+    scratch,
+):  # pragma: no cover - compiled; held to fit._oe_residuals bit for bit by tests/test_model_definition.py
+    """Output-error residuals of every parameter vector (row c of ``res``) on every run k, in the
+    layout of :func:`pipeline.diagnose.fit._oe_residuals`: per run w (psi_sim - psi)/sc_psi,
+    w (r_sim - r)/sc_r and, when sway is measured, w (v_sim - v)/sc_v (same operations, same order,
+    so the same bits).  Row c's rudder and speed factor on the half grid of run k start at
+    a_buf[a_off[c, k]] and s_buf[s_off[c, k]]; its lag and RK4 sub-steps are lags[c, k], ms[c, k]."""
+    for c in range(thetas.shape[0]):
+        for k in range(ns.shape[0]):
+            n = ns[k]
+            nh = 2 * n - 1
+            a_half = a_buf[a_off[c, k] : a_off[c, k] + nh]
+            s_half = s_buf[s_off[c, k] : s_off[c, k] + nh]
+            sim = scratch[:n]
+            _run(
+                sim,
+                0,
+                n,
+                x0s[k],
+                a_half[0],
+                a_half,
+                s_half,
+                hs[k],
+                ms[c, k],
+                thetas[c],
+                codes,
+                eqs,
+                coefs[c],
+                lags[c, k],
+                offsets[c],
+                asyms[c],
+                cubics[c],
+            )
+            w = ws[k]
+            o = r_off[k]
+            mo = m_off[k]
+            for i in range(n):
+                res[c, o + i] = w * (sim[i, 2] - psi[mo + i]) / sc_psi
+            o += n
+            for i in range(n):
+                res[c, o + i] = w * (sim[i, 1] - r[mo + i]) / sc_r
+            if has_v[k]:
+                o += n
+                for i in range(n):
+                    res[c, o + i] = w * (sim[i, 0] - v[mo + i]) / sc_v
+
+
+class OEBatch:
+    """Output-error residuals of many parameter vectors of one structure on fixed runs, in one kernel
+    call (:func:`_oe_batch`): the finite-difference Jacobian of the fit needs one evaluation per
+    parameter, and evaluating them one by one from Python cost more than the simulations themselves.
+
+    ``runs``: per run (t s, delta deg, x0, psi deg, r deg/s, v m/s or None, u_ratio or None, weight);
+    ``scales``: (psi, r, v) spreads; ``unpack``: parameter vector -> (theta, Terms, values).
+    The inputs of every simulation are made by the same functions as :func:`simulate_terms` makes
+    them (:func:`half_grid`, :func:`speed_half`, :func:`_lag_and_substeps`)."""
+
+    def __init__(self, runs, scales, unpack):
+        self.unpack = unpack
+        self.t = [np.asarray(x[0], dtype=float) for x in runs]
+        self.d = [np.asarray(x[1], dtype=float) for x in runs]
+        self.ratios = [x[6] for x in runs]
+        self.x0s = np.ascontiguousarray([np.asarray(x[2], dtype=float).reshape(3) for x in runs])
+        self.ns = np.array([t.size for t in self.t], dtype=np.int64)
+        self.hs = np.array([float(t[1] - t[0]) for t in self.t])
+        self.m_off = np.concatenate([[0], np.cumsum(self.ns)[:-1]]).astype(np.int64)
+        self.psi = np.concatenate([np.asarray(x[3], dtype=float) for x in runs])
+        self.r = np.concatenate([np.asarray(x[4], dtype=float) for x in runs])
+        self.v = np.concatenate(
+            [
+                np.zeros(t.size) if x[5] is None else np.asarray(x[5], dtype=float)
+                for x, t in zip(runs, self.t, strict=True)
+            ]
+        )
+        self.has_v = np.array([x[5] is not None for x in runs], dtype=np.bool_)
+        self.ws = np.array([float(x[7]) for x in runs])
+        self.sc = tuple(float(x) for x in scales)
+        sizes = self.ns * np.where(self.has_v, 3, 2)
+        self.r_off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        self.n_res = int(sizes.sum())
+        self.scratch = np.empty((int(self.ns.max()), 3))
+        self._seen: dict = {}
+
+    def _inputs(self, terms: Terms, k: int):
+        """(lag, sub-steps, rudder half grid, speed half grid) of run k: made once per instance and
+        input-effect values (a finite-difference column moves one parameter, the rest repeat)."""
+        key = (k, float(terms.lag_s), float(terms.delay_s), float(terms.speed_exponent))
+        hit = self._seen.get(key)
+        if hit is None:
+            lag, m = _lag_and_substeps(terms, self.hs[k], 1)
+            hit = (
+                lag,
+                m,
+                half_grid(self.t[k], self.d[k], terms.delay_s),
+                speed_half(self.t[k], self.ratios[k], terms.speed_exponent),
+            )
+            if len(self._seen) > 256:  # a time parameter being fitted makes new values each step
+                self._seen.clear()
+            self._seen[key] = hit
+        return hit
+
+    def __call__(self, P) -> np.ndarray:
+        """Residuals (len(P), n_res) of the parameter vectors ``P`` (rows)."""
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        nc, nk = P.shape[0], len(self.t)
+        cols = [self.unpack(p)[:2] for p in P]
+        codes, eqs, _ = _arrays(cols[0][1])
+        thetas = np.empty((nc, 6))
+        coefs = np.empty((nc, codes.size))
+        lags = np.empty((nc, nk))
+        ms = np.empty((nc, nk), dtype=np.int64)
+        offsets, asyms, cubics = np.empty(nc), np.empty(nc), np.empty(nc)
+        a_off = np.empty((nc, nk), dtype=np.int64)
+        s_off = np.empty((nc, nk), dtype=np.int64)
+        a_parts, s_parts, a_at, s_at = [], [], {}, {}
+        a_len = s_len = 0
+        for c, (th, terms) in enumerate(cols):
+            thetas[c] = th
+            coefs[c] = terms.feat_coef
+            offsets[c] = terms.offset_deg
+            asyms[c] = terms.asymmetry
+            cubics[c] = terms.rudder_cubic_per_deg2
+            for k in range(nk):
+                lags[c, k], ms[c, k], a, s = self._inputs(terms, k)
+                if id(a) not in a_at:
+                    a_at[id(a)] = a_len
+                    a_parts.append(a)
+                    a_len += a.size
+                a_off[c, k] = a_at[id(a)]
+                if id(s) not in s_at:
+                    s_at[id(s)] = s_len
+                    s_parts.append(s)
+                    s_len += s.size
+                s_off[c, k] = s_at[id(s)]
+        res = np.empty((nc, self.n_res))
+        _oe_batch(
+            res,
+            thetas,
+            coefs,
+            lags,
+            ms,
+            offsets,
+            asyms,
+            cubics,
+            codes,
+            eqs,
+            np.concatenate(a_parts),
+            a_off,
+            np.concatenate(s_parts),
+            s_off,
+            self.x0s,
+            self.hs,
+            self.ns,
+            self.m_off,
+            self.psi,
+            self.r,
+            self.v,
+            self.has_v,
+            self.ws,
+            self.sc[0],
+            self.sc[1],
+            self.sc[2],
+            self.r_off,
+            self.scratch,
+        )
+        return res

@@ -21,10 +21,19 @@ scale of the data does not change it).
 Time scale T_ship (:func:`ship_time_scale`): |T| of a first-order Nomoto model r' = (K delta - r)/T
 fitted by equation error on the training runs; for a course-unstable ship it is the time scale of
 the divergence.  Dimensionless under Froude scaling, so a run at full scale gives the same T/duration.
+
+Speed, the same numbers bit for bit (tests/test_diagnose_speed.py, tests/test_model_definition.py):
+the forward-difference Jacobian's columns are evaluated in one numba call (:func:`oe_batch` handed to
+least_squares as its ``workers`` map; SciPy still forms steps and differences), and within one
+diagnosis a fit of the same runs, structure and start is made once (:func:`memoised`).
 """
 
 from __future__ import annotations
 
+import functools
+import inspect
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,7 +41,7 @@ from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
 from pipeline.diagnose.effects import BY_NAME, NAMES, Context, Terms
-from pipeline.diagnose.extended import predict_segments, simulate_terms
+from pipeline.diagnose.extended import OEBatch, predict_segments, simulate_terms
 from pipeline.errors import InputError, ModelError
 from pipeline.io import Run
 from pipeline.model import PARAM_NAMES
@@ -189,18 +198,26 @@ class Layout:
             hi.append(b)
         return np.array(lo), np.array(hi)
 
+    def _forms(self):
+        # (effect object, form) per effect: unpack runs once per residual evaluation
+        cached = self.__dict__.get("_forms_cache")
+        if cached is None or cached[0] != self.structure:
+            cached = (self.structure, [(BY_NAME[e], BY_NAME[e].form(f)) for e, f in self.structure])
+            self.__dict__["_forms_cache"] = cached
+        return cached[1]
+
     def unpack(self, p: np.ndarray) -> tuple[np.ndarray, Terms, dict]:
         theta = np.asarray(p[:6], dtype=float)
         terms = Terms()
         values: dict[str, dict] = {}
         i = 6
-        for e, f in self.structure:
-            form = BY_NAME[e].form(f)
+        for eff, form in self._forms():
+            e = eff.name
             vals = {}
             for prm in form.params:
                 vals[prm.name] = float(p[i])
                 i += 1
-            BY_NAME[e].apply(form, vals, terms)
+            eff.apply(form, vals, terms)
             values[e] = vals
         return theta, terms, values
 
@@ -389,6 +406,41 @@ def sandwich_cov(J: np.ndarray, e: np.ndarray, clusters: np.ndarray) -> np.ndarr
     return B @ meat @ B
 
 
+def oe_batch(series: list[Series], sc: dict, layout: Layout, u_ref) -> OEBatch:
+    """:func:`_oe_residuals` of many parameter vectors of ``layout`` in one kernel call (the same
+    numbers, bit for bit; held to it by tests/test_model_definition.py)."""
+    runs = [
+        (s.t, s.delta, s.x0, s.psi, s.r, s.v, _u_ratio(s, u_ref), 1.0 / np.sqrt(s.t.size)) for s in series
+    ]
+    return OEBatch(runs, (sc["psi"], sc["r"], sc["v"]), layout.unpack)
+
+
+#: least_squares takes a map-like ``workers`` for its finite-difference columns from SciPy 1.16 on
+_HAS_WORKERS = "workers" in inspect.signature(least_squares).parameters
+
+
+def _batched(batch: OEBatch, q: np.ndarray | None = None, free=None) -> dict:
+    """``workers`` for least_squares: its forward-difference Jacobian hands every perturbed parameter
+    vector to this map, which evaluates them all in one :class:`OEBatch` call.  SciPy still forms the
+    steps and the differences itself, so the Jacobian is the one it would compute column by column
+    (same residuals, same bits).  ``q``/``free``: the full vector when only ``free`` entries are fitted.
+    Empty (SciPy < 1.16): column by column, the same numbers, slower."""
+    if not _HAS_WORKERS or _PLAIN.get():
+        return {}
+
+    def expand(x):
+        if q is None:
+            return x
+        z = q.copy()
+        z[free] = x
+        return z
+
+    def workers(_fun, xs):
+        return list(batch(np.array([expand(x) for x in xs])))
+
+    return {"workers": workers}
+
+
 #: trust-region sub-problem solver: "lsmr" (matrix-vector products only) rather than "exact" (an SVD of
 #: the whole Jacobian per iteration, which a multithreaded BLAS on a loaded 2-core machine made 90 %
 #: of the diagnosis time); the parameters are few and well scaled (x_scale="jac")
@@ -401,6 +453,43 @@ _TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-8}
 _TIME_GRID = (0.0, 0.03, 0.07, 0.12, 0.2)
 
 
+#: fits already made in the current :func:`memoised` call: {key: (series kept alive, result or error)}
+_MEMO: ContextVar[dict | None] = ContextVar("diagnose_fit_memo", default=None)
+
+
+#: set by :func:`plain_fits`
+_PLAIN: ContextVar[bool] = ContextVar("diagnose_plain_fits", default=False)
+
+
+@contextmanager
+def plain_fits():
+    """Within: fits as before the speed devices (residuals and finite-difference columns one by
+    one from Python, no memo); the same numbers, for the benchmark's same-run baseline and tests."""
+    token = _PLAIN.set(True)
+    try:
+        yield
+    finally:
+        _PLAIN.reset(token)
+
+
+def memoised(func):
+    """Decorator: within one call of ``func`` (one diagnosis), :func:`fit_structure` of the same runs
+    (the same objects), structure, context, start (its exact parameter vector) and settings returns
+    the fit already made instead of refitting.  The fit is a deterministic function of these, so the
+    result is the same bits; the nested cross-validation repeats many of the main selection's fits
+    (an inner fold that trains on the same runs)."""
+
+    @functools.wraps(func)
+    def inner(*args, **kwargs):
+        token = _MEMO.set({})
+        try:
+            return func(*args, **kwargs)
+        finally:
+            _MEMO.reset(token)
+
+    return inner
+
+
 def fit_structure(
     series: list[Series],
     structure: Structure,
@@ -411,6 +500,30 @@ def fit_structure(
 ) -> FitResult:
     """Fit the linear model plus ``structure`` on ``series`` (module docstring).  ``start``: a fit of
     a nested structure (its values are reused, new parameters start at their start values)."""
+    memo = _MEMO.get()
+    if memo is None or _PLAIN.get():
+        return _fit_structure(series, structure, ctx, start, max_nfev, block_T)
+    key = (
+        tuple(id(s) for s in series),
+        structure_of(*structure),
+        ctx,
+        None if start is None else (start.structure, tuple(start.names), start.p.tobytes()),
+        max_nfev,
+        block_T,
+    )
+    hit = memo.get(key)
+    if hit is None:
+        try:
+            hit = (list(series), _fit_structure(series, structure, ctx, start, max_nfev, block_T))
+        except ModelError as err:
+            hit = (list(series), err)
+        memo[key] = hit
+    if isinstance(hit[1], ModelError):
+        raise hit[1]
+    return hit[1]
+
+
+def _fit_structure(series, structure, ctx, start, max_nfev, block_T) -> FitResult:
     layout = Layout(structure_of(*structure), ctx)
     lo, hi = layout.bounds()
     u_ref = reference_speed(series) if any(e == "speed_loss" for e, _ in layout.structure) else None
@@ -430,9 +543,13 @@ def fit_structure(
     eps = 1e-9 * np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0)))
     p0 = np.clip(p0, lo + eps, hi - eps)
 
+    batch = oe_batch(series, sc, layout, u_ref)
+
     def oe(p):
-        th, tm, _ = layout.unpack(p)
-        return _oe_residuals(series, sc, th, tm, u_ref)
+        if _PLAIN.get():
+            th, tm, _ = layout.unpack(p)
+            return _oe_residuals(series, sc, th, tm, u_ref)
+        return batch(p)[0]
 
     horizon = max(10, int(round(ctx.t_ship / series[0].h)))
 
@@ -475,6 +592,7 @@ def fit_structure(
                 method="trf",
                 tr_solver=_TR,
                 **_TOL,
+                **_batched(batch, q, free),
             )
             if np.isfinite(rr.cost) and rr.cost < best_cost:
                 best_cost = rr.cost
@@ -482,7 +600,15 @@ def fit_structure(
                 best[free] = rr.x
         p0 = best
     res = least_squares(
-        oe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL
+        oe,
+        p0,
+        bounds=(lo, hi),
+        x_scale="jac",
+        max_nfev=max_nfev,
+        method="trf",
+        tr_solver=_TR,
+        **_TOL,
+        **_batched(batch),
     )
     if not (np.all(np.isfinite(res.x)) and np.isfinite(res.cost)):
         raise ModelError("the diagnosis fit produced no finite result")
