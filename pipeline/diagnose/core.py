@@ -290,6 +290,28 @@ def diagnose(
     )
 
 
+def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[Fold]:
+    """Folds of the selection repeated without ``held`` (nested leave-one-run-out).
+
+    Rule: every outer fold whose training runs do not include ``held`` is kept with ``held`` removed
+    from its validation runs (when some remain).  Only when no such fold exists (one outer fold and
+    ``held`` is one of its training runs) is ``held`` removed from the training runs instead, the
+    roles kept, with the reverse fold when the remaining sides are exchangeable."""
+    keep = [
+        Fold(f.train, [s for s in f.val if s is not held])
+        for f in folds
+        if all(s is not held for s in f.train) and any(s is not held for s in f.val)
+    ]
+    if keep:
+        return keep
+    tr_i = [s for s in folds[0].train if s is not held]
+    va_i = [s for s in folds[0].val if s is not held]
+    inner = [Fold(tr_i, va_i)]
+    if cfg.two_fold and len(tr_i) >= 2 and len(va_i) >= 2 and _exchangeable(tr_i, va_i):
+        inner.append(Fold(va_i, tr_i))
+    return inner
+
+
 def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> dict:
     """The gain on runs no choice has seen, with its 95 % interval; and each rung of the ladder there."""
     block_s = cfg.block_T * ctx.t_ship
@@ -329,10 +351,10 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
         }
     # nested leave-one-run-out: every run of the selection is held out in turn; the whole selection is
     # repeated on the others, the chosen structure refitted on all of them, and measured on the held-out
-    # run alone.  Inner split: the roles kept (the remaining training runs train, the remaining
-    # validation runs validate), so that the nested selection is the main procedure on less data.
-    # (Also measured on the KVLCC2 MARIN fold 1: validating on the held-out run's mirror image instead
-    # gave 17 % where this rule gives 49 %; with four runs the choice itself is unstable, see stability.)
+    # run alone.  Inner folds (:func:`_inner_folds`): the outer folds that keep their training runs whole,
+    # with the held-out run taken out of their validation runs, so that every inner model is trained on
+    # the same manoeuvres as in the outer selection (a fold trained on one run of two would judge the
+    # effects on a model that never saw the large manoeuvre, and choose nothing).
     pairs, nested, measured = [], [], []
     tr, va = folds[0].train, folds[0].val
     for held in tr + va:
@@ -340,9 +362,7 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
         va_i = [s for s in va if s is not held]
         if not tr_i or not va_i:
             continue
-        inner = [Fold(tr_i, va_i)]
-        if cfg.two_fold and len(tr_i) >= 2 and len(va_i) >= 2 and _exchangeable(tr_i, va_i):
-            inner.append(Fold(va_i, tr_i))
+        inner = _inner_folds(folds, held, cfg)
         isearch = Search(inner, ctx, cfg)
         try:
             isel = select(isearch, list(range(len(inner))), noise)
