@@ -328,6 +328,11 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
                 fits[key] = allrun.fit(0, key, start=start)
             except ModelError:
                 fits[key] = None
+        final = structure_of(*sel.structure)
+        if fits.get(final) is not None:
+            for key in fits:  # every rung at its best optimum (Search.refine: no optimisation artefact)
+                if fits[key] is not None:
+                    allrun.refine(0, key, final)
         evs = {k: (allrun.eval(0, k) if f is not None else None) for k, f in fits.items()}
         b, e = evs[()], evs[structure_of(*sel.structure)]
         g, iv, bm, em = _pair_gain([(te, b[1], e[1])], cfg, block_s)
@@ -371,6 +376,7 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
             st = isel.structure
             if st:
                 refit.fit(0, st, start=b0)
+                refit.refine(0, (), st)
         except ModelError:
             continue
         pb = refit.eval(0, ())[1]
