@@ -624,6 +624,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             }
         )
     gain = {k: v for k, v in honest.items() if k not in ("ladder",)}
+    gain["flag"] = _gain_flag(honest, chosen)
     gain["validation_mae_psi_relative_reduction"] = _gain(pooled(()), pooled(structure_of(*st)))
     report = {
         "cause": cause,
@@ -701,6 +702,23 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             d["u"] = s.u
         frames.append(pd.DataFrame(d))
     return report, base, ext, pd.concat(frames, ignore_index=True)
+
+
+def _gain_flag(honest: dict, chosen: list[str]) -> str | None:
+    """A reported honest gain that fails the check a reader would make carries its reason: the
+    extended model worse than the baseline on runs no choice has seen (95 % interval below zero, or
+    the gain itself negative), naming the unseen runs where it fails."""
+    g, iv = honest.get("mae_psi_relative_reduction"), honest.get("interval_95")
+    if not chosen or g is None:
+        return None
+    if g >= 0 and (iv is None or iv[1] >= 0):
+        return None
+    worse = [p["run_id"] for p in honest.get("per_run", []) if p["gain"] is not None and p["gain"] < 0]
+    ci = f", 95 % interval [{iv[0]:+.0%}, {iv[1]:+.0%}]" if iv else ""
+    return (
+        f"the extended model is WORSE than the baseline on the unseen runs (gain {g:+.0%}{ci}); worse on "
+        f"{', '.join(worse)}: the effects hold on the manoeuvres they were chosen on, not on these"
+    )
 
 
 def _provenance(runs: list[Run]) -> str:
