@@ -103,6 +103,36 @@ class Search:
             )
         return self._fits[key]
 
+    def refine(self, k: int, structure, richer) -> bool:
+        """Refit ``structure`` in fold ``k`` warm-started from the fit of the ``richer`` structure that
+        contains it (its extra effects at their null values, i.e. left out); keep the result when its
+        TRAINING cost is lower.  A gain S -> S' must come from the effect, not from the richer model's
+        longer optimisation reaching a better optimum of S's own parameters (on a nearly course-unstable
+        hull the output-error cost has several local optima).  Returns True when ``structure`` improved
+        (its cached held-out evaluation is then dropped)."""
+        key = (k, structure_of(*structure))
+        rkey = (k, structure_of(*richer))
+        if key == rkey or rkey not in self._fits or not set(key[1]) <= set(rkey[1]):
+            return False
+        old = self.fit(k, structure)
+        try:
+            new = fit_structure(
+                self.folds[k].train,
+                key[1],
+                self.ctx,
+                start=self._fits[rkey],
+                max_nfev=self.cfg.max_nfev,
+                block_T=self.cfg.block_T,
+            )
+        except ModelError:
+            return False
+        # relative 1e-6: the least-squares stopping tolerance (fit._TOL); smaller is no improvement
+        if np.isfinite(new.cost) and new.cost < old.cost * (1.0 - 1e-6):
+            self._fits[key] = new
+            self._evals.pop(key, None)
+            return True
+        return False
+
     def eval(self, k: int, structure):
         key = (k, structure_of(*structure))
         if key not in self._evals:
@@ -271,6 +301,20 @@ def _best_pair(search: Search, ks, cur, ranked, noise_deg):
     return best
 
 
+#: re-judgements of one forward round after the current structure found a better optimum (each one
+#: follows a strict fall of its training cost; two are enough in practice, the cap bounds the time)
+_MAX_REJUDGE = 2
+
+
+def _nested_fit(search: Search, ks, smaller, richer) -> None:
+    """Fit ``smaller`` in folds ``ks``: warm-started from ``richer`` when new, else refined from it."""
+    for k in ks:
+        if (k, structure_of(*smaller)) in search._fits:
+            search.refine(k, smaller, richer)
+        else:
+            search.fit(k, smaller, start=search.fit(k, richer))
+
+
 def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Selection:
     """Stepwise selection (module docstring) judged on folds ``ks`` of ``search``."""
     cfg, ctx = search.cfg, search.ctx
@@ -297,6 +341,7 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
         return out
 
     last_base = None
+    rejudged = 0
     while len(cur) < cfg.max_effects:
         cands = round_(cur)
         last_base = cur
@@ -310,6 +355,14 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
         if pick is None:
             break
         e, st, s = pick
+        # the step must not be an optimisation artefact: refit the current structure from the chosen
+        # one's fit; when that finds a better optimum of the current structure, judge the round again
+        # against it (cached candidate fits, new baseline).  Bounded: each re-judgement follows a
+        # strict fall of the training cost, and at most ``_MAX_REJUDGE`` per size.
+        if rejudged < _MAX_REJUDGE and any([search.refine(k, cur, st) for k in ks]):
+            rejudged += 1
+            continue
+        rejudged = 0
         cur = st
         ladder.append((cur, s))
     # backward elimination
@@ -317,8 +370,7 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
         worst = None
         for e, _ in cur:
             without = tuple(x for x in cur if x[0] != e)
-            for k in ks:
-                search.fit(k, without, start=search.fit(k, cur))
+            _nested_fit(search, ks, without, cur)
             s = search.step(ks, without, cur, e, noise_deg)
             if not s.passes and (worst is None or s.gain < worst[1].gain):
                 worst = (e, s)
@@ -329,8 +381,7 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
     worth = {}
     for e, _ in cur:
         without = tuple(x for x in cur if x[0] != e)
-        for k in ks:
-            search.fit(k, without, start=search.fit(k, cur))
+        _nested_fit(search, ks, without, cur)
         worth[e] = search.step(ks, without, cur, e, noise_deg)
     if last_base != cur and len(cur) < cfg.max_effects:
         # what every effect not chosen would add to the FINAL model
