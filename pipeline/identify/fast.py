@@ -23,7 +23,6 @@ from pipeline.identify.fuzzy import fuzzy_factor_ws
 
 NX = 9
 NPTS = 2 * NX + 1
-_FM = {"reassoc", "contract"}
 
 
 @njit(cache=True, error_model="numpy")
@@ -60,10 +59,12 @@ def _cholupdate(L, x, sign):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _dot(A, j, k, lo, hi):
     """sum_{i=lo}^{hi-1} A[j, i] A[k, i] with four partial sums (breaks the add-latency chain; the
-    order of the additions differs from a plain loop by round-off only)."""
+    order of the additions differs from a plain loop by round-off only).  Inlined into its caller
+    at numba's level (``inline="always"``): called 36 times per QR, a real call cost ~15 % of the
+    whole step (measured, same bits either way)."""
     s0 = 0.0
     s1 = 0.0
     s2 = 0.0
