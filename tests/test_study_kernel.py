@@ -1,20 +1,16 @@
-"""One machine first (issue 12): the SR-UKF step is allocation-free, and the batch identification on
-every core gives each run's serial numbers."""
+"""One machine first (issue 12): the SR-UKF step is allocation-free.  (The batch identification on
+every core giving each run's serial numbers is tested in tests/test_identify.py.)"""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from pipeline.config import FilterConfig
-from pipeline.identify import fast, identify_arrays, identify_batch, synthetic
+from pipeline.identify import fast, synthetic
 from pipeline.identify.fuzzy import RULES
 from pipeline.identify.srukf import ut_weights
 
 H = 0.08
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture
@@ -59,19 +55,3 @@ def test_filter_step_makes_no_heap_allocation(nrt_stats):
     before = nrt_stats()
     fast.workspace(3)
     assert nrt_stats() - before >= 19                # the counter sees the workspace's arrays
-
-
-def test_parallel_batch_equals_serial_batch_and_single_runs():
-    Ys, ds = [], []
-    for seed in range(9):
-        _, d, _, y = synthetic.zigzag(n=150, seed=seed, rudder=12 + seed)
-        Ys.append(y)
-        ds.append(d)
-    Ys, ds = np.stack(Ys), np.stack(ds)
-    th_s, P_s, st_s, _ = identify_batch(Ys, ds, H)
-    th_p, P_p, st_p, _ = identify_batch(Ys, ds, H, parallel=True)
-    assert np.all(st_s == 0) and np.array_equal(st_s, st_p)
-    assert np.array_equal(th_s, th_p) and np.array_equal(P_s, P_p)       # same code per run: same bits
-    t = np.arange(150) * H
-    one = identify_arrays(t, ds[4], Ys[4], FilterConfig(), samples=150)
-    assert np.allclose(th_p[4], list(one.parameters.values()), rtol=1e-10)
