@@ -8,6 +8,10 @@ Q (the six parameters have no process noise) are left out of the QR, where they 
 zeros.  Everything else mirrors the reference path and the tests compare the two to round-off
 (tests/test_srukf.py, tests/test_identify.py).
 
+No fastmath: the additions run in the written order, so results are the same bits on every run and
+worker.  Measured and dropped (issue 12): the QR with the state as contiguous 4-wide lanes and the
+partial sums in a work array (same bits, but 0.75-0.9x: the sums live in memory, not registers).
+
 Status codes returned by the kernels: 0 ok; 1 time-update downdate failed; 2 innovation-factor
 downdate failed; 3 measurement-update downdate failed; the failing step is returned beside it.
 """
