@@ -17,3 +17,13 @@ def hsva_dir() -> Path:
     if not HSVA_DIR.is_dir() or not list(HSVA_DIR.glob("*.dat")):
         pytest.skip(f"measured HSVA data not found at {HSVA_DIR} (../shared is absent in a user's clone)")
     return HSVA_DIR
+
+
+@pytest.fixture(scope="module")
+def study_client():
+    """One 2-worker LocalCluster (worker processes, one thread each) per test module that asks for it,
+    started by the same helper as the study engine's (pipeline.study.cluster)."""
+    from pipeline.study.cluster import local_client
+
+    with local_client(2) as client:
+        yield client

@@ -3,8 +3,6 @@ and a study run through a scheduler and worker started as separate processes on 
 
 from __future__ import annotations
 
-import os
-import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -23,19 +21,16 @@ from pipeline.study.stats import clopper_pearson, logistic_level
 ROOT = Path(__file__).resolve().parents[1]
 TINY_AUTOPILOT = {
     "study": {"kind": "autopilot_monte_carlo", "name": "tiny", "seed": 5},
-    "autopilot_monte_carlo": {"plants": ["nomoto"], "tw": [2.0, 4.0], "wind_rudder": [0.0, 3.0], "seeds": 2},
+    "autopilot_monte_carlo": {"plants": ["nomoto"], "tw": [2.0, 4.0], "wind_rudder": [0.0, 3.0], "seeds": 2,
+                              # 60 s runs (default 200 s): the course is steady from 30 s on (the wind
+                              # check below reads a mean rudder of -3.01 deg for 3 deg of wind rudder)
+                              "control": {"duration": 60.0, "steady_start": 30.0}},
 }
 
 
 @pytest.fixture(scope="module")
-def client():
-    from distributed import Client, LocalCluster
-
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0")
-    c = Client(cluster)
-    yield c
-    c.close()
-    cluster.close()
+def client(study_client):
+    return study_client
 
 
 # ---------------------------------------------------------------- no cluster needed
@@ -185,48 +180,23 @@ def test_failing_case_is_recorded_and_others_go_on(tmp_path, client):
 # ---------------------------------------------------------------- separate scheduler and worker
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_study_through_scheduler_and_worker_processes(tmp_path):
-    port = _free_port()
-    addr = f"tcp://127.0.0.1:{port}"
-    exe = Path(sys.executable).with_name("dask")
-    dask = [str(exe)] if exe.exists() else [sys.executable, "-m", "dask"]
-    env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-    procs = []
-    try:
-        sched = [*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"]
-        procs.append(subprocess.Popen(sched,
-                                      env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        procs.append(subprocess.Popen([*dask, "worker", addr,
-                                       "--nthreads", "1", "--no-dashboard", "--no-nanny"],
-                                      env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+    from pipeline.study.cluster import loopback_cluster, package_env
+
+    with loopback_cluster(1, nanny=False) as addr:          # `dask scheduler` + `dask worker ADDR`
         spec = tmp_path / "tiny.toml"
         spec.write_text('[study]\nkind = "autopilot_monte_carlo"\nname = "cluster"\nseed = 5\n'
                         '[autopilot_monte_carlo]\nplants = ["nomoto"]\ntw = [3.0]\nwind_rudder = [2.0]\n'
-                        'seeds = 3\n')
+                        'seeds = 3\n[autopilot_monte_carlo.control]\nduration = 60.0\nsteady_start = 30.0\n')
         res = subprocess.run([sys.executable, "-m", "pipeline", "study", str(spec), "--out",
                               str(tmp_path / "out"), "--scheduler", addr, "--no-progress"],
-                             env=env, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+                             env=package_env(), capture_output=True, text=True, timeout=300, cwd=tmp_path)
         assert res.returncode == 0, res.stderr[-2000:]
         assert "3 cases, 3 ok, 0 failed" in res.stdout
         timings = read_json(tmp_path / "out" / "timings.json")
         assert timings["workers"] == 1                      # the separate worker did the work
         frame = pd.read_parquet(tmp_path / "out" / "results.parquet")
         assert len(frame) == 3 and (frame["status"] == "ok").all()
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(timeout=10)
 
 
 def test_bad_worker_count_and_missing_spec_exit_2(tmp_path):

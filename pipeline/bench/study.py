@@ -14,14 +14,12 @@ The SR-UKF per-step ratio against filterpy and the 1,000-run batch are in :mod:`
 
 from __future__ import annotations
 
-import os
-import socket
-import subprocess
-import sys
+import dataclasses as dc
 import tempfile
 import time
 from pathlib import Path
 
+from pipeline.study.cluster import local_client, loopback_cluster
 from pipeline.study.engine import plan, run_case_task
 from pipeline.study.spec import spec_from_dict
 
@@ -37,13 +35,17 @@ def _autopilot(n_seeds: int, short: bool = False):
                                                      "wind_rudder": [0.0, 2.0], "seeds": n_seeds, **extra}})
 
 
-def _power(seeds: int):
+def _power(seeds: int, one: bool = False):
+    """The power-ci settings with ``seeds`` replicates (clean ones too); ``one``: a single case
+    (rudder offset 1 deg, one seed), to warm a worker."""
     from pipeline.study import load_spec
 
     base = load_spec(ROOT / "studies" / "power-ci.toml")
-    import dataclasses as dc
-
-    return dc.replace(base, settings=dc.replace(base.settings, seeds=seeds, clean_seeds=seeds))
+    s = dc.replace(base.settings, seeds=seeds, clean_seeds=seeds)
+    if one:
+        s = dc.replace(s, seeds=1, clean_seeds=1, effects=("rudder_offset",),
+                       magnitudes={"rudder_offset": (1.0,)})
+    return dc.replace(base, settings=s)
 
 
 def _loop(spec) -> tuple[float, int]:
@@ -55,6 +57,7 @@ def _loop(spec) -> tuple[float, int]:
 
 
 def _engine(spec, client) -> float:
+    """Seconds to run the whole study through ``client`` (a throw-away output folder)."""
     from pipeline.study import run_study
 
     with tempfile.TemporaryDirectory() as d:
@@ -63,18 +66,11 @@ def _engine(spec, client) -> float:
         return time.perf_counter() - t0
 
 
-def _local(n: int):
-    from distributed import Client, LocalCluster
-
-    t0 = time.perf_counter()
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0")
-    client = Client(cluster)
-    return client, cluster, time.perf_counter() - t0
-
-
-def _warm(client, spec) -> None:
-    """One throw-away run so every worker has imported and compiled what the cases use."""
-    _engine(spec, client)
+def _timed_on(client, warm_spec, *specs) -> list[float]:
+    """One throw-away run of ``warm_spec`` (every worker imports and compiles what the cases use),
+    then the seconds of each of ``specs``."""
+    _engine(warm_spec, client)
+    return [_engine(s, client) for s in specs]
 
 
 def run(quick: bool = False) -> list[dict]:
@@ -90,15 +86,13 @@ def run(quick: bool = False) -> list[dict]:
     start = {}
     eng_short = None
     for w in (1, 2):
-        client, cluster, start[w] = _local(w)
-        try:
-            _warm(client, small)
-            per[w] = _engine(ap, client)
+        t0 = time.perf_counter()
+        with local_client(w) as client:
+            start[w] = time.perf_counter() - t0
             if w == 1:
-                eng_short = _engine(short, client)
-        finally:
-            client.close()
-            cluster.close()
+                per[w], eng_short = _timed_on(client, small, ap, short)
+            else:
+                (per[w],) = _timed_on(client, small, ap)
     rows += [
         {"name": f"autopilot cases, plain loop ({n} cases)", "value": n / loop_s, "unit": "cases/s",
          "note": "run_case in this process"},
@@ -113,18 +107,18 @@ def run(quick: bool = False) -> list[dict]:
         {"name": "local cluster start-up, 2 workers", "value": start[2], "unit": "s"},
     ]
     # separate scheduler and worker processes on the loopback
-    rows.append(_separate(ap, n))
+    from distributed import Client
+
+    with loopback_cluster(2) as addr, Client(addr, timeout="60s") as client:
+        (secs,) = _timed_on(client, small, ap)
+    rows.append({"name": "autopilot cases, separate scheduler + 2 workers", "value": n / secs,
+                 "unit": "cases/s", "note": f"dask scheduler / dask worker processes on {addr}"})
     # diagnosis cases of the power study
     pw = _power(1 if quick else 2)
-    _loop(_power_one())
+    _loop(_power(1, one=True))
     loop_p, npw = _loop(pw)
-    client, cluster, _ = _local(2)
-    try:
-        _warm(client, _power_one())
-        eng_p = _engine(pw, client)
-    finally:
-        client.close()
-        cluster.close()
+    with local_client(2) as client:
+        (eng_p,) = _timed_on(client, _power(1, one=True), pw)
     rows += [
         {"name": f"power-study diagnosis cases, plain loop ({npw})", "value": npw / loop_p, "unit": "cases/s",
          "note": "linear truth model, power-ci settings, one core"},
@@ -132,53 +126,3 @@ def run(quick: bool = False) -> list[dict]:
          "note": f"scaling {loop_p / eng_p:.2f}x of the loop"},
     ]
     return rows
-
-
-def _power_one():
-    import dataclasses as dc
-
-    spec = _power(1)
-    s = dc.replace(spec.settings, seeds=1, clean_seeds=1, effects=("rudder_offset",),
-                   magnitudes={"rudder_offset": (1.0,)})
-    return dc.replace(spec, settings=s)
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _separate(spec, n: int) -> dict:
-    from distributed import Client
-
-    port = _free_port()
-    addr = f"tcp://127.0.0.1:{port}"
-    env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-    exe = Path(sys.executable).with_name("dask")
-    dask = [str(exe)] if exe.exists() else [sys.executable, "-m", "dask"]
-    sched = [*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"]
-    procs = [subprocess.Popen(sched, env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    try:
-        for _ in range(2):
-            procs.append(subprocess.Popen([*dask, "worker", addr, "--nthreads", "1", "--no-dashboard"],
-                                          env=env,
-                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        client = Client(addr, timeout="60s")
-        try:
-            client.wait_for_workers(2, timeout=120)
-            _warm(client, _autopilot(1))
-            secs = _engine(spec, client)
-        finally:
-            client.close()
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
-    return {"name": "autopilot cases, separate scheduler + 2 workers", "value": n / secs, "unit": "cases/s",
-            "note": f"dask scheduler / dask worker processes on {addr}"}

@@ -137,7 +137,9 @@ class WarmKernels(WorkerPlugin):
 
 
 def _client(scheduler: str | None, workers: int, memory_limit: str):
-    from distributed import Client, LocalCluster
+    from distributed import Client
+
+    from pipeline.study.cluster import local_cluster
 
     address = scheduler or os.environ.get(ENV_SCHEDULER)
     if address:
@@ -146,10 +148,7 @@ def _client(scheduler: str | None, workers: int, memory_limit: str):
         except (OSError, TimeoutError) as exc:
             raise InputError(f"cannot reach the dask scheduler at {address} ({type(exc).__name__}: "
                              f"{' '.join(str(exc).split())[:200]})") from None
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=":0", memory_limit=memory_limit,
-                           env={"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"})
-    return Client(cluster), cluster
+    return local_cluster(workers, memory_limit)
 
 
 def _read_case(path: Path) -> dict[str, Any] | None:
