@@ -79,3 +79,9 @@ SPEC ?= studies/power-full.toml
 .PHONY: study
 study: $(STAMP)
 	$(PY) -m pipeline study $(SPEC) --out data/studies/$(basename $(notdir $(SPEC))) $(STUDY_ARGS)
+
+# make generalise                 all 32 truth cases + KVLCC2 of tests/test_diagnose_generalise.py
+#                                 (make test runs a CI-sized cut of 8 cases)
+.PHONY: generalise
+generalise: $(STAMP)
+	TANKTEST_GENERALISE=full $(PY) -m pytest -n 2 -m generalise tests/test_diagnose_generalise.py

@@ -100,8 +100,17 @@ def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float) -> tuple[flo
     return (base_mae - mae) / base_mae, base_mae - mae
 
 
+#: measured 2026-11-23: case 12 (a 0.35 s dead time) gives "none"; the truth's own structure fitted on
+#: the same runs cuts the held-out heading error by only 0.08 deg, below the 0.1 deg heading floor
+KNOWN_WRONG = {12: "0.35 s dead time: cause none; the oracle's held-out cut is 0.08 deg < 0.1 deg floor"}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("case", CASES, ids=[f"{c[0]:02d}-{c[1]}" for c in CASES])
+@pytest.mark.parametrize("case", [
+    pytest.param(c, id=f"{c[0]:02d}-{c[1]}",
+                 marks=[pytest.mark.xfail(strict=True, reason="measured: " + KNOWN_WRONG[c[0]])]
+                 if c[0] in KNOWN_WRONG else [])
+    for c in CASES])
 def test_hidden_effect_is_found(case):
     i, kind, mag, fa, fb, seed = case
     theta = np.array(list(PAPER_TABLE4.values()))
