@@ -423,41 +423,34 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
     }
 
 
+def _unjudged(eff, evidence: str) -> dict:
+    """The finding of an effect that was not judged (not tried, or its fit failed): nothing claimed."""
+    return {
+        "effect": eff.name,
+        "significant": False,
+        "material": False,
+        "estimate": {},
+        "uncertainty": {},
+        "validation_gain": None,
+        "validation_gain_folds": None,
+        "z": None,
+        "physical": "",
+        "floor": eff.floor_reason,
+        "evidence": evidence,
+    }
+
+
 def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: bool, ext_struct) -> dict:
     eff = BY_NAME[effect]
     if effect in sel.untried:
-        return {
-            "effect": effect,
-            "significant": False,
-            "material": False,
-            "estimate": {},
-            "uncertainty": {},
-            "validation_gain": None,
-            "validation_gain_folds": None,
-            "z": None,
-            "physical": "",
-            "floor": eff.floor_reason,
-            "evidence": f"Not tried: {sel.untried[effect]}.",
-        }
+        return _unjudged(eff, f"Not tried: {sel.untried[effect]}.")
     step = sel.last.get(effect) or sel.alone.get(effect)
     alone = sel.alone.get(effect)
     # the fit whose estimate is reported: the final model if chosen, else the structure last judged
     st = ext_struct if chosen else (step.structure if step is not None else ())
     key = (0, structure_of(*st)) if st else None
     if step is None or key not in search._fits:
-        return {
-            "effect": effect,
-            "significant": False,
-            "material": False,
-            "estimate": {},
-            "uncertainty": {},
-            "validation_gain": None,
-            "validation_gain_folds": None,
-            "z": None,
-            "physical": "",
-            "floor": eff.floor_reason,
-            "evidence": "Fit failed in some fold: not judged.",
-        }
+        return _unjudged(eff, "Fit failed in some fold: not judged.")
     f = search._fits[key]
     form = f.form(effect)
     vals = f.values[effect]
