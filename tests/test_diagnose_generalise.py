@@ -55,10 +55,13 @@ KV_MIN_GAIN = 0.50        # issue #11 item 7: each side-swap fold cuts the held-
 
 
 # ------------------------------------------------------------------------------------------ runner
-def load(path: Path, scale: float | None = None, dt: float | None = None):
-    """A raw file through ingest, as ``diagnose --train FILE`` reads it (run id = file stem)."""
+def load(path: Path, scale: float | None = None, dt: float | None = None, model_scale: float | None = None):
+    """A raw file through ingest, as ``diagnose --train FILE`` reads it (run id = file stem).
+
+    ``model_scale``: model-scale files of a known ship, as a dataset.toml's ``[data] model_scale``."""
     cfg = IngestConfig() if dt is None else dc.replace(IngestConfig(), dt=dt)
-    run = ingest_file(path, scale=scale, config=cfg)
+    kw = {} if model_scale is None else {"model_scale": model_scale}
+    run = ingest_file(path, scale=scale, config=cfg, **kw)
     run.meta["run_id"] = path.stem
     return run
 
@@ -100,7 +103,9 @@ def write_kvlcc2(folder: Path, seed: int) -> dict[tuple[int, str], Path]:
 def kvlcc2_fold(files: dict, fold: int, how: str = "full") -> dict:
     """Side-swap fold 1 (train starboard, validate port) or 2 (the reverse).
 
-    how: "full" (full-scale files, --scale 45.7), "model" (model-scale twins, no --scale),
+    how: "full" (full-scale files, --scale 45.7), "model" (model-scale twins, no --scale; the
+    ship's model scale given as a dataset.toml's ``[data] model_scale`` gives it, since the file
+    names the KVLCC2, whose 320 m Lpp at scale 1 is no tank model),
     "unscaled" (full-scale files read as if model scale, step 0.08 sqrt(45.7) s)."""
     sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
 
@@ -110,7 +115,7 @@ def kvlcc2_fold(files: dict, fold: int, how: str = "full") -> dict:
             if how == "full":
                 res.append(load(files[(a, side)], scale=SCALE))
             elif how == "model":
-                res.append(load(files[(a, side, "model")]))
+                res.append(load(files[(a, side, "model")], model_scale=SCALE))
             else:
                 res.append(load(files[(a, side)], dt=0.08 * math.sqrt(SCALE)))
         return res
@@ -245,9 +250,6 @@ def test_kvlcc2_marin_side_swap(kv_reports, fold):
                                                       rep["extended"])
 
 
-@pytest.mark.xfail(strict=True, reason="measured 2026-11-23: ingest refuses the model-scale twin files "
-                   "('a model of Lpp 320 m at scale 1 is not a tank model'): the twin writer keeps the "
-                   "full-scale Lpp in its header; fix tests/truths/files.py, then this runs")
 def test_kvlcc2_same_cause_model_scale_file(kv_files, kv_reports):
     """Model-scale files (no --scale) and full-scale files with --scale 45.7: the same cause."""
     assert kvlcc2_fold(kv_files, 1, "model")["cause"] == kv_reports[1]["cause"]

@@ -17,7 +17,7 @@ from pipeline.ingest import detect_format, ingest_file, parse_raw, read_raw, res
 from pipeline.io import Run, read_json, read_run, write_run
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from make_fixtures import MARIN_FILE, MARIN_SCALE, marin_truth  # noqa: E402
+from make_fixtures import MARIN_FILE, MARIN_FULL_DT, MARIN_SCALE, marin_truth  # noqa: E402
 
 TANK_HEADER = """# ship: KCS
 # provenance: virtual
@@ -189,6 +189,33 @@ def test_marin_full_scale_without_scale_is_refused():
     with pytest.raises(InputError, match=r"Lpp 320 m .*look full scale: give the scale") as err:
         read_raw(MARIN_FILE, config=IngestConfig(max_abs_rate=90.0))
     assert "\n" not in str(err.value) and "marin_zigzag_fullscale.dat" in str(err.value)
+
+
+def test_marin_model_scale_file_of_a_known_ship_takes_the_model_scale(tmp_path):
+    """Model-scale MARIN files naming a known ship (KVLCC2, 320 m): without a model scale the Lpp
+    is 320 m at scale 1 and the file is refused; with ``model_scale`` (a dataset.toml's
+    ``[data] model_scale``) the model's Lpp is 320 / 45.7 = 7.0 m and it reads as the full-scale file
+    read with --scale 45.7."""
+    # Froude exponents of: time x0 y0 phi psi dx0 dy0 p r delta rev
+    froude = (0.5, 1.0, 1.0, 0.0, 0.0, 0.5, 0.5, -0.5, -0.5, 0.0, -0.5)
+    lines = MARIN_FILE.read_text().splitlines()
+    out = lines[:3]
+    for k, line in enumerate(lines[3:]):
+        if line.strip():   # the time column rebuilt exactly (the file's is rounded to 3 digits)
+            vals = [float(x) * MARIN_SCALE ** -e for x, e in zip(line.split("\t"), froude, strict=True)]
+            vals[0] = k * MARIN_FULL_DT / MARIN_SCALE ** 0.5
+            line = "\t".join(f"{x:.6E}" for x in vals)
+        out.append(line)
+    model = tmp_path / "kvlcc2_model.dat"
+    model.write_text("\n".join(out) + "\n")
+    with pytest.raises(InputError, match=r"Lpp 320 m"):
+        read_raw(model)
+    run = read_raw(model, model_scale=MARIN_SCALE)
+    assert run.meta["lpp"] == pytest.approx(320.0 / MARIN_SCALE)
+    full = read_raw(MARIN_FILE, scale=MARIN_SCALE)
+    t = full.frame["time"].to_numpy()
+    for col, tol in (("psi", 0.02), ("r", 0.02), ("u", 1e-3)):
+        assert np.max(np.abs(np.interp(t, run.frame["time"], run.frame[col]) - full.frame[col])) < tol, col
 
 
 # ------------------------------------------------------------------ resampling

@@ -372,3 +372,30 @@ def test_reports_rerender_only_what_changed(tmp_path, monkeypatch):
     rr.render_all(["tiny"], ["indices", "diagnosis"], out, root=root, force=False)
     assert calls == ["indices"]                                # only the page that reads it
     assert "indices-tiny.html" in (out / "index.html").read_text()
+
+
+@pytest.mark.parametrize("ship, note, builtin", [
+    ("KCS", "virtual tank (MMG model of the KCS, SIMMAN 2020 model scale); not measured data", True),
+    ("KCS", None, True),
+    ("Tanker X", "from our own MMG code", False),
+    ("KCS", "CFD free-running simulation, in-house solver", False),
+])
+def test_banner_names_the_builtin_tank_only_for_its_runs(tmp_path, ship, note, builtin):
+    """Simulated runs of a user's own (provenance virtual) are flagged as simulated, NOT measured, but
+    not called the built-in KCS tank; the tank's own runs are."""
+    import json
+
+    from pipeline.report.nb import Data, banner
+
+    cat = make_catalog(tmp_path, dataset="usersim", provenance="virtual", ship=ship)
+    if note is not None:
+        idx = json.loads(cat.runs_index.read_text())
+        for e in idx["runs"]:
+            e["header"] = {"ship": ship, "provenance": "virtual", "note": note}
+        cat.runs_index.write_text(json.dumps(idx))
+    html = banner(Data(tmp_path, "usersim"), "t").data
+    assert "NOT measured" in html
+    assert ("built-in virtual tank (3-DOF MMG model of the KCS" in html) is builtin
+    assert ("SIMULATED data, NOT measured" in html) is (not builtin)
+    if not builtin:
+        assert ship in html and "not the built-in KCS tank" in html

@@ -153,7 +153,8 @@ def _model_lpp(meta: dict, scale: float, lpp_full: float | None,
     ship = str(meta.get("ship", "")).upper()
     if ship in KNOWN_SHIPS_LPP_FULL:
         full = KNOWN_SHIPS_LPP_FULL[ship]
-        return full / scale, f"{ship} Lpp {full:g} m / scale {scale:g}"
+        ms = model_scale or scale   # model-scale files (scale 1) of a known ship: its model scale
+        return full / ms, f"{ship} Lpp {full:g} m / {'model ' if model_scale else ''}scale {ms:g}"
     return None, None
 
 
@@ -386,7 +387,7 @@ def ingest_file(path: str | Path, *, fmt: str | None = None, scale: float | None
                 config: IngestConfig = DEFAULT_CONFIG, **kwargs) -> Run:
     """Read, validate and resample a raw file to ``config.dt``: what every stage calls for a raw file.
 
-    ``kwargs``: rudder_sign, ship, lpp_full, test_name (see :func:`read_raw`)."""
+    ``kwargs``: rudder_sign, ship, lpp_full, model_scale, test_name (see :func:`read_raw`)."""
     return resample(read_raw(path, fmt=fmt, scale=scale, config=config, **kwargs), config.dt, config=config)
 
 

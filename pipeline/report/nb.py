@@ -193,6 +193,10 @@ def flatten(obj: Any, prefix: str = "") -> dict[str, Any]:
     return out
 
 
+#: how the built-in tank's CSV files begin their ``# note:`` (pipeline/tank/simulate.py NOTE)
+TANK_NOTE_PREFIX = "virtual tank (MMG model of the KCS"
+
+
 def banner(data: Data, title: str, settings: dict[str, Any] | None = None):
     """The provenance banner every report starts with (returns an IPython HTML object).
 
@@ -202,17 +206,28 @@ def banner(data: Data, title: str, settings: dict[str, Any] | None = None):
     from IPython.display import HTML
 
     prov = data.provenance
-    if prov == "virtual":
+    runs = data.runs()
+    ships = sorted({str(x) for x in runs["ship"].dropna()}) if "ship" in runs.columns else []
+    notes = [str((h or {}).get("note", "")) if isinstance(h, dict) else ""
+             for h in (runs["header"] if "header" in runs.columns else [None] * len(runs))]
+    # the built-in tank's runs: the KCS, and no file note other than the tank's own (a user's
+    # simulator writing "provenance: virtual" is simulated data, but not this tank)
+    tank_runs = all(not n or n.startswith(TANK_NOTE_PREFIX) for n in notes)
+    if prov == "virtual" and ships in ([], ["KCS"]) and tank_runs:
         box = ("#b00020", "VIRTUAL TANK: simulated data, NOT measured",
                "Every figure and table below comes from the built-in virtual tank (3-DOF MMG model of "
                "the KCS at model scale 1:37.89, SIMMAN 2020 deep water), run through the same stages "
                "as measured data.")
+    elif prov == "virtual":   # a user's simulated runs: not the built-in tank, whatever their ship
+        box = ("#b00020", "SIMULATED data, NOT measured",
+               f"The runs of dataset {data.dataset!r} say they are simulated (ship: "
+               f"{', '.join(ships) or 'not stated'}); they are not the built-in KCS tank.  Every figure "
+               "and table below comes from them, run through the same stages as measured data.")
     elif prov == "measured":
         box = ("#1b5e20", "MEASURED tank data", "Runs measured in a towing tank (free-running model).")
     else:
         box = ("#e65100", f"{prov.upper()} data: measured and virtual runs mixed",
                "Check the provenance column of the run table.")
-    runs = data.runs()
     cols = [c for c in ("run_id", "test_name", "provenance", "source_file", "source_format",
                         "source_sha256", "dt", "duration", "samples") if c in runs.columns]
     run_rows = "".join("<tr>" + "".join(f"<td style='text-align:left'>{esc(r[c])}</td>"
