@@ -351,7 +351,6 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
     m = Y.shape[1]
     nq = q_cols.shape[0]
     nr = r_cols.shape[0]
-    s1 = math.sqrt(wc[1])
     sh = math.sqrt(0.5 * wc[1])
     w0 = wc[0]
     s0 = math.sqrt(abs(w0))
