@@ -8,6 +8,17 @@ Q (the six parameters have no process noise) are left out of the QR, where they 
 zeros.  Everything else mirrors the reference path and the tests compare the two to round-off
 (tests/test_srukf.py, tests/test_identify.py).
 
+The paper's filter (the six parameters a random walk without process noise, v r psi measured) runs
+a structured step (:func:`_steps_rw`, issue 12 item 4): the parameter rows of the propagated sigma
+points are known (the prior's), so each +-pair of columns of the compound matrix is rotated into one
+column carrying them and one with zero parameter rows; the prior factor is then a 9 x 12 QR instead
+of 9 x 22, and the measurement update, linear in the state, needs neither sigma points nor a second
+factor of 22 columns.  Same sigma points (same factor, same state order), equal in exact arithmetic;
+tests/test_srukf.py holds it to the plain step to 1e-12 over a whole identification.  Measured and
+dropped there: the state reordered parameters-first (a 3-row QR would do, but the sigma points of
+another square root of P are another unscented transform: up to 3 % apart on var(v) for this
+bilinear model, not round-off); ``inline="always"`` on the QR and the downdates (0.92x).
+
 No fastmath: the additions run in the written order, so results are the same bits on every run and
 worker.  Measured and dropped (issue 12): the QR with the state as contiguous 4-wide lanes and the
 partial sums in a work array (same bits, but 0.75-0.9x: the sums live in memory, not registers).
