@@ -14,7 +14,7 @@ def run(quick: bool = False) -> list[dict]:
     cfg = FilterConfig()
     n = cfg.samples
     t, d, _, y = synthetic.zigzag(n=n, seed=1)
-    reps_fast, reps_base, n_batch = (20, 1, 200) if quick else (200, 5, 1000)
+    reps_fast, reps_base, n_batch = (20, 1, 200) if quick else (200, 15, 1000)
     identify_arrays(t, d, y, cfg, "srukf-ffm")          # compile / warm up
     identify_arrays(t[:20], d[:20], y[:20], cfg, "ffm-ukf")
     fast = min(identify_arrays(t, d, y, cfg, "srukf-ffm").timing["seconds_total"] for _ in range(reps_fast))
