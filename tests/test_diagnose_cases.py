@@ -169,7 +169,10 @@ def test_hidden_effect_is_found(case):
 #: Neither more size alone (35/35 + 20/20 at 14 deg/s: cut 0.091 deg) nor the faster rudder alone
 #: (20/20 + 10/10 at 30 deg/s: 0.088 deg) is enough; nor a higher zigzag frequency (20/5 + 10/5 at
 #: 30 deg/s: 0.083 deg), whose heading swing is small.
-CASE12_DESIGN = {"legs": ((30, "starboard"), (15, "port"), (30, "port"), (15, "starboard")), "rudder_rate": 30.0}
+CASE12_DESIGN = {
+    "legs": ((30, "starboard"), (15, "port"), (30, "port"), (15, "starboard")),
+    "rudder_rate": 30.0,  # deg/s
+}
 
 
 @pytest.mark.slow
@@ -179,7 +182,8 @@ def test_short_dead_time_is_found_where_the_design_shows_it():
     theta = np.array(list(PAPER_TABLE4.values()))
     theta[:4] *= fa
     theta[4:] *= fb
-    cfg = TruthConfig(theta=tuple(theta), seed=seed, rudder_delay=mag, rudder_rate=CASE12_DESIGN["rudder_rate"])
+    rate = CASE12_DESIGN["rudder_rate"]
+    cfg = TruthConfig(theta=tuple(theta), seed=seed, rudder_delay=mag, rudder_rate=rate)
     runs = [
         zigzag_truth(a, a, side, 80.0, dc.replace(cfg, seed=cfg.seed + j))
         for j, (a, side) in enumerate(CASE12_DESIGN["legs"])
