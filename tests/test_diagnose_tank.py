@@ -30,6 +30,65 @@ speed loss with the speed free (11 % in these zigzags): at constant propeller rp
 the rudder's inflow up (u_R falls 2.5 % for a 10 % speed loss, so the rudder force falls 5 %, not
 19 %), the yaw dynamics hardly change, and speed dependence gains -5 % / -1 % held-out with a fitted
 exponent of 0.10 / 0.06.  On the linear truth model both are found (test_diagnose_cases.py).
+
+Other designs (issue 11 item 6), judged first by an oracle: the truth's structure as far as the
+diagnosis can write it (the ship's own cubic damping + the injected effect) fitted on the same runs,
+against the same without the effect, held-out MAE psi in both folds (:func:`_oracle`).
+
+Dead time 0.6 s.  Physics: the KCS's fitted linear model has a fast yaw pole near -0.9 1/s and a slow
+one near -0.05 1/s (T1 ~ 20 s: the ship is close to its stability margin, a 10/10 zigzag overshoots by
+10.5 deg).  A dead time tau and a slower fast pole both lag the yaw response by omega tau at the zigzag
+frequency (period ~30 s whatever the zigzag's size, omega tau = 7 deg), and differ only near omega ~
+1/tau = 1.7 rad/s, which only the rudder's reversal ramp excites: with the dead time the fitted fast pole
+moves from -0.88 to -1.65 1/s, i.e. without it the fit absorbs 0.5 s into the time constant.  A faster
+rudder sharpens the ramp (10/10 reversal: 1.4 s at 14.28 deg/s, 0.4 s at 50 deg/s), smaller zigzags cut
+the ship's own nonlinearity, more reversals and longer runs give more blocks.  Measured, 2026-11-23
+(fold gains: train -> validate, then reversed; the estimate of the dead time is 0.5-0.6 s throughout):
+
+  design (train S/P; validate mirrored) rudder     baseline->oracle, deg     gains
+  10/10 + 5/5, 80 s (the design above)  14.3 deg/s 0.349->0.311, 0.424->0.234  11 % / 45 %
+  10/10 + 5/5                           30 deg/s   0.362->0.305, 0.424->0.219  16 % / 48 %
+  10/10 + 5/5                           50 deg/s   0.368->0.309, 0.419->0.208  16 % / 50 %
+  10/10 + 5/5, 120 s                    14.3 deg/s 0.675->0.554, 0.412->0.573  18 % / -39 %
+  10/10 + 5/5, 50 s                     14.3 deg/s 0.323->0.711, 0.550->0.493  -120 % / 10 %
+  7.5/7.5 + 5/5                         14.3 / 30  0.427->0.377, 0.550->0.357  12 % / 35 % (30: 14 / 37)
+  5/5 + 10/5 (twice the reversals)      14.3 / 30  0.895->0.720, 0.433->0.829  20 % / -91 % (30: 21 / -74)
+  5/5 + 10/5, 150 s                     30 deg/s   0.356->0.516, 0.329->0.147  -45 % / 55 %
+  10/5 + 15/5                           30 deg/s   0.318->0.726, 0.727->0.618  -128 % / 15 %
+  10/10 + 10/5                          14.3 deg/s 0.861->0.849, 0.602->0.949  1 % / -58 %
+  10/10 + 5/5 + 10/5 (three a side)     14.3 deg/s 0.249->0.495, 0.646->0.472  -99 % / 27 %
+  5/5 + 7.5/7.5 + 10/10 (three a side)  14.3 deg/s 0.471->0.331, 0.217->0.210  30 % / 3 %
+  5/5 S + 7.5/7.5 S vs the same to port 14.3 / 30  0.510->0.317, 0.330->0.346  38 % / -5 % (30: 40 / -4)
+  7.5/7.5 both sides vs 6.5/6.5 both    14.3 / 30  0.536->1.230, 0.339->0.347  -129 % / -2 % (30: -147 / -4)
+  10/10 both sides vs 9/9 both          14.3 deg/s 0.541->1.028, 0.453->0.813  -90 % / -80 %
+  5/5 both sides vs 5.5/5.5 both        14.3 deg/s 0.715->0.648, 0.486->0.439  9 % / 10 %
+
+No exchangeable design clears 30 % in both folds (5/5 both sides against 7.5/7.5 both sides does,
+60 % / 48 %, but its amplitudes differ by 50 %, so the diagnosis asks it in one direction only, and its
+neighbours above swing from -147 % to +40 %): with the slow pole near the margin the held-out heading
+error is dominated by how the fit places that pole, not by the 0.6 s.  So the dead time stays a strict
+xfail on the current design and on the best faster-rudder one (test_tank_dead_time_is_found_with_a_fast_
+rudder), and the oracle's figures on both are a test (test_tank_dead_time_oracle_is_below_the_bar).
+
+Speed loss, speed free (hull forces scale with U^2; at constant rps the rudder force with u_R^2, which
+the slipstream holds up).  Larger manoeuvres lose more speed, but the ship's own large-amplitude
+nonlinearity grows faster than what speed dependence can explain, and the fitted exponent then stands
+for amplitude, not speed.  Oracle (own cubic damping + speed_loss's power form, fitted, both folds;
+measured 2026-11-23):
+
+  design                        lowest u/U  baseline->oracle, deg     gains          exponent n
+  10/10 + 5/5 (the design above)  0.88      0.240->0.256, 0.197->0.199  -7 % / -1 %    0.10 / 0.07
+  20/20 + 10/10                   0.70      1.227->1.140, 1.110->1.030  7 % / 7 %      0.16 / 0.16
+  35/35 + 20/20                   0.47      2.305->1.767, 2.381->1.884  23 % / 21 %    0.13 / 0.11
+  35 deg turn + 20/20 zigzag      -         3.073->1.741, 2.895->2.792  43 % / 4 %     0.56 / 0.02
+
+With sway-yaw coupling added to the base (35/35 + 20/20) speed dependence gains 36 % / 36 % (n = 0.31),
+but that base is worse held-out than the cubic damping alone (3.03 vs 2.31 deg), and the full diagnosis
+of that design names cubic damping + rudder saturation, with speed dependence at -3 % / -1 % and
+n = 0.00 (53 % of the speed lost).  A hull-only form (rudder force not scaled; fitted outside the method
+for this check) gains -1 % / 15 % on 20/20 + 10/10 (n = 1.11 / -2.4) and 41 % / -49 % on 35/35 +
+20/20 (n = 5.1 / 0.4): no fold-stable, physical exponent.  So speed loss is not material on this ship
+at constant rps on any design tried; the xfail below stays, with these figures as its reason.
 """
 
 from __future__ import annotations
@@ -177,9 +236,76 @@ def test_tank_dead_time_is_measured_not_claimed():
     assert "rudder_offset" not in sig, _summary(rep)
 
 
+#: the best faster-rudder design for the dead time (module docstring's table): the current 10/10 + 5/5
+#: design with a 50 deg/s servo; legs (rudder deg, heading deg, side)
+_LEGS = {
+    "train": ((10, 10, "starboard"), (5, 5, "port")),
+    "validate": ((10, 10, "port"), (5, 5, "starboard")),
+}
+FAST = {**_LEGS, "rudder_rate": 50.0}
+CURRENT = {**_LEGS, "rudder_rate": TankConfig().rudder_rate}
+
+
+def _design_runs(design, **kw):
+    cfg = dc.replace(TankConfig(), **{"hold_speed": True, "rudder_rate": design["rudder_rate"], **kw})
+
+    def make(legs):
+        coeffs = _symmetric()
+        return [tank.simulate(tank.zigzag(a, h, s, duration=80.0), cfg, coeffs=coeffs) for a, h, s in legs]
+
+    return make(design["train"]), make(design["validate"])
+
+
+def _oracle(train, validate, base: tuple, effect: str):
+    """Per fold (train -> validate, then reversed): held-out MAE psi (deg) of ``base`` and of ``base`` +
+    ``effect`` fitted on the same runs (the truth's structure as far as the diagnosis can write it),
+    their relative gain, and the effect's fitted values."""
+    from pipeline.diagnose.core import _context
+    from pipeline.diagnose.fit import series_from_run, structure_of
+    from pipeline.diagnose.select import Fold, Search
+
+    tr, va = [series_from_run(r) for r in train], [series_from_run(r) for r in validate]
+    search = Search([Fold(tr, va), Fold(va, tr)], _context(tr + va), DiagnoseConfig())
+    b, e = structure_of(*base), structure_of(*base, effect)
+    out = []
+    for k in range(2):
+        search.fit(k, e, start=search.fit(k, b))
+        mb, me = search.eval(k, b)[0]["mae_psi_deg"], search.eval(k, e)[0]["mae_psi_deg"]
+        out.append((mb, me, (mb - me) / mb, search.fit(k, e).values[effect]))
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("design", [CURRENT, FAST], ids=["14deg_s", "50deg_s"])
+def test_tank_dead_time_oracle_is_below_the_bar(design):
+    """The oracle evidence behind the dead-time xfails: the truth's structure (own cubic damping + the
+    dead time) fitted on the same runs sees the dead time (0.6 s within 25 % in both folds) but is not
+    worth 30 % held-out in both folds, on the current rudder nor a 50 deg/s one."""
+    folds = _oracle(*_design_runs(design, rudder_delay=0.6), (OWN,), "rudder_delay")
+    for _, _, _, values in folds:
+        assert abs(values["delay_s"] - 0.6) <= 0.25 * 0.6, folds
+    gains = [g for _, _, g, _ in folds]
+    assert min(gains) < 0.30 <= max(gains), folds
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured: the oracle (own cubic damping + dead time, fitted) gains "
+                   "16 % / 50 % held-out with a 50 deg/s rudder; no exchangeable zigzag design tried clears "
+                   "30 % in both folds (module docstring's table)")
+def test_tank_dead_time_is_found_with_a_fast_rudder():
+    rep = diagnose(*_design_runs(FAST, rudder_delay=0.6)).report
+    finding = next(f for f in rep["findings"] if f["effect"] == "rudder_delay")
+    assert "rudder_delay" in rep["extended"]["effects"], _summary(rep)
+    assert finding["significant"], finding["evidence"]
+    assert min(finding["validation_gain_in_extended_folds"]) >= 0.30, _summary(rep)
+    est = rep["extended"]["effect_estimates"]["rudder_delay"]["estimate"]["delay_s"]
+    assert abs(est - 0.6) <= 0.25 * 0.6, est
+
+
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="measured: at constant rps the KCS's rudder inflow hardly drops "
-                   "with speed; speed dependence gains -5 % / -1 % held-out on top of its cubic damping")
+                   "with speed; speed dependence gains -5 % / -1 % held-out on top of its cubic damping; the "
+                   "oracle reaches 7 % / 7 % on 20/20 + 10/10, 23 % / 21 % on 35/35 + 20/20 (docstring)")
 def test_tank_speed_loss_is_found():
     rep = _diagnosis(hold_speed=False)
     assert "speed_loss" in rep["extended"]["effects"], _summary(rep)
