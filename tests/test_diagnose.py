@@ -312,19 +312,150 @@ def test_verdict_does_not_depend_on_the_scale_of_the_data():
         assert x == pytest.approx(y, abs=0.05)
 
 
+def _entry(rid, a, h, side="starboard"):
+    return {"run_id": rid, "kind": "zigzag", "rudder_deg": a, "heading_deg": h, "first_side": side}
+
+
+def _amp(runs, ids, key):
+    return sorted(r[key] for r in runs if r["run_id"] in ids)
+
+
 def test_catalog_rule_uses_every_run():
-    """Catalog mode: the pairs of tests run to both sides make a crossed selection design (largest and
-    smallest amplitude), every other zigzag is a test run; one pair: starboard trains, port validates."""
+    """Catalog mode: two runs of one rudder amplitude (a pair first) are twins, one trains and one
+    validates; with two pairs, the pairs of the smallest and largest amplitude are crossed (each side has
+    both sides and both amplitudes); every other zigzag is a test run; one pair: it is the selection."""
     from pipeline.cli.diagnose import pick_catalog_runs
 
-    def e(rid, a, h, side):
-        return {"run_id": rid, "kind": "zigzag", "rudder_deg": a, "heading_deg": h, "first_side": side}
-
+    e = _entry
     runs = [e("z10s", 10, 10, "starboard"), e("z10p", 10, 10, "port"), e("z20s", 20, 10, "starboard"),
             e("z20p", 20, 10, "port"), e("z05", 5, 1, "starboard"), e("z35", 35, 5, "starboard")]
     train, val, test = pick_catalog_runs(runs)
+    # 5 and 35 deg occur once: no twin, so they are test runs (the rule calls them extrapolated)
     assert train == ["z20s", "z10p"] and val == ["z20p", "z10s"] and sorted(test) == ["z05", "z35"]
     train, val, test = pick_catalog_runs(runs[:2] + runs[4:])
     assert train == ["z10s"] and val == ["z10p"] and sorted(test) == ["z05", "z35"]
     with pytest.raises(InputError, match="two zigzag"):
         pick_catalog_runs(runs[:1])
+
+
+#: HSVA's 13 measured KVLCC2 zigzags as the runs index names them (rudder deg, heading deg, first side)
+HSVA_INDEX = [
+    ("Z_05_01", 5, 1, "starboard"), ("Z_10_01", 10, 1, "starboard"), ("Z_10_05", 10, 5, "starboard"),
+    ("Z_10_10_P", 10, 10, "port"), ("Z_10_10_S", 10, 10, "starboard"), ("Z_15_01", 15, 1, "starboard"),
+    ("Z_15_05", 15, 5, "starboard"), ("Z_20_05", 20, 5, "starboard"), ("Z_20_10_P", 20, 10, "port"),
+    ("Z_20_10_S", 20, 10, "starboard"), ("Z_25_05", 25, 5, "starboard"), ("Z_30_05", 30, 5, "starboard"),
+    ("Z_35_05", 35, 5, "starboard"),
+]
+
+
+def _check_design(runs, train, val, test):
+    """The rule's promises on any index: every run once; training and validation hold the same rudder
+    amplitudes within the twin tolerance (so the diagnosis can swap them); the extremes of rudder and
+    heading amplitude among twinned runs are in the selection unless no twin of unused runs holds them;
+    a test run outside the selection's range then has no free twin."""
+    from pipeline.cli.diagnose import TWIN_TOL, extrapolated
+
+    ids = [r["run_id"] for r in runs]
+    assert sorted(train + val + test) == sorted(ids) and len(set(train + val + test)) == len(ids)
+    a_tr, a_va = _amp(runs, train, "rudder_deg"), _amp(runs, val, "rudder_deg")
+    assert len(a_tr) == len(a_va)
+    assert all(abs(x - y) <= TWIN_TOL * max(x, y) for x, y in zip(a_tr, a_va, strict=True))
+    def tw(a, b):
+        return abs(a["rudder_deg"] - b["rudder_deg"]) <= TWIN_TOL * max(a["rudder_deg"], b["rudder_deg"])
+
+    twinned = [r for r in runs if any(o is not r and tw(o, r) for o in runs)]
+    sel = [r for r in runs if r["run_id"] in train + val]
+    free = [r for r in twinned if r not in sel]
+    for key in ("rudder_deg", "heading_deg"):
+        for ext in (min, max):
+            v = ext(r[key] for r in twinned)
+            # covered, or every run there is left without a free twin (its twins are all selection runs)
+            assert v in {r[key] for r in sel} or not any(
+                a is not b and a[key] == v and tw(a, b) for a in free for b in free), (key, ext)
+    for rid in extrapolated(runs, train + val):
+        r = next(x for x in runs if x["run_id"] == rid)
+        assert not any(o is not r and tw(o, r) for o in free), rid
+
+
+def test_catalog_rule_spans_hsva_amplitudes():
+    """HSVA's 13 names (issue 11): the crossed 10/10 and 20/10 pairs, the largest rudder twin 35/5 + 30/5
+    and the smallest heading twin 10/1 + 10/5 are the selection; the other five are test runs between
+    them in amplitude, except 5/1 (the only 5 deg run: no twin, extrapolated, stated)."""
+    from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
+
+    runs = [_entry(f"HSVA_CPMC_KVLCC2_{n}", a, h, s) for n, a, h, s in HSVA_INDEX]
+    train, val, test = pick_catalog_runs(runs)
+    short = [[x.split("KVLCC2_")[1] for x in xs] for xs in (train, val, test)]
+    assert short[0] == ["Z_35_05", "Z_20_10_P", "Z_10_10_S", "Z_10_05"]
+    assert short[1] == ["Z_30_05", "Z_20_10_S", "Z_10_10_P", "Z_10_01"]
+    assert short[2] == ["Z_05_01", "Z_15_01", "Z_15_05", "Z_20_05", "Z_25_05"]
+    assert extrapolated(runs, train + val) == ["HSVA_CPMC_KVLCC2_Z_05_01"]
+    _check_design(runs, train, val, test)
+    # both sides of a pair are never on one side of the design; each side has a starboard and a port run
+    side = {r["run_id"]: r["first_side"] for r in runs}
+    assert {side[x] for x in train} == {side[x] for x in val} == {"starboard", "port"}
+    # the order of the index does not matter
+    assert pick_catalog_runs(runs[::-1]) == (train, val, test)
+
+
+def test_catalog_rule_without_pairs():
+    """A dataset of one-sided zigzags only (no pairs): twins of equal rudder amplitude, crossed; the
+    twins 30/10 + 30/20 and 10/5 + 10/10 already span 10 and 30 deg rudder and 5 and 20 deg heading,
+    so the four inner runs are test runs."""
+    from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
+
+    runs = [_entry(f"z{a}_{h}", a, h) for a, h in
+            [(10, 5), (10, 10), (15, 10), (20, 5), (20, 10), (20, 20), (30, 10), (30, 20)]]
+    train, val, test = pick_catalog_runs(runs)
+    assert train == ["z30_10", "z10_10"] and val == ["z30_20", "z10_5"]
+    assert test == ["z15_10", "z20_5", "z20_10", "z20_20"]
+    _check_design(runs, train, val, test)
+    # 10 deg rudder has a twin (10/5 + 10/10): the smallest twinned amplitude must be selected
+    assert extrapolated(runs, train + val) == []
+
+
+def test_catalog_rule_without_twins():
+    """No two runs share a rudder amplitude (within 15 %): one fold, the runs at the ends of both
+    amplitudes train, the inner runs are dealt validate, test in turn; two runs: larger trains."""
+    from pipeline.cli.diagnose import pick_catalog_runs
+
+    runs = [_entry(f"z{a}", a, h) for a, h in [(5, 1), (10, 5), (15, 10), (20, 5), (25, 5), (35, 20)]]
+    train, val, test = pick_catalog_runs(runs)
+    assert train == ["z5", "z35"] and val == ["z10", "z20"] and test == ["z15", "z25"]
+    assert pick_catalog_runs(runs[:2]) == (["z10"], ["z5"], [])
+
+
+def test_catalog_rule_promises_on_any_index():
+    """The rule's promises (:func:`_check_design`) on seeded random run indexes: amplitudes from a
+    tank's usual grid, sides at random, 2 to 14 runs, some with pairs, some without any twin."""
+    from pipeline.cli.diagnose import pick_catalog_runs
+
+    rng = np.random.default_rng(11)
+    for n in range(200):
+        k = int(rng.integers(2, 15))
+        runs = [_entry(f"r{n}_{i}", float(rng.choice([5, 10, 15, 20, 25, 30, 35])),
+                       float(rng.choice([1, 5, 10, 20])), str(rng.choice(["starboard", "port"])))
+                for i in range(k)]
+        train, val, test = pick_catalog_runs(runs)
+        assert train and val
+        twinned = any(a is not b and abs(a["rudder_deg"] - b["rudder_deg"]) <= 0.15 * b["rudder_deg"]
+                      for a in runs for b in runs)
+        if twinned:
+            _check_design(runs, train, val, test)
+        else:
+            assert sorted(train + val + test) == sorted(r["run_id"] for r in runs)
+
+
+def test_floor_text_says_a_diverging_removal_in_words():
+    """The materiality floor text of a response-change effect: a removal that changes the yaw rate by
+    more than the manoeuvre's own peak (measured on HSVA: 1845 %) is said to diverge, not given as a
+    percentage; an ordinary change keeps its percentage; the report passes the words through."""
+    from pipeline.diagnose.effects.base import response_floor_text
+    from pipeline.report.diagnosis_text import floor_measured
+
+    big = response_floor_text(18.448, 0.05)
+    assert "diverges" in big and "1845" not in big and "18 times" in big and "floor 5%" in big
+    assert "no longer finite" in response_floor_text(float("inf"))
+    small = response_floor_text(0.123, 0.05)
+    assert small == "changes the peak yaw rate of the largest manoeuvre by 12.3% (floor 5%)"
+    assert "diverges" in floor_measured(big + " [the precision model tests are trusted to]")
