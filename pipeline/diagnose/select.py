@@ -22,7 +22,12 @@ A step S -> S' passes when ALL hold (:func:`step_passes`):
   (G blocks of ``block_T`` ship time scales over all held-out runs; t with G-1 dof, not a normal
   z, because G is small: Cameron, Gelbach & Miller 2008), at level ``alpha``;
 - material: the new effect's estimate exceeds its physical floor (the effect's own
-  :meth:`~.effects.base.Effect.material`) in every fold.
+  :meth:`~.effects.base.Effect.material`) in every fold;
+- no run-away: on NO held-out run does the free-run MAE psi grow by more than that run's heading
+  swing (half the range of its measured psi).  An error grown by more than the manoeuvre itself means
+  the model no longer makes that manoeuvre (typically a course-unstable linear part left by a
+  nonlinear term, diverging on the small zigzags where the term vanishes), whatever it gains on the
+  others; a pooled or per-fold mean can hide one such run among large ones.
 """
 
 from __future__ import annotations
@@ -173,7 +178,7 @@ class Search:
     def step(self, ks, before, after, effect: str, noise_deg: float) -> Step:
         """Judge ``before`` -> ``after`` (which adds ``effect``) on the held-out runs of folds ``ks``."""
         cfg = self.cfg
-        gains, cuts, bsum, asum, diffs = [], [], 0.0, 0.0, []
+        gains, cuts, bsum, asum, diffs, runaway = [], [], 0.0, 0.0, [], []
         for k in ks:
             (mb, pb), (ma, pa) = self.eval(k, before), self.eval(k, after)
             gains.append(_gain(mb["mae_psi_deg"], ma["mae_psi_deg"]))
@@ -181,6 +186,12 @@ class Search:
             bsum += mb["mae_psi_deg"]
             asum += ma["mae_psi_deg"]
             for s, xb, xa in zip(self.folds[k].val, pb, pa, strict=True):
+                swing = 0.5 * float(np.ptp(s.psi))
+                if xa["mae_psi_deg"] - xb["mae_psi_deg"] > swing:
+                    runaway.append(
+                        f"{s.name} {xb['mae_psi_deg']:.2f} -> {xa['mae_psi_deg']:.2f} deg "
+                        f"(heading swing {swing:.2f} deg)"
+                    )
                 eb, ea = np.abs(xb["sim"][:, 2] - s.psi), np.abs(xa["sim"][:, 2] - s.psi)
                 blk = np.floor((s.t - s.t[0]) / self.block_s).astype(int)
                 for b in np.unique(blk):
@@ -218,6 +229,11 @@ class Search:
             )
         if not all(mats):
             why.append("below its physical floor: " + floors[0])
+        if runaway:
+            why.append(
+                "runs away on a held-out manoeuvre (error grown by more than its heading swing): "
+                + "; ".join(runaway)
+            )
         return Step(
             passes=not why,
             gain=gain,
