@@ -143,57 +143,80 @@ def test_cli_writes_contract_and_leaves_nothing_on_failure(tmp_path, capsys):
     assert not out2.exists()
 
 
+@pytest.fixture(scope="module")
+def hsva_design(hsva_dir):
+    """All 13 measured HSVA zigzags, roles by the catalog rule, diagnosed once for the tests below."""
+    pytest.importorskip("pipeline.ingest")
+    from pipeline.cli.diagnose import load_run, pick_catalog_runs
+
+    runs = {p.stem: load_run(p) for p in sorted(hsva_dir.glob("*.dat"))}
+    entries = [
+        {"run_id": k, **{m: r.meta.get(m) for m in ("kind", "rudder_deg", "heading_deg", "first_side")}}
+        for k, r in runs.items()
+    ]
+    tr, va, te = pick_catalog_runs(entries)
+    rep = diagnose([runs[k] for k in tr], [runs[k] for k in va], test=[runs[k] for k in te]).report
+    return runs, tr, va, te, rep
+
+
 @pytest.mark.slow
-def test_hsva_measured_kvlcc2(hsva_dir):
+def test_hsva_measured_kvlcc2(hsva_design):
     """All 13 measured HSVA zigzags, roles by the stated rule of the catalog mode (issue 11, item 5).
 
     Rule (:func:`pipeline.cli.diagnose.pick_catalog_runs`, by amplitude and side, from the test and
     first side ingest reads in each file): twins spanning the amplitudes are the selection runs: the
     crossed 10/10 and 20/10 pairs, 35/5 + 30/5 (largest rudder), 10/5 + 10/1 (smallest heading), one of
     each twin to training and one to validation (the diagnosis adds the reverse fold); the five other
-    zigzags (5/1, 15/1, 15/5, 20/5, 25/5) are test runs no choice sees.  Required: the same cause in
-    every fold of that design, the gain reported on the test runs only with its interval.
-    """
-    pytest.importorskip("pipeline.ingest")
-    from pipeline.cli.diagnose import load_run, pick_catalog_runs
+    zigzags (5/1, 15/1, 15/5, 20/5, 25/5) are test runs no choice sees.  Required: the gain reported on
+    the test runs only with its interval; no effect named that makes the unseen runs worse.
 
-    runs = {p.stem: load_run(p) for p in sorted(hsva_dir.glob("*.dat"))}
+    Measured 2026-11-23: cause none.  The sway terms that cut the large zigzags' error (+22 %, +26 % in
+    the fold that trains on 10/1) run away on 10/1 when it is held out (2.7 -> 40 deg, its heading swing
+    7.1 deg); the yaw damping gains +19 % in one fold and loses 3 % in the other.  (With the 10-20 deg
+    pairs alone the damping was named and made the 1 deg zigzags drift: 5/1 8 -> 49 deg, gain -148 %.)
+    """
+    runs, tr, va, te, rep = hsva_design
     assert len(runs) == 13
-    entries = [
-        {"run_id": k, **{m: r.meta.get(m) for m in ("kind", "rudder_deg", "heading_deg", "first_side")}}
-        for k, r in runs.items()
-    ]
-    tr, va, te = pick_catalog_runs(entries)
     # the rule: every run used once; both sides and the ends of both amplitudes in the selection
     assert sorted(tr + va + te) == sorted(runs) and len(set(tr + va + te)) == 13
     pre = "HSVA_CPMC_KVLCC2_"
     assert tr == [pre + x for x in ("Z_35_05", "Z_20_10_P", "Z_10_10_S", "Z_10_05")]
     assert va == [pre + x for x in ("Z_30_05", "Z_20_10_S", "Z_10_10_P", "Z_10_01")]
-    rep = diagnose([runs[k] for k in tr], [runs[k] for k in va], test=[runs[k] for k in te]).report
     assert rep["provenance"] == "measured"
     # the linear model's free-run error on held-out KVLCC2 zigzags is degrees, not noise
     assert rep["baseline"]["validation"]["mae_psi_deg"] > 1.0
-    # two folds (the design and its reverse); the selection repeated on each alone names the same cause
-    st = rep["stability"]
-    assert len(rep["folds"]) == 2 and st["total"] == 2
-    assert [c["cause"] for c in st["causes"]] == [rep["cause"]] * 2, st
-    assert st["folds_agreeing"] == st["total"]
-    # the gain is measured on the five test runs only, with its interval
+    assert len(rep["folds"]) == 2 and rep["stability"]["total"] == 2
+    # the gain is measured on the five test runs only, with its interval, and is not negative
     g = rep["gain"]
     assert sorted(g["measured_on"]) == sorted(te)
     assert {p["run_id"] for p in g["per_run"]} == set(te)
+    assert g["interval_95"][0] <= g["mae_psi_relative_reduction"] <= g["interval_95"][1]
+    assert g["mae_psi_relative_reduction"] >= 0 and g["flag"] is None
     if rep["cause"] != "none":
         f = next(x for x in rep["findings"] if x["effect"] == rep["cause"])
         assert f["significant"] and rep["cause"] in rep["extended"]["effects"]
-        assert g["interval_95"][0] <= g["mae_psi_relative_reduction"] <= g["interval_95"][1]
-        # measured: the damping chosen on the 10-20 deg zigzags makes the 1 deg-trigger zigzags drift
-        # (5/1: 8 -> 49 deg): a gain below zero on unseen runs must carry its flag and the runs
-        worse = g["mae_psi_relative_reduction"] < 0 or g["interval_95"][1] < 0
-        assert (g["flag"] is not None) == worse
-        if worse:
-            assert all(p["run_id"] in g["flag"] for p in g["per_run"] if p["gain"] < 0)
     else:
         assert rep["extended"]["effects"] == []
+        # the reason is said: the nearest candidate and the effects refused for running away
+        assert "Nearest:" in rep["summary"] and "running away" in rep["summary"]
+        away = [f for f in rep["findings"] if "runs away" in f["evidence"]]
+        assert away and all(pre + "Z_10_01" in f["evidence"] for f in away)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="measured 2026-11-23: folds agree 1 of 2. The selection on both folds names nothing; the "
+    "fold that trains on 10/1 alone names nonlinear_sway_damping (+22 % there), which runs away on "
+    "10/1 when that run is held out (the other fold). A fold alone cannot see its own small zigzag "
+    "held out; issue 11's 'same cause in every fold' is not met by this design",
+)
+def test_hsva_same_cause_in_every_fold(hsva_design):
+    """Issue 11: HSVA gives the same cause in every fold of the chosen design."""
+    rep = hsva_design[-1]
+    st = rep["stability"]
+    assert [c["cause"] for c in st["causes"]] == [rep["cause"]] * st["total"], st
+    assert st["folds_agreeing"] == st["total"]
 
 
 def test_block_sandwich_std_matches_monte_carlo_for_correlated_errors():
