@@ -164,10 +164,11 @@ def test_hsva_measured_kvlcc2(hsva_design):
     """All 13 measured HSVA zigzags, roles by the stated rule of the catalog mode (issue 11, item 5).
 
     Rule (:func:`pipeline.cli.diagnose.pick_catalog_runs`, by amplitude and side, from the test and
-    first side ingest reads in each file): twins spanning the amplitudes are the selection runs: the
-    crossed 10/10 and 20/10 pairs, 35/5 + 30/5 (largest rudder), 10/5 + 10/1 (smallest heading), one of
-    each twin to training and one to validation (the diagnosis adds the reverse fold); the five other
-    zigzags (5/1, 15/1, 15/5, 20/5, 25/5) are test runs no choice sees.  Required: the gain reported on
+    first side ingest reads in each file): twins spanning the amplitudes on both sides are the selection
+    runs: the crossed 10/10 and 20/10 pairs, 35/5 + 30/5 (largest rudder), 10/5 + 10/1 and 15/1 + 15/5
+    (smallest heading, a 1 deg zigzag on each side), one of each twin to training and one to
+    validation (the diagnosis adds the reverse fold); the three other zigzags (5/1, 20/5, 25/5) are
+    test runs no choice sees.  Required: the gain reported on
     the test runs only with its interval; no effect named that makes the unseen runs worse.
 
     Measured 2026-11-23: cause none.  The sway terms that cut the large zigzags' error (+22 %, +26 % in
@@ -180,13 +181,13 @@ def test_hsva_measured_kvlcc2(hsva_design):
     # the rule: every run used once; both sides and the ends of both amplitudes in the selection
     assert sorted(tr + va + te) == sorted(runs) and len(set(tr + va + te)) == 13
     pre = "HSVA_CPMC_KVLCC2_"
-    assert tr == [pre + x for x in ("Z_35_05", "Z_20_10_P", "Z_10_10_S", "Z_10_05")]
-    assert va == [pre + x for x in ("Z_30_05", "Z_20_10_S", "Z_10_10_P", "Z_10_01")]
+    assert tr == [pre + x for x in ("Z_35_05", "Z_20_10_P", "Z_15_01", "Z_10_10_S", "Z_10_05")]
+    assert va == [pre + x for x in ("Z_30_05", "Z_20_10_S", "Z_15_05", "Z_10_10_P", "Z_10_01")]
     assert rep["provenance"] == "measured"
     # the linear model's free-run error on held-out KVLCC2 zigzags is degrees, not noise
     assert rep["baseline"]["validation"]["mae_psi_deg"] > 1.0
     assert len(rep["folds"]) == 2 and rep["stability"]["total"] == 2
-    # the gain is measured on the five test runs only, with its interval, and is not negative
+    # the gain is measured on the three test runs only, with its interval, and is not negative
     g = rep["gain"]
     assert sorted(g["measured_on"]) == sorted(te)
     assert {p["run_id"] for p in g["per_run"]} == set(te)
@@ -397,6 +398,11 @@ def _check_design(runs, train, val, test):
             # covered, or every run there is left without a free twin (its twins are all selection runs)
             assert v in {r[key] for r in sel} or not any(
                 a is not b and a[key] == v and tw(a, b) for a in free for b in free), (key, ext)
+    # a heading end of the selection on one side only: no twin of unused runs could bring it to the other
+    by = {r["run_id"]: r for r in runs}
+    for v in (min(r["heading_deg"] for r in sel), max(r["heading_deg"] for r in sel)):
+        if (v in {by[x]["heading_deg"] for x in train}) != (v in {by[x]["heading_deg"] for x in val}):
+            assert not any(a is not b and a["heading_deg"] == v and tw(a, b) for a in free for b in free), v
     for rid in extrapolated(runs, train + val):
         r = next(x for x in runs if x["run_id"] == rid)
         assert not any(o is not r and tw(o, r) for o in free), rid
@@ -404,36 +410,41 @@ def _check_design(runs, train, val, test):
 
 def test_catalog_rule_spans_hsva_amplitudes():
     """HSVA's 13 names (issue 11): the crossed 10/10 and 20/10 pairs, the largest rudder twin 35/5 + 30/5
-    and the smallest heading twin 10/1 + 10/5 are the selection; the other five are test runs between
-    them in amplitude, except 5/1 (the only 5 deg run: no twin, extrapolated, stated)."""
+    and two smallest-heading twins 10/1 + 10/5 and 15/1 + 15/5 (a 1 deg zigzag on each side) are the
+    selection; the other three are test runs between them in amplitude, except 5/1 (the only 5 deg
+    run: no twin, extrapolated, stated)."""
     from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
 
     runs = [_entry(f"HSVA_CPMC_KVLCC2_{n}", a, h, s) for n, a, h, s in HSVA_INDEX]
     train, val, test = pick_catalog_runs(runs)
     short = [[x.split("KVLCC2_")[1] for x in xs] for xs in (train, val, test)]
-    assert short[0] == ["Z_35_05", "Z_20_10_P", "Z_10_10_S", "Z_10_05"]
-    assert short[1] == ["Z_30_05", "Z_20_10_S", "Z_10_10_P", "Z_10_01"]
-    assert short[2] == ["Z_05_01", "Z_15_01", "Z_15_05", "Z_20_05", "Z_25_05"]
+    assert short[0] == ["Z_35_05", "Z_20_10_P", "Z_15_01", "Z_10_10_S", "Z_10_05"]
+    assert short[1] == ["Z_30_05", "Z_20_10_S", "Z_15_05", "Z_10_10_P", "Z_10_01"]
+    assert short[2] == ["Z_05_01", "Z_20_05", "Z_25_05"]
     assert extrapolated(runs, train + val) == ["HSVA_CPMC_KVLCC2_Z_05_01"]
     _check_design(runs, train, val, test)
-    # both sides of a pair are never on one side of the design; each side has a starboard and a port run
-    side = {r["run_id"]: r["first_side"] for r in runs}
-    assert {side[x] for x in train} == {side[x] for x in val} == {"starboard", "port"}
+    # each side has a starboard and a port run, a 1 deg and a 10 deg heading, 10 deg and >= 30 deg rudder
+    by = {r["run_id"]: r for r in runs}
+    for half in (train, val):
+        assert {by[x]["first_side"] for x in half} == {"starboard", "port"}
+        assert {1, 10} <= {by[x]["heading_deg"] for x in half}
+        assert min(by[x]["rudder_deg"] for x in half) == 10 and max(by[x]["rudder_deg"] for x in half) >= 30
     # the order of the index does not matter
     assert pick_catalog_runs(runs[::-1]) == (train, val, test)
 
 
 def test_catalog_rule_without_pairs():
-    """A dataset of one-sided zigzags only (no pairs): twins of equal rudder amplitude, crossed; the
-    twins 30/10 + 30/20 and 10/5 + 10/10 already span 10 and 30 deg rudder and 5 and 20 deg heading,
-    so the four inner runs are test runs."""
+    """A dataset of one-sided zigzags only (no pairs): twins of equal rudder amplitude, crossed.  The
+    twins 30/10 + 30/20 and 10/5 + 10/10 span 10 and 30 deg rudder; the 5 deg heading needs a second
+    twin (20/5 + 20/10) to be on both sides; the 20 deg heading has no free twin left, so it is on the
+    validation side only; 15/10 and 20/20 are test runs."""
     from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
 
     runs = [_entry(f"z{a}_{h}", a, h) for a, h in
             [(10, 5), (10, 10), (15, 10), (20, 5), (20, 10), (20, 20), (30, 10), (30, 20)]]
     train, val, test = pick_catalog_runs(runs)
-    assert train == ["z30_10", "z10_10"] and val == ["z30_20", "z10_5"]
-    assert test == ["z15_10", "z20_5", "z20_10", "z20_20"]
+    assert train == ["z30_10", "z20_10", "z10_5"] and val == ["z30_20", "z20_5", "z10_10"]
+    assert test == ["z15_10", "z20_20"]
     _check_design(runs, train, val, test)
     # 10 deg rudder has a twin (10/5 + 10/10): the smallest twinned amplitude must be selected
     assert extrapolated(runs, train + val) == []

@@ -12,6 +12,7 @@ writes data/processed/D/diagnose/.
 from __future__ import annotations
 
 import argparse
+import itertools
 from pathlib import Path
 
 from pipeline.cli._common import add_dataset_args, catalog
@@ -63,15 +64,21 @@ def pick_catalog_runs(entries: list[dict]) -> tuple[list[str], list[str], list[s
        amplitude.
     2. Crossed pairs: with two or more pairs, the pairs of the smallest and the largest rudder amplitude
        are selection twins.
-    3. Span: the selection then covers, in this order, the largest and the smallest rudder amplitude
-       and the smallest and the largest heading amplitude among the runs that have a twin: for each,
-       when no selection run has that amplitude yet, a twin of unused runs containing one is added
-       (when none is left, the next amplitude inward).  So no test run is outside the selection's
-       range unless its amplitude occurs once only (it then has no twin: the rule names it extrapolated,
-       e.g. HSVA's single 5 deg/1 deg zigzag below the 10 deg twins).
+    3. Span, on BOTH sides of the design: the selection then covers, in this order, the largest and
+       the smallest rudder amplitude and the smallest and the largest heading amplitude among the runs
+       that have a twin, each on the training AND the validation side, so that every fold (the design
+       and its reverse) is judged on both ends of both ranges.  A twin holds one rudder amplitude, so
+       one twin covers a rudder end on both sides; a heading end needs a twin with both members at it
+       (a pair) or two twins with one member each (dealt to opposite sides, rule 4).  Twins of unused
+       runs containing the end are added until both sides have it; when none is left before any side
+       has it, the next amplitude inward.  So no test run is outside the selection's range unless its
+       amplitude has no free twin (the rule names it extrapolated, e.g. HSVA's single 5 deg/1 deg
+       zigzag below the 10 deg twins).
     4. Crossing: the twins, largest rudder amplitude first, give their first member (starboard of a
        pair; else the larger rudder, then the smaller heading amplitude) alternately to training and
-       to validation, so each side has both sides and both ends of the range.
+       to validation; of all ways round of the twins the one is taken that puts the most ends of the
+       ranges on both sides, then the most first sides (starboard, port) on both sides, then the fewest
+       departures from that alternation: each side has both sides and both ends of the ranges.
     5. Every other zigzag is a TEST run: no choice sees it, the gain is reported on it; they lie
        between the selection runs in amplitude (interleaved).
 
@@ -137,14 +144,21 @@ def pick_catalog_runs(entries: list[dict]) -> tuple[list[str], list[str], list[s
         if high:  # two pairs without a shared run
             take(by_amp[0])
             take(high[-1])
+    def sides_at(axis, v):  # on how many sides of the design a chosen twin puts amplitude v (0..2)
+        n = 0
+        for tw in chosen:
+            at = sum(r[axis] == v for r in tw)
+            n += 2 if at and (axis == "rudder" or at == 2) else at  # a twin's rudders are one amplitude
+        return min(n, 2)
+
     for axis, largest in (("rudder", True), ("rudder", False), ("heading", False), ("heading", True)):
-        values = sorted({r[axis] for r in twinned}, reverse=largest)
-        for v in values:
-            if any(r[axis] == v for tw in chosen for r in tw):
-                break
-            cands = [tw for tw in twins if free(tw) and any(r[axis] == v for r in tw)]
-            if cands:
+        for v in sorted({r[axis] for r in twinned}, reverse=largest):
+            while sides_at(axis, v) < 2:
+                cands = [tw for tw in twins if free(tw) and any(r[axis] == v for r in tw)]
+                if not cands:
+                    break
                 take(cands[0])
+            if sides_at(axis, v):
                 break
 
     def member_order(tw):
@@ -153,12 +167,34 @@ def pick_catalog_runs(entries: list[dict]) -> tuple[list[str], list[str], list[s
             return (a, b) if a["side"] == "starboard" else (b, a)
         return tuple(sorted(tw, key=lambda r: (-r["rudder"], r["heading"], r["id"])))
 
+    sel = [r for tw in chosen for r in tw]
+    ends = {("rudder", min(r["rudder"] for r in sel)), ("rudder", max(r["rudder"] for r in sel)),
+            ("heading", min(r["heading"] for r in sel)), ("heading", max(r["heading"] for r in sel))}
+
+    def marks(r):  # the ends of the amplitude ranges a run brings to its side of the design
+        return {(axis, v) for axis, v in ends
+                if r[axis] == v or (axis == "rudder" and _twin({"rudder": v}, r))}
+
     chosen.sort(key=lambda tw: (-max(r["rudder"] for r in tw), -max(r["heading"] for r in tw)))
+    ordered = [member_order(tw) for tw in chosen]
+
+    def score(flips):  # (ends on both sides, first sides on both sides, agreement with alternation)
+        halves = (set(), set())
+        for i, ((a, b), f) in enumerate(zip(ordered, flips, strict=True)):
+            x, y = (a, b) if (i % 2 == 0) != f else (b, a)
+            halves[0].update(marks(x) | {("side", x["side"])})
+            halves[1].update(marks(y) | {("side", y["side"])})
+        return (sum(m[0] != "side" for m in halves[0]) + sum(m[0] != "side" for m in halves[1]),
+                sum(m[0] == "side" for m in halves[0]) + sum(m[0] == "side" for m in halves[1]),
+                -sum(flips))
+
+    # every orientation of the (few: at most two pairs and two twins per end) twins, the best by score
+    best = max(itertools.product((False, True), repeat=len(ordered)), key=score)
     train, val = [], []
-    for i, tw in enumerate(chosen):
-        first, second = member_order(tw)
-        (train if i % 2 == 0 else val).append(first["id"])
-        (val if i % 2 == 0 else train).append(second["id"])
+    for i, ((a, b), f) in enumerate(zip(ordered, best, strict=True)):
+        x, y = (a, b) if (i % 2 == 0) != f else (b, a)
+        train.append(x["id"])
+        val.append(y["id"])
     test = sorted((r for r in runs if id(r) not in used), key=lambda r: (r["rudder"], r["heading"], r["id"]))
     return train, val, [r["id"] for r in test]
 
