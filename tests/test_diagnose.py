@@ -557,3 +557,20 @@ def test_step_refuses_an_effect_that_runs_away_or_harms_one_held_out_manoeuvre()
     same = Fake({False: {"big": 10.0, "small": 1.0}, True: {"big": 1.0, "small": 1.0}}, noise=0.3)
     st = same.step([0], (), after, "nonlinear_yaw_damping", 0.01)
     assert not any("significantly worse" in w for w in st.why) and st.passes, st.why
+
+
+def test_report_verdict_of_an_effect_that_harms_a_held_out_run():
+    """A finding refused only by the no-harm test (measured HSVA evidence text) reads 'harms a held-out
+    run' with the run and its numbers, not 'another effect already explained the same error'."""
+    from pipeline.report import diagnosis_text as dt
+
+    f = {"effect": "nonlinear_yaw_damping", "significant": False, "material": True, "validation_gain": 0.12,
+         "validation_gain_folds": [0.04, 0.19], "abs_gain_deg": 0.65, "block_t": 1.8, "block_t_crit": 1.67,
+         "blocks": 76,
+         "evidence": "Not named: significantly worse on a held-out manoeuvre (one-sided block t at 0.05/10, "
+         "Bonferroni over the held-out runs): Z_10_01 2.71 -> 7.81 deg (block t = -4.0) (added to the linear "
+         "baseline: held-out +12%, per fold +4%, +19%); fitted: yaw damping grows."}
+    settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
+    v, why = dt.verdict(f, settings)
+    assert v == "harms a held-out run" and "Z_10_01 2.71 -> 7.81 deg" in why and "added to" not in why
+    assert dt.failed_tests(f, settings) == ("harms a held-out run",)
