@@ -4,13 +4,15 @@ Explicit mode:  ``--train RUN [RUN ...] --validate RUN [RUN ...] --out DIR [--sc
 file of any SPEC section 3 format or a processed Parquet run.
            ``[--test RUN ...]``: the gain is reported on the test runs (else nested cross-validation).
 Catalog mode:   ``--dataset D`` uses every zigzag of data/processed/D/runs/index.json by the rule of
-:func:`pick_catalog_runs` (crossed side/amplitude selection runs, every other run a test run);
+:func:`pick_catalog_runs` (selection runs in twins spanning the rudder and heading amplitudes, crossed
+by side; every other run a test run);
 writes data/processed/D/diagnose/.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 from pathlib import Path
 
 from pipeline.cli._common import add_dataset_args, catalog
@@ -38,44 +40,178 @@ def load_run(path: str | Path, scale: float | None = None) -> Run:
     return run
 
 
+#: two runs are TWINS (the same manoeuvre for the purpose of swapping training and validation) when
+#: their rudder amplitudes agree within this fraction: the tolerance at which the diagnosis itself
+#: calls two sides the same manoeuvres and adds the reverse fold (pipeline.diagnose.core._exchangeable)
+TWIN_TOL = 0.15
+
+
+def _twin(a: dict, b: dict) -> bool:
+    x, y = a["rudder"], b["rudder"]
+    return abs(x - y) <= TWIN_TOL * max(x, y, 1e-9)
+
+
 def pick_catalog_runs(entries: list[dict]) -> tuple[list[str], list[str], list[str]]:
     """Training, validation and test run ids from a runs index, by a stated rule (all runs used).
 
-    Zigzags are grouped by test (rudder/heading amplitude) and first side.  Tests run to both sides
-    ("pairs") make the selection runs: with two or more pairs, the pair of the largest and the pair of
-    the smallest rudder amplitude form a crossed design: train on (large, starboard) + (small, port),
-    validate on (large, port) + (small, starboard) (both sides and both amplitudes on each side; the
-    diagnosis adds the reverse fold); with one pair, train on its starboard run and validate on its port
-    run.  Every other zigzag is a TEST run: no choice sees it, the gain is reported on it.  Without any
-    pair, the zigzags sorted by amplitude are dealt train, validate, test in turn.
+    Design rule (any dataset folder, pairs or not; amplitudes from the index's ``rudder_deg`` and
+    ``heading_deg``, a missing one read as 0):
+
+    1. The selection runs are made of TWINS: two runs whose rudder amplitudes agree within
+       :data:`TWIN_TOL`; one goes to training, one to validation, so every selection amplitude is on
+       both sides and the diagnosis can swap the roles (its reverse fold).  A pair (one test run to
+       both sides) is the preferred twin, then the least amplitude difference, then the smaller rudder
+       amplitude.
+    2. Crossed pairs: with two or more pairs, the pairs of the smallest and the largest rudder amplitude
+       are selection twins.
+    3. Span, on BOTH sides of the design: the selection then covers, in this order, the largest and
+       the smallest rudder amplitude and the smallest and the largest heading amplitude among the runs
+       that have a twin, each on the training AND the validation side, so that every fold (the design
+       and its reverse) is judged on both ends of both ranges.  A twin holds one rudder amplitude, so
+       one twin covers a rudder end on both sides; a heading end needs a twin with both members at it
+       (a pair) or two twins with one member each (dealt to opposite sides, rule 4).  Twins of unused
+       runs containing the end are added until both sides have it; when none is left before any side
+       has it, the next amplitude inward.  So no test run is outside the selection's range unless its
+       amplitude has no free twin (the rule names it extrapolated, e.g. HSVA's single 5 deg/1 deg
+       zigzag below the 10 deg twins).
+    4. Crossing: the twins, largest rudder amplitude first, give their first member (starboard of a
+       pair; else the larger rudder, then the smaller heading amplitude) alternately to training and
+       to validation; of all ways round of the twins the one is taken that puts the most ends of the
+       ranges on both sides, then the most first sides (starboard, port) on both sides, then the fewest
+       departures from that alternation: each side has both sides and both ends of the ranges.
+    5. Every other zigzag is a TEST run: no choice sees it, the gain is reported on it; they lie
+       between the selection runs in amplitude (interleaved).
+
+    Without any twin: the runs at the extremes (smallest and largest rudder, smallest and largest
+    heading amplitude) train, the others sorted by amplitude are dealt validate, test in turn (one
+    fold, interpolation held out).
     """
     zz = [e for e in entries if str(e.get("kind", "zigzag")).startswith("zig")] or list(entries)
     if len(zz) < 2:
         raise InputError("catalog mode needs at least two zigzag runs (one to train, one to validate)")
+    runs = [
+        {
+            "id": e["run_id"],
+            "rudder": abs(float(e.get("rudder_deg") or 0.0)),
+            "heading": abs(float(e.get("heading_deg") or 0.0)),
+            "side": e.get("first_side"),
+        }
+        for e in zz
+    ]
 
-    def test(e):
-        return (e.get("rudder_deg"), e.get("heading_deg"))
+    def is_pair(a, b):
+        return (
+            a["rudder"] == b["rudder"]
+            and a["heading"] == b["heading"]
+            and {a["side"], b["side"]} == {"starboard", "port"}
+        )
 
-    groups: dict = {}
-    for e in zz:
-        groups.setdefault(test(e), {})[e.get("first_side")] = e["run_id"]
-    pairs = sorted(
-        (k for k, g in groups.items() if "starboard" in g and "port" in g),
-        key=lambda k: (k[0] or 0, k[1] or 0),
+    def rank(tw):  # preference among twins (rule 1)
+        a, b = tw
+        return (not is_pair(a, b), abs(a["rudder"] - b["rudder"]), min(a["rudder"], b["rudder"]),
+                a["id"], b["id"])
+
+    twins = sorted(
+        ((a, b) for i, a in enumerate(runs) for b in runs[i + 1 :] if _twin(a, b)), key=rank
     )
-    if len(pairs) >= 2:
-        big, small = groups[pairs[-1]], groups[pairs[0]]
-        train = [big["starboard"], small["port"]]
-        val = [big["port"], small["starboard"]]
-    elif len(pairs) == 1:
-        train, val = [groups[pairs[0]]["starboard"]], [groups[pairs[0]]["port"]]
-    else:
-        order = [e["run_id"] for e in sorted(zz, key=lambda e: (e.get("rudder_deg") or 0, e["run_id"]))]
-        train, val = order[0::3], order[1::3]
-        rest = order[2::3]
-        return train, val, rest
-    used = set(train + val)
-    return train, val, [e["run_id"] for e in zz if e["run_id"] not in used]
+    twinned = [r for r in runs if any(r is a or r is b for a, b in twins)]
+    if not twinned:
+        order = sorted(runs, key=lambda r: (r["rudder"], r["heading"], r["id"]))
+        ext = {id(min(order, key=lambda r: (r["rudder"], r["heading"]))),
+               id(max(order, key=lambda r: (r["rudder"], r["heading"]))),
+               id(min(order, key=lambda r: (r["heading"], r["rudder"]))),
+               id(max(order, key=lambda r: (r["heading"], r["rudder"])))}
+        train = [r for r in order if id(r) in ext]
+        rest = [r for r in order if id(r) not in ext]
+        if not rest:  # two runs, both extremes: the larger trains, the smaller validates
+            train, rest = order[1:], order[:1]
+        return [r["id"] for r in train], [r["id"] for r in rest[0::2]], [r["id"] for r in rest[1::2]]
+
+    chosen: list = []
+    used: set = set()
+
+    def take(tw):
+        chosen.append(tw)
+        used.update(id(r) for r in tw)
+
+    def free(tw):
+        return not (used & {id(tw[0]), id(tw[1])})
+
+    by_amp = sorted((tw for tw in twins if is_pair(*tw)), key=lambda tw: (tw[0]["rudder"], tw[0]["heading"]))
+    if by_amp:
+        low = {id(r) for r in by_amp[0]}
+        high = [tw for tw in by_amp if not low & {id(tw[0]), id(tw[1])}]
+        if high:  # two pairs without a shared run
+            take(by_amp[0])
+            take(high[-1])
+    def sides_at(axis, v):  # on how many sides of the design a chosen twin puts amplitude v (0..2)
+        n = 0
+        for tw in chosen:
+            at = sum(r[axis] == v for r in tw)
+            n += 2 if at and (axis == "rudder" or at == 2) else at  # a twin's rudders are one amplitude
+        return min(n, 2)
+
+    for axis, largest in (("rudder", True), ("rudder", False), ("heading", False), ("heading", True)):
+        for v in sorted({r[axis] for r in twinned}, reverse=largest):
+            while sides_at(axis, v) < 2:
+                cands = [tw for tw in twins if free(tw) and any(r[axis] == v for r in tw)]
+                if not cands:
+                    break
+                take(cands[0])
+            if sides_at(axis, v):
+                break
+
+    def member_order(tw):
+        a, b = tw
+        if is_pair(a, b):
+            return (a, b) if a["side"] == "starboard" else (b, a)
+        return tuple(sorted(tw, key=lambda r: (-r["rudder"], r["heading"], r["id"])))
+
+    sel = [r for tw in chosen for r in tw]
+    ends = {("rudder", min(r["rudder"] for r in sel)), ("rudder", max(r["rudder"] for r in sel)),
+            ("heading", min(r["heading"] for r in sel)), ("heading", max(r["heading"] for r in sel))}
+
+    def marks(r):  # the ends of the amplitude ranges a run brings to its side of the design
+        return {(axis, v) for axis, v in ends
+                if r[axis] == v or (axis == "rudder" and _twin({"rudder": v}, r))}
+
+    chosen.sort(key=lambda tw: (-max(r["rudder"] for r in tw), -max(r["heading"] for r in tw)))
+    ordered = [member_order(tw) for tw in chosen]
+
+    def score(flips):  # (ends on both sides, first sides on both sides, agreement with alternation)
+        halves = (set(), set())
+        for i, ((a, b), f) in enumerate(zip(ordered, flips, strict=True)):
+            x, y = (a, b) if (i % 2 == 0) != f else (b, a)
+            halves[0].update(marks(x) | {("side", x["side"])})
+            halves[1].update(marks(y) | {("side", y["side"])})
+        return (sum(m[0] != "side" for m in halves[0]) + sum(m[0] != "side" for m in halves[1]),
+                sum(m[0] == "side" for m in halves[0]) + sum(m[0] == "side" for m in halves[1]),
+                -sum(flips))
+
+    # every orientation of the (few: at most two pairs and two twins per end) twins, the best by score
+    best = max(itertools.product((False, True), repeat=len(ordered)), key=score)
+    train, val = [], []
+    for i, ((a, b), f) in enumerate(zip(ordered, best, strict=True)):
+        x, y = (a, b) if (i % 2 == 0) != f else (b, a)
+        train.append(x["id"])
+        val.append(y["id"])
+    test = sorted((r for r in runs if id(r) not in used), key=lambda r: (r["rudder"], r["heading"], r["id"]))
+    return train, val, [r["id"] for r in test]
+
+
+def extrapolated(entries: list[dict], selection: list[str]) -> list[str]:
+    """Test runs outside the selection runs' range of rudder or heading amplitude (run ids)."""
+    amp = {e["run_id"]: (abs(float(e.get("rudder_deg") or 0)), abs(float(e.get("heading_deg") or 0)))
+           for e in entries}
+    sel = [amp[r] for r in selection]
+    out = []
+    for rid, (a, h) in amp.items():
+        if rid in selection:
+            continue
+        if not (min(x for x, _ in sel) <= a <= max(x for x, _ in sel)
+                and min(y for _, y in sel) <= h <= max(y for _, y in sel)):
+            out.append(rid)
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,6 +228,11 @@ def run(args: argparse.Namespace) -> int:
         index = read_json(cat.runs_index)
         entries = index.get("runs", [])
         train_ids, val_ids, test_ids = pick_catalog_runs(entries)
+        outside = extrapolated(entries, train_ids + val_ids)
+        print(
+            f"design: train {', '.join(train_ids)}; validate {', '.join(val_ids)}; test {', '.join(test_ids)}"
+            + (f"; outside the selection's amplitudes: {', '.join(outside)}" if outside else "")
+        )
         files = {e["run_id"]: e.get("file", f"{e['run_id']}.parquet") for e in entries}
 
         def load(rid):

@@ -585,6 +585,19 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             f"({base_val['mae_psi_deg']:.2f} deg) is "
             f"not cut materially and significantly by any effect of the catalogue, alone or together."
         )
+        # the reason in the data: the candidate of largest held-out gain, and why it was not named
+        near = max(
+            (st_ for st_ in sel.alone.values() if st_.why), key=lambda st_: st_.gain, default=None
+        )
+        if near is not None:
+            name = next(e for e, s_ in sel.alone.items() if s_ is near)
+            summary += (
+                f" Nearest: {name} (held-out {near.gain:+.0%}, per fold "
+                f"{', '.join(f'{g:+.0%}' for g in near.gains)}): {'; '.join(near.why)}."
+            )
+        away = [e for e, s_ in sel.alone.items() if any("runs away" in w for w in s_.why)]
+        if away:
+            summary += f" Refused for running away on a held-out manoeuvre: {', '.join(away)}."
     else:
         summary = next(r["evidence"] for r in rows if r["effect"] == cause)
     fold_reports = []

@@ -22,7 +22,16 @@ A step S -> S' passes when ALL hold (:func:`step_passes`):
   (G blocks of ``block_T`` ship time scales over all held-out runs; t with G-1 dof, not a normal
   z, because G is small: Cameron, Gelbach & Miller 2008), at level ``alpha``;
 - material: the new effect's estimate exceeds its physical floor (the effect's own
-  :meth:`~.effects.base.Effect.material`) in every fold.
+  :meth:`~.effects.base.Effect.material`) in every fold;
+- no harm: NO held-out run is made significantly worse (one-sided t-test of that run's per-block MAE
+  differences, level ``alpha`` / N over the N held-out runs, Bonferroni).  An effect that cuts the
+  error of some manoeuvres and significantly raises it on another is not the cause of the error (a
+  compromise of the linear part moved, typically large zigzags bought with small ones);
+- no run-away: on NO held-out run does the free-run MAE psi grow by more than that run's heading
+  swing (half the range of its measured psi).  An error grown by more than the manoeuvre itself means
+  the model no longer makes that manoeuvre (typically a course-unstable linear part left by a
+  nonlinear term, diverging on the small zigzags where the term vanishes), whatever it gains on the
+  others; a pooled or per-fold mean can hide one such run among large ones.
 """
 
 from __future__ import annotations
@@ -173,7 +182,7 @@ class Search:
     def step(self, ks, before, after, effect: str, noise_deg: float) -> Step:
         """Judge ``before`` -> ``after`` (which adds ``effect``) on the held-out runs of folds ``ks``."""
         cfg = self.cfg
-        gains, cuts, bsum, asum, diffs = [], [], 0.0, 0.0, []
+        gains, cuts, bsum, asum, diffs, runaway, per_run = [], [], 0.0, 0.0, [], [], []
         for k in ks:
             (mb, pb), (ma, pa) = self.eval(k, before), self.eval(k, after)
             gains.append(_gain(mb["mae_psi_deg"], ma["mae_psi_deg"]))
@@ -181,12 +190,21 @@ class Search:
             bsum += mb["mae_psi_deg"]
             asum += ma["mae_psi_deg"]
             for s, xb, xa in zip(self.folds[k].val, pb, pa, strict=True):
+                swing = 0.5 * float(np.ptp(s.psi))
+                if xa["mae_psi_deg"] - xb["mae_psi_deg"] > swing:
+                    runaway.append(
+                        f"{s.name} {xb['mae_psi_deg']:.2f} -> {xa['mae_psi_deg']:.2f} deg "
+                        f"(heading swing {swing:.2f} deg)"
+                    )
                 eb, ea = np.abs(xb["sim"][:, 2] - s.psi), np.abs(xa["sim"][:, 2] - s.psi)
                 blk = np.floor((s.t - s.t[0]) / self.block_s).astype(int)
+                run_diffs = []
                 for b in np.unique(blk):
                     m = blk == b
                     if m.sum() >= max(5, 0.5 * self.block_s / s.h):  # a trailing stub is no block
-                        diffs.append(float(eb[m].mean() - ea[m].mean()))
+                        run_diffs.append(float(eb[m].mean() - ea[m].mean()))
+                diffs += run_diffs
+                per_run.append((s.name, xb["mae_psi_deg"], xa["mae_psi_deg"], run_diffs))
         gain = _gain(bsum, asum)
         abs_gain = float(np.mean(cuts))
         g = len(diffs)
@@ -218,6 +236,22 @@ class Search:
             )
         if not all(mats):
             why.append("below its physical floor: " + floors[0])
+        harm = []
+        for name, mb_, ma_, d in per_run:  # Bonferroni over the held-out runs: alpha / N each
+            if len(d) >= 3 and np.std(d, ddof=1) > 0:
+                tr_ = float(np.mean(d) / (np.std(d, ddof=1) / np.sqrt(len(d))))
+                if tr_ < -float(stats.t.ppf(1.0 - cfg.alpha / len(per_run), len(d) - 1)):
+                    harm.append(f"{name} {mb_:.2f} -> {ma_:.2f} deg (block t = {tr_:.1f})")
+        if harm:
+            why.append(
+                f"significantly worse on a held-out manoeuvre (one-sided block t at {cfg.alpha:g}/"
+                f"{len(per_run)}, Bonferroni over the held-out runs): " + "; ".join(harm)
+            )
+        if runaway:
+            why.append(
+                "runs away on a held-out manoeuvre (error grown by more than its heading swing): "
+                + "; ".join(runaway)
+            )
         return Step(
             passes=not why,
             gain=gain,

@@ -130,7 +130,8 @@ def estimate_text(estimate: dict | None, uncertainty: dict | None) -> str:
 
 
 # ------------------------------------------------------------------------------- verdicts
-VERDICTS = ("named", "immaterial", "failed a fold", "not significant", "not tried", "fit failed")
+VERDICTS = ("named", "immaterial", "failed a fold", "harms a held-out run", "not significant", "not tried",
+            "fit failed")
 
 
 def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> tuple[str, ...]:
@@ -138,8 +139,9 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
 
     The verdict is the first that applies, in this order: named (significant); not tried (the data
     cannot carry it); fit failed; immaterial (below its physical floor, a heading cut below the noise
-    level, or a relative gain below the threshold); failed a fold (not better in every fold); not
-    significant (block t-test).  The reason lists every test it failed, with its numbers.
+    level, or a relative gain below the threshold); failed a fold (not better in every fold); harms
+    a held-out run (significantly worse on one, or runs away on it); not significant (block t-test).
+    The reason lists every test it failed, with its numbers.
     ``all_tests``: return every verdict it earns instead (see :func:`failed_tests`).
     """
     s = settings or {}
@@ -167,6 +169,11 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     if folds and min(folds) <= 0:
         reasons.append(("failed a fold", "worse in a fold (per fold " + ", ".join(gain_text(x) for x in folds)
                         + ")"))
+    # the stage's no-harm and no-run-away tests (select.py) are stated only in the evidence text
+    for key in ("significantly worse on a held-out manoeuvre", "runs away on a held-out manoeuvre"):
+        if key in ev:
+            part = ev[ev.index(key):].split(" (added to")[0].split(" (in the final")[0]
+            reasons.append(("harms a held-out run", part.split("; runs away")[0]))
     t, tc = f.get("block_t"), f.get("block_t_crit")
     if isinstance(t, (int, float)) and isinstance(tc, (int, float)) and not t >= tc:
         dof = (f.get("blocks") or 0) - 1

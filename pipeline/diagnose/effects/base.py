@@ -156,9 +156,7 @@ class Effect:
     def material(self, form: Form, values: dict, ctx: Context, response_change: float) -> tuple[bool, str]:
         """(material?, floor text).  ``response_change``: relative change of the peak yaw rate of the
         largest training manoeuvre when the effect is removed from the fitted model."""
-        return bool(response_change >= 0.05), (
-            f"changes the peak yaw rate of the largest manoeuvre by {response_change:.1%} (floor 5 %)"
-        )
+        return bool(response_change >= 0.05), response_floor_text(response_change, 0.05)
 
     def physical(self, form: Form, values: dict, ctx: Context) -> str:
         return f"{self.words}: " + ", ".join(f"{k} = {v:.3g}" for k, v in values.items())
@@ -172,5 +170,22 @@ class Effect:
         return None
 
 
+#: a removal whose yaw-rate change exceeds the manoeuvre's own peak yaw rate (relative change > 1) is
+#: no longer a change of that manoeuvre: the model without the effect does not make the zigzag (its
+#: free-run runs away), and a percentage of it ("1845 %") would read as a size of the effect
+DIVERGED_CHANGE = 1.0
+
+
 def response_floor_text(response_change: float, floor: float = 0.05) -> str:
+    """The floor text of a response-change materiality test; a removal that diverges says so in words."""
+    if not np.isfinite(response_change) or response_change > DIVERGED_CHANGE:
+        size = (
+            f"its yaw rate departs by {response_change:.0f} times the peak"
+            if np.isfinite(response_change)
+            else "its yaw rate is no longer finite"
+        )
+        return (
+            f"without it the model's free-run of the largest manoeuvre diverges ({size}): the rest of the "
+            f"model cannot make the manoeuvre alone (floor {floor:.0%} change of the peak yaw rate)"
+        )
     return f"changes the peak yaw rate of the largest manoeuvre by {response_change:.1%} (floor {floor:.0%})"
