@@ -197,6 +197,17 @@ class DiagnoseConfig:
     # number, hence the dimensional coefficients, would differ by as much: 15 % of U is ~30 % of the
     # rudder force)
     speed_tolerance: float = 0.15
+    # initial state of every free run estimated over this many ship time scales at the run's start
+    # (pipeline.diagnose.fit.initial_state): long enough to average the sensor noise (on a slow ship
+    # one sample's r noise integrates into degrees of heading drift), short enough that a quadratic
+    # in r follows the first rudder execution; 0 keeps the first sample
+    x0_window_T: float = 0.25
+    # > 0: held-out free runs start instead from the state that best fits this many ship time scales
+    # of the run's start under the model judged (pipeline.diagnose.fit.model_initial_state).  Off:
+    # measured, its freedom lets the baseline absorb a real effect (a 2.8 deg rudder offset on the
+    # virtual KCS lost its held-out gain, 52 % -> 4 % in one fold, at 0.25 T), although it helps on
+    # runs without a quiet approach (27/32 truth cases against 26/32 without)
+    x0_model_window_T: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,7 @@ from pipeline.diagnose.fit import (
     memoised,
     reference_speed,
     series_from_run,
+    set_initial_states,
     ship_time_scale,
     structure_of,
 )
@@ -265,6 +266,11 @@ def diagnose(
     if cfg.two_fold and len(tr) >= 2 and len(va) >= 2 and _exchangeable(tr, va):
         folds.append(Fold(va, tr))
     ctx = _context(tr + va)
+    set_initial_states(
+        tr + va + te,
+        cfg.x0_window_T * ctx.t_ship if cfg.x0_window_T > 0 else None,
+        cfg.x0_model_window_T * ctx.t_ship if cfg.x0_model_window_T > 0 else None,
+    )
     noise = heading_noise_deg(va, ctx.t_ship)
     bar = None
     if progress:
