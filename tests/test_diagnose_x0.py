@@ -78,7 +78,8 @@ def test_noise_free_start_is_reproduced():
 
 def test_model_initial_state_mid_manoeuvre():
     """The held-out start from the model (pipeline.diagnose.fit.model_initial_state): a linear fit of a
-    linear truth (the slow ship, where an r0 error integrates for ~40 s), held-out runs cut in the middle of a zigzag (r far from zero, the rudder moving, so
+    linear truth (the slow ship, where an r0 error integrates for ~40 s), held-out runs cut in the
+    middle of a zigzag (r far from zero, the rudder moving, so
     no model-free estimate applies).  Over 6 seeds the r0 error is below half the first sample's
     (RMS) and psi0 stays the measured one."""
     from pipeline.diagnose.core import _context

@@ -153,7 +153,9 @@ def initial_state(s: Series, window_s: float) -> np.ndarray:
     return np.array([v0, r0, psi0])
 
 
-def set_initial_states(series: list[Series], window_s: float | None, model_window_s: float | None = None) -> None:
+def set_initial_states(
+    series: list[Series], window_s: float | None, model_window_s: float | None = None
+) -> None:
     """Make every free run of ``series`` start from :func:`initial_state` over ``window_s`` seconds
     (``None``: from the first sample again); and, when ``model_window_s`` is given, every held-out
     evaluation (:func:`evaluate`) from :func:`model_initial_state` over that many seconds."""

@@ -104,7 +104,8 @@ def main(argv=None) -> int:
         ok = rep["cause"] != "none" and 1.0 - e / b >= tg.KV_MIN_GAIN  # test_kvlcc2_marin_side_swap
         print(f"  fold {fold} ({'train S, validate P' if fold == 1 else 'train P, validate S'}): cause "
               f"{rep['cause']}, extended {rep['extended']['effects']}, held-out MAE psi baseline {b:.2f} -> "
-              f"extended {e:.2f} deg ({1.0 - e / b:.0%}) [{'PASS' if ok else 'FAIL'}], honest gain (nested) {_fmt(g)} "
+              f"extended {e:.2f} deg ({1.0 - e / b:.0%}) [{'PASS' if ok else 'FAIL'}], "
+              f"honest gain (nested) {_fmt(g)} "
               f"({time.process_time() - t0:.0f} s)")
     if a.oracle:
         from truths import oracle
@@ -123,7 +124,9 @@ def main(argv=None) -> int:
             print(f"  oracle fold {fold} (independent output-error fit, truths/oracle.py): held-out MAE psi "
                   + ", ".join(f"{m} {res[m]:.2f} deg ({red[m]:+.0%})" for m in res)
                   + f" ({time.process_time() - t0:.0f} s)")
-    for how in ("model",):  # full-scale files without --scale are refused by ingest (test_kvlcc2_full_scale_files_without_scale_are_refused)
+    # full-scale files without --scale are refused by ingest
+    # (test_kvlcc2_full_scale_files_without_scale_are_refused)
+    for how in ("model",):
         t0 = time.process_time()
         c = tg.kvlcc2_fold(files, 1, how)["cause"]
         print(f"  scale invariance ({how}): cause {c} vs {causes[1]} with --scale "
