@@ -204,17 +204,24 @@ KNOWN_WRONG = {
     "03": "slow ship, clean, AR(1) noise phi 0.95: false positive rudder_lag (test gain 0.30; held-out "
           "baseline MAE 1.9 deg on a clean truth, drift from the initial state: the 1 s approach's "
           "correlated noise (20 samples' correlation time) leaves r0 uncertain, x T 40 s)",
-    "12": "servo lag 0.93 s found (cause rudder_lag, gain 0.70) but estimated 0.26 s; the same with the "
-          "lag's start grid extended to 0.5 T_ship (the linear part absorbs the rest of the lag)",
-    "13": "servo lag 0.78 s found (cause rudder_lag, gain 0.68) but estimated 0.27 s: as case 12",
-    "18": "v|v| (fast ship): cause none; the injected term moves the held-out heading by 0.08 deg, below "
-          "the 0.1 deg floor",
-    "19": "v|v| (slow ship): cause none; no candidate passes",
-    "25": "rudder asymmetry -0.16 (fast ship): named rudder_offset (test gain 0.35)",
+    "12": "servo lag 0.93 s found (cause rudder_lag, gain 0.60) but estimated 0.26 s.  Not identified "
+          "on these runs: with the lag fixed and the rest refitted (training runs, fold 1) the cost is "
+          "0.000574 at 0.26 s and 0.000575 at 0.93 s (the linear part trades: a21 +9.9 / a22 0 against "
+          "-16.3 / -1.65, the truth's -15.9); held-out 0.058 / 0.047 deg, fold 2 0.051 / 0.058.  The "
+          "reported profile 95 % interval, 0.22-1.18 s, holds the truth (test_diagnose_starts)",
+    "13": "servo lag 0.78 s found (cause rudder_lag, gain 0.68) but estimated 0.27 s: as case 12 "
+          "(profile 95 % interval 0.21-1.07 s)",
+    "18": "v|v| (fast ship): cause none.  The oracle (the candidate nonlinear_sway_damping, the truth's "
+          "own form, fitted) recovers y_vv -5.08 / n_vv -27.0 against the truth's -5.04 / -26.7 and cuts "
+          "the training cost 4.7x, but the held-out heading only 0.12 -> 0.06 deg, below the 0.1 deg "
+          "noise floor: the effect lives in the sway (peak v 0.42 -> 0.29 m/s), which the diagnosis does "
+          "not judge",
+    "19": "v|v| (slow ship): cause none.  Oracle (own form fitted): held-out heading 0.15 -> 0.15 deg "
+          "(fold 1), 0.13 -> 0.11 deg (fold 2), training cost 1.8x lower: below the heading noise floor",
 }
 #: make test runs a CI-sized cut (a clean case per sensor kind and one case of each effect family
 #: the method finds today, both ships); `make generalise` (TANKTEST_GENERALISE=full) runs all 32.
-CI_CASES = ("00", "04", "08", "10", "12", "16", "27", "31")
+CI_CASES = ("00", "04", "08", "10", "12", "16", "25", "27", "31")
 FULL = os.environ.get("TANKTEST_GENERALISE") == "full"
 
 

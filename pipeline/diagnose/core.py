@@ -32,6 +32,7 @@ from scipy.signal import savgol_filter
 
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
+from pipeline.diagnose.effects.rudder_delay import time_floor
 from pipeline.diagnose.fit import (
     FitResult,
     Series,
@@ -39,6 +40,7 @@ from pipeline.diagnose.fit import (
     _u_ratio,
     is_stable,
     memoised,
+    profile_time_params,
     reference_speed,
     series_from_run,
     set_initial_states,
@@ -464,6 +466,18 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
     unc = {n: f.std.get(n, float("nan")) for n in vals}
     z = min((abs(vals[n]) / unc[n] if unc[n] > 0 else float("inf")) for n in vals)
     physical = eff.physical(form, vals, ctx)
+    profile = {}
+    if chosen and any(prm.time_scaled for prm in form.params):
+        # a time parameter trades against the hull's time constants: its profile interval, not only
+        # the sandwich std at one optimum (pipeline.diagnose.fit.profile_time_params)
+        profile = profile_time_params(f, search.folds[0].train, ctx, time_floor(ctx), cfg.block_T)
+        for name, pr in profile.items():
+            rng = " and ".join(f"{a:.2f}-{b:.2f} s" for a, b in pr["within_95"])
+            wide = pr["separate_ranges"] > 1 or any(b > 2.0 * max(a, 1e-9) for a, b in pr["within_95"])
+            physical += (
+                f" (profile 95 % interval of {name}: {rng}"
+                + ("; not identified apart from the hull's time constants on these runs)" if wide else ")")
+            )
     fold_rows = []
     for k in range(len(search.folds)):
         fk = search._fits.get((k, structure_of(*st)))
@@ -503,6 +517,7 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
         "physical": physical,
         "estimate": est,
         "uncertainty": unc,
+        "profile": profile,
         "z": float(z),
         "validation_gain": step.gain,
         "validation_gain_folds": step.gains,

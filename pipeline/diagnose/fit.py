@@ -784,3 +784,76 @@ def evaluate(fit: FitResult, series: list[Series]) -> tuple[dict, list[dict]]:
     mv = [p["mse_v"] for p in per if p["mse_v"] is not None]
     mean["mse_v"] = float(np.mean(mv)) if mv else None
     return mean, per
+
+
+#: points of a time parameter's profile, evenly spread from its floor to its upper bound
+PROFILE_POINTS = 12
+#: chi-square(1) 95 % quantile: the likelihood-ratio threshold of a one-parameter profile interval
+_CHI2_1_95 = 3.841
+
+
+def profile_time_params(fit: FitResult, series: list[Series], ctx, floor_s: float, block_T: float,
+                        max_nfev: int = 40) -> dict:
+    """Profile of each time parameter (s) of ``fit``'s structure on its training ``series``.
+
+    A dead time or a servo lag trades against the hull's own time constants: on a fast ship a 0.9 s
+    servo lag and a 0.26 s one with a different linear part can fit the same runs equally well
+    (measured on truth case 12 of tests/test_diagnose_generalise.py: training cost 0.000574 against
+    0.000575), so the sandwich standard error at one optimum says nothing of the other.  The profile
+    fixes the parameter at ``PROFILE_POINTS`` values from ``floor_s`` to its upper bound, refits every
+    other parameter from the fit (output error, ``max_nfev`` evaluations), and keeps the values whose
+    training cost J satisfies G ln(J / J_min) <= chi2_1(0.95), G the number of ``block_T`` blocks of
+    the training runs (the likelihood ratio with the blocks as the independent units, as the
+    significance tests count them; approximate, since J sums correlated residuals).
+
+    Returns {param: {"grid_s", "cost_ratio", "within_95": [[lo, hi], ...] (ranges of grid values
+    inside the interval, s), "separate_ranges": int}}.  A parameter with two or more separate ranges
+    is not identified apart from the linear part on these runs."""
+    layout = Layout(fit.structure, ctx)
+    lo, hi = layout.bounds()
+    sc = _scales(series)
+    u_ref = fit.u_ref
+    g = int(np.unique(_clusters(series, block_T * ctx.t_ship)).size)
+    out = {}
+    for i, (_e, prm) in enumerate(layout.params, start=6):
+        if not prm.time_scaled:
+            continue
+        top = float(hi[i])
+        grid = np.unique(np.concatenate([np.linspace(max(floor_s, float(lo[i])), top, PROFILE_POINTS),
+                                         [fit.p[i]]]))
+        free = [j for j in range(fit.p.size) if j != i]
+        costs = []
+        for val in grid:
+            z = fit.p.copy()
+            z[i] = val
+
+            def fun(x, z=z):
+                q = z.copy()
+                q[free] = x
+                th, tm, _ = layout.unpack(q)
+                return _oe_residuals(series, sc, th, tm, u_ref)
+
+            x0 = np.clip(fit.p[free], lo[free] + 1e-12, hi[free] - 1e-12)
+            r = least_squares(fun, x0, bounds=(lo[free], hi[free]), x_scale="jac", max_nfev=max_nfev,
+                              method="trf", tr_solver=_TR, **_TOL)
+            costs.append(float(r.cost) if np.isfinite(r.cost) else np.inf)
+        costs = np.array(costs)
+        jmin = min(float(np.min(costs)), fit.cost)
+        ratio = costs / jmin
+        inside = g * np.log(np.maximum(ratio, 1.0)) <= _CHI2_1_95
+        ranges, start = [], None
+        for k, ok in enumerate(inside):
+            if ok and start is None:
+                start = k
+            if (not ok or k == len(inside) - 1) and start is not None:
+                end = k if ok else k - 1
+                ranges.append([float(grid[start]), float(grid[end])])
+                start = None
+        out[prm.name] = {
+            "grid_s": [float(x) for x in grid],
+            "cost_ratio": [float(x) for x in ratio],
+            "within_95": ranges,
+            "separate_ranges": len(ranges),
+            "blocks": g,
+        }
+    return out

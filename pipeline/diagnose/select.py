@@ -102,15 +102,33 @@ class Search:
     def fit(self, k: int, structure, start: FitResult | None = None) -> FitResult:
         key = (k, structure_of(*structure))
         if key not in self._fits:
-            self._fits[key] = fit_structure(
-                self.folds[k].train,
-                key[1],
-                self.ctx,
-                start=start,
-                max_nfev=self.cfg.max_nfev,
+            self._fits[key] = self._best_start(k, key[1], start)
+        return self._fits[key]
+
+    def _best_start(self, k: int, structure, start: FitResult | None) -> FitResult:
+        """The fit from ``start``; with ``cfg.cold_start`` and a warm start given, also the cold fit, and
+        of the two the one that predicts fold ``k``'s VALIDATION runs better (DiagnoseConfig.cold_start
+        says why).  Ties, and a cold fit that fails, keep the warm one."""
+
+        def one(s):
+            return fit_structure(
+                self.folds[k].train, structure, self.ctx, start=s, max_nfev=self.cfg.max_nfev,
                 block_T=self.cfg.block_T,
             )
-        return self._fits[key]
+
+        warm = one(start)
+        if start is None or not self.cfg.cold_start or not structure:
+            return warm
+        try:
+            cold = one(None)
+        except ModelError:
+            return warm
+        if np.allclose(cold.p, warm.p, rtol=1e-6, atol=1e-12):
+            return warm
+        ev = {id(f): evaluate(f, self.folds[k].val) for f in (warm, cold)}
+        best = min((warm, cold), key=lambda f: ev[id(f)][0]["mae_psi_deg"])
+        self._evals[(k, structure_of(*structure))] = ev[id(best)]
+        return best
 
     def refine(self, k: int, structure, richer) -> bool:
         """Refit ``structure`` in fold ``k`` warm-started from the fit of the ``richer`` structure that
