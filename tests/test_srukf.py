@@ -219,10 +219,10 @@ def test_parameter_process_noise_runs_the_plain_kernel_and_equals_full_ukf(data)
     assert np.max(np.abs(out.x - ref["x"]) / np.abs(ref["x"]).max(axis=0)) < 1e-9
 
 
-def test_unrolled_blocks_are_the_generators_output_and_the_loop_versions_bit_for_bit():
+def test_unrolled_qrs_are_the_generators_output_and_the_loop_version_bit_for_bit():
     """pipeline/identify/_unrolled.py is what pipeline/identify/unroll.py writes, and each of its
-    loop-free blocks gives the same bits as the loop version in fast.py (same operations, same order),
-    on well and badly scaled inputs and on the failing downdate."""
+    loop-free QRs gives the same bits as the loop version in fast.py (same operations, same order),
+    on well and badly scaled inputs, with zero columns."""
     from pipeline.identify import _unrolled, unroll
 
     assert unroll.TARGET.read_text() == unroll.source()
@@ -235,13 +235,3 @@ def test_unrolled_blocks_are_the_generators_output_and_the_loop_versions_bit_for
             fast._tria_t(A.copy(), m, a)
             getattr(_unrolled, f"tria_{n}x{m}")(A.copy(), b)
             assert np.array_equal(a, b)
-    for n, m in unroll.DOWNDATE_SHAPES:
-        for scale in (0.1, 0.5, 3.0):                # the last one fails the downdate
-            L = _random_lower(rng, n)
-            U = scale * rng.standard_normal((m, n))
-            La, Lb = L.copy(), L.copy()
-            oka = fast._downdate_columns(La, U.copy(), m)
-            okb = getattr(_unrolled, f"downdate_{n}x{m}")(Lb, U.copy())
-            assert oka == okb
-            if oka:
-                assert np.array_equal(La, Lb)
