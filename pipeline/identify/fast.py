@@ -120,24 +120,26 @@ def _dot(A, j, k, lo, hi):
 @njit(cache=True, error_model="numpy")
 def _tria_t(A, m, out):
     """A (n, >= m): the first m columns are overwritten.  Writes lower S (n, n) with S S^T = A A^T
-    (over those m columns), positive diagonal: Householder QR of A^T, row j of A = column j of A^T."""
+    (over those m columns), positive diagonal: Householder QR of A^T, row j of A = column j of A^T.
+
+    Written for a short dependency chain from one row to the next (the cost at this size is the
+    latency of each row's square root and division, not the flops): the Householder vector
+    v = (v0, a_j,j+1..) with v0 = a_jj - alpha has |v|^2 = -2 alpha v0, so 2 / |v|^2 = -1 / (alpha v0)
+    needs neither |v|^2 nor a second pass; the dot products of the other rows with the tail of v
+    (everything but v0) are formed while the square root runs."""
     n = A.shape[0]
     for j in range(n):
-        norm2 = _dot(A, j, j, j, m)
-        norm = math.sqrt(norm2)
+        ajj = A[j, j]
+        norm = math.sqrt(ajj * ajj + _dot(A, j, j, j + 1, m))
         if norm == 0.0:
             continue
-        ajj = A[j, j]
         alpha = -norm if ajj >= 0.0 else norm
-        v0 = ajj - alpha
-        vnorm2 = norm2 - ajj * ajj + v0 * v0
-        if vnorm2 == 0.0:
-            continue
-        A[j, j] = v0            # Householder vector stored in row j (columns j..m-1)
-        two_over = 2.0 / vnorm2
+        v0 = ajj - alpha        # |v0| = |a_jj| + norm > 0: no cancellation
+        two_over = -1.0 / (alpha * v0)
         for k in range(j + 1, n):
-            s = two_over * _dot(A, j, k, j, m)
-            for i in range(j, m):
+            s = (v0 * A[k, j] + _dot(A, j, k, j + 1, m)) * two_over
+            A[k, j] -= s * v0
+            for i in range(j + 1, m):
                 A[k, i] -= s * A[j, i]
         A[j, j] = alpha
     for i in range(n):

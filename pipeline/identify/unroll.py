@@ -37,8 +37,9 @@ from numba import njit
 
 
 def _dot(a, b, lo: int, hi: int) -> str:
-    """fast._dot's sum written out: four partial sums from 0.0 in the loop's order, then
-    (s0 + s1) + (s2 + s3)."""
+    """fast._dot's sum written out: four partial sums in the loop's order, then (s0 + s1) + (s2 + s3).
+    A partial sum starts at its first term, not at 0.0 + that term (the same number but for the sign
+    of a zero, which nothing downstream looks at: comparisons treat -0.0 as 0.0)."""
     parts: list[list[str]] = [[], [], [], []]
     i = lo
     while i + 4 <= hi:
@@ -50,8 +51,8 @@ def _dot(a, b, lo: int, hi: int) -> str:
         i += 1
     sums = []
     for terms in parts:
-        e = "0.0"
-        for t in terms:
+        e = terms[0] if terms else "0.0"
+        for t in terms[1:]:
             e = f"({e} + {t})"
         sums.append(e)
     return f"(({sums[0]} + {sums[1]}) + ({sums[2]} + {sums[3]}))"
@@ -68,23 +69,21 @@ def gen_tria(n: int, m: int) -> str:
             w(ind + f"a{j}_{i} = A[{j}, {i}]")
     for j in range(n):
         p = ind
-        w(p + f"norm2 = {_dot(lambda i, j=j: f'a{j}_{i}', lambda i, j=j: f'a{j}_{i}', j, m)}")
-        w(p + "norm = math.sqrt(norm2)")
+        w(p + f"ajj = a{j}_{j}")
+        tail = _dot(lambda i, j=j: f"a{j}_{i}", lambda i, j=j: f"a{j}_{i}", j + 1, m)
+        w(p + f"norm = math.sqrt(ajj * ajj + {tail})")
         w(p + "if norm != 0.0:")
         p2 = p + ind
-        w(p2 + f"ajj = a{j}_{j}")
         w(p2 + "alpha = -norm if ajj >= 0.0 else norm")
         w(p2 + "v0 = ajj - alpha")
-        w(p2 + "vnorm2 = norm2 - ajj * ajj + v0 * v0")
-        w(p2 + "if vnorm2 != 0.0:")
-        p3 = p2 + ind
-        w(p3 + f"a{j}_{j} = v0")
-        w(p3 + "two_over = 2.0 / vnorm2")
+        w(p2 + "two_over = -1.0 / (alpha * v0)")
         for k in range(j + 1, n):
-            w(p3 + f"s = two_over * {_dot(lambda i, j=j: f'a{j}_{i}', lambda i, k=k: f'a{k}_{i}', j, m)}")
-            for i in range(j, m):
-                w(p3 + f"a{k}_{i} -= s * a{j}_{i}")
-        w(p3 + f"a{j}_{j} = alpha")
+            dot = _dot(lambda i, j=j: f"a{j}_{i}", lambda i, k=k: f"a{k}_{i}", j + 1, m)
+            w(p2 + f"s = (v0 * a{k}_{j} + {dot}) * two_over")
+            w(p2 + f"a{k}_{j} -= s * v0")
+            for i in range(j + 1, m):
+                w(p2 + f"a{k}_{i} -= s * a{j}_{i}")
+        w(p2 + f"a{j}_{j} = alpha")
     for i in range(n):
         w(ind + f"sg = -1.0 if a{i}_{i} < 0.0 else 1.0")
         for j in range(n):
