@@ -28,7 +28,7 @@ Loop-free versions of fast._tria_t for fixed shapes: the same operations in the 
 entry a local.
 """
 
-# ruff: noqa: E501
+# ruff: noqa: E501, F841
 
 import math
 
@@ -36,19 +36,16 @@ from numba import njit
 '''
 
 
-def _dot(a, b, lo: int, hi: int) -> str:
+def _dot(a, b, lo: int, hi: int, zero=lambda i: False) -> str:
     """fast._dot's sum written out: four partial sums in the loop's order, then (s0 + s1) + (s2 + s3).
-    A partial sum starts at its first term, not at 0.0 + that term (the same number but for the sign
-    of a zero, which nothing downstream looks at: comparisons treat -0.0 as 0.0)."""
+    A partial sum starts at its first term, not at 0.0 + that term, and a term known to be a product
+    with a zero (``zero(i)``) is left out: the same number but for the sign of a zero, which nothing
+    downstream looks at (comparisons treat -0.0 as 0.0)."""
     parts: list[list[str]] = [[], [], [], []]
-    i = lo
-    while i + 4 <= hi:
-        for q in range(4):
-            parts[q].append(f"{a(i + q)} * {b(i + q)}")
-        i += 4
-    while i < hi:
-        parts[0].append(f"{a(i)} * {b(i)}")
-        i += 1
+    for i in range(lo, hi):
+        q = (i - lo) % 4 if i < lo + (hi - lo) // 4 * 4 else 0
+        if not zero(i):
+            parts[q].append(f"{a(i)} * {b(i)}")
     sums = []
     for terms in parts:
         e = terms[0] if terms else "0.0"
@@ -58,19 +55,34 @@ def _dot(a, b, lo: int, hi: int) -> str:
     return f"(({sums[0]} + {sums[1]}) + ({sums[2]} + {sums[3]}))"
 
 
-def gen_tria(n: int, m: int) -> str:
-    """fast._tria_t(A, m, out) for A with n rows, written out."""
+def rw_zeros() -> frozenset[tuple[int, int]]:
+    """Entries of the structured step's 9 x 12 compound [[M_d, L_N], [S_p, 0]] that are zero by
+    construction: S_p = rows 3..8 of the lower triangular S, L_N lower triangular."""
+    z = {(i, c) for i in range(3, 9) for c in range(9, 12)}
+    z |= {(i, c) for i in range(3, 9) for c in range(i + 1, 9)}
+    z |= {(0, 10), (0, 11), (1, 11)}
+    return frozenset(z)
+
+
+def gen_tria(n: int, m: int, zeros: frozenset[tuple[int, int]] = frozenset(), name: str = "") -> str:
+    """fast._tria_t(A, m, out) for A with n rows, written out; ``zeros``: entries of A known to be
+    zero (not read; a product with one is left out; they are tracked through the fill-in)."""
     ind = "    "
-    lines = ["", "", '@njit(cache=True, error_model="numpy")', f"def tria_{n}x{m}(A, out):",
-             f'{ind}"""fast._tria_t(A, {m}, out) for {n} rows (A is overwritten there, not here)."""']
+    name = name or f"tria_{n}x{m}"
+    doc = f"fast._tria_t(A, {m}, out) for {n} rows (A is overwritten there, not here)"
+    if zeros:
+        doc += "; the entries of A that rw_zeros lists are taken as zero, not read"
+    lines = ["", "", '@njit(cache=True, error_model="numpy")', f"def {name}(A, out):", f'{ind}"""{doc}."""']
     w = lines.append
+    z = set(zeros)
     for j in range(n):
         for i in range(m):
-            w(ind + f"a{j}_{i} = A[{j}, {i}]")
+            w(ind + (f"a{j}_{i} = 0.0" if (j, i) in z else f"a{j}_{i} = A[{j}, {i}]"))
     for j in range(n):
         p = ind
         w(p + f"ajj = a{j}_{j}")
-        tail = _dot(lambda i, j=j: f"a{j}_{i}", lambda i, j=j: f"a{j}_{i}", j + 1, m)
+        tail = _dot(lambda i, j=j: f"a{j}_{i}", lambda i, j=j: f"a{j}_{i}", j + 1, m,
+                    lambda i, j=j: (j, i) in z)
         w(p + f"norm = math.sqrt(ajj * ajj + {tail})")
         w(p + "if norm != 0.0:")
         p2 = p + ind
@@ -78,11 +90,23 @@ def gen_tria(n: int, m: int) -> str:
         w(p2 + "v0 = ajj - alpha")
         w(p2 + "two_over = -1.0 / (alpha * v0)")
         for k in range(j + 1, n):
-            dot = _dot(lambda i, j=j: f"a{j}_{i}", lambda i, k=k: f"a{k}_{i}", j + 1, m)
-            w(p2 + f"s = (v0 * a{k}_{j} + {dot}) * two_over")
-            w(p2 + f"a{k}_{j} -= s * v0")
+            dot = _dot(lambda i, j=j: f"a{j}_{i}", lambda i, k=k: f"a{k}_{i}", j + 1, m,
+                       lambda i, j=j, k=k: (j, i) in z or (k, i) in z)
+            if (k, j) in z:
+                w(p2 + f"s = {dot} * two_over")
+                w(p2 + f"a{k}_{j} = -(s * v0)")
+                z.discard((k, j))
+            else:
+                w(p2 + f"s = (v0 * a{k}_{j} + {dot}) * two_over")
+                w(p2 + f"a{k}_{j} -= s * v0")
             for i in range(j + 1, m):
-                w(p2 + f"a{k}_{i} -= s * a{j}_{i}")
+                if (j, i) in z:
+                    continue
+                if (k, i) in z:
+                    w(p2 + f"a{k}_{i} = -(s * a{j}_{i})")
+                    z.discard((k, i))
+                else:
+                    w(p2 + f"a{k}_{i} -= s * a{j}_{i}")
         w(p2 + f"a{j}_{j} = alpha")
     for i in range(n):
         w(ind + f"sg = -1.0 if a{i}_{i} < 0.0 else 1.0")
@@ -94,6 +118,7 @@ def gen_tria(n: int, m: int) -> str:
 def source() -> str:
     parts = [HEADER]
     parts += [gen_tria(n, m) for n, m in TRIA_SHAPES]
+    parts.append(gen_tria(9, 12, rw_zeros(), "tria_9x12_rw"))
     return "".join(parts)
 
 
