@@ -413,30 +413,36 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
         for i in range(ND):
             for c in range(ND):
                 Ax[i, NX + c] = Ld[i, c]
-        for i in range(ND, NX):
-            for j in range(NX):
+        for i in range(ND, NX):     # the known zeros (upper S_p, under L_N) are not read
+            for j in range(i + 1):
                 Ax[i, j] = S[i, j]
-            for c in range(ND):
-                Ax[i, NX + c] = 0.0
-        un.tria_9x12_rw(Ax, Sm)
+        un.tria_9x12_rw(Ax, S)      # the prior factor, straight into S (updated in place below)
         if w0 < 0.0:
             for i in range(ND):
                 xw[i] = s0 * Xd[i, 0]
             for i in range(ND, NX):
                 xw[i] = 0.0
-            if not _cholupdate(Sm, xw, -1.0):
+            if not _cholupdate(S, xw, -1.0):
                 return 1, k
+        # the fuzzy factor needs only the innovations of the prior: computed first, it overlaps the
+        # measurement update's chain of square roots
+        for a in range(m):
+            innov[a] = Y[k, a] - xm[meas_idx[a]]
+        f = 1.0
+        sc = 1.0
+        if use_fuzzy and chan >= 0:
+            e = innov[chan]
+            f = fuzzy_factor_ws(e, e - prev_e, fz[0], fz[1], fz[2], fz[3], fz[4], fz[5], rules, me, md)
+            prev_e = e
+            sc = 1.0 / math.sqrt(f)
         # ---- measurement update: one scalar measurement after the other (R diagonal), each by
         # Givens rotations of the pre-array [[sqrt r_a, S[ra, :ra+1]], [0, S]] (see the docstring)
         nis = 0.0
         for i in range(NX):
             x[i] = xm[i]
             x_prior_out[k, i] = xm[i]
-            for j in range(i + 1):
-                S[i, j] = Sm[i, j]
         for a in range(m):
             ra = meas_idx[a]
-            innov[a] = Y[k, a] - xm[ra]
             al = sq_r[a, a]
             for i in range(NX):
                 u[i] = 0.0
@@ -460,19 +466,13 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
             nis += z * z
             for i in range(NX):
                 x[i] += u[i] * z
-        f = 1.0
-        if use_fuzzy and chan >= 0:
-            e = innov[chan]
-            f = fuzzy_factor_ws(e, e - prev_e, fz[0], fz[1], fz[2], fz[3], fz[4], fz[5], rules, me, md)
-            prev_e = e
-            sc = 1.0 / math.sqrt(f)
-            for i in range(NX):
-                for j in range(i + 1):
-                    S[i, j] *= sc
+        # fuzzy fading memory S <- S / sqrt(f) (sc = 1 without it: exact), and the one-sigmas
         for i in range(NX):
             acc = 0.0
             for j in range(i + 1):
-                acc += S[i, j] * S[i, j]
+                sij = S[i, j] * sc
+                S[i, j] = sij
+                acc += sij * sij
             std_out[k, i] = math.sqrt(acc)
             x_out[k, i] = x[i]
         for a in range(m):
