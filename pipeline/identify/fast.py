@@ -382,28 +382,29 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
             Xd[0, 1 + NX + j], Xd[1, 1 + NX + j], Xd[2, 1 + NX + j] = _f3(
                 x[0] - g0, x[1] - g1, x[2] - g2, x[3] - g3, x[4] - g4, x[5] - g5, x[6] - g6, x[7] - g7,
                 x[8] - g8, dl, h)
-        for i in range(ND):
-            acc = 0.0
-            for p in range(NPTS):
-                acc += wm[p] * Xd[i, p]
-            xm[i] = acc
-            for p in range(NPTS):
-                Xd[i, p] -= acc
         for i in range(ND, NX):
             xm[i] = x[i]
         # the rotated compound: Ax (9 x 12) = [[M_d, L_N], [S_p, 0]]; Ad (3 x ncol) the columns with
-        # zero parameter rows, reduced to L_N (3 x 3) by QR
+        # zero parameter rows, reduced to L_N (3 x 3) by QR; deviations D = X - xm formed on the way
         for i in range(ND):
-            ai = Ad[i]
             di = Xd[i]
+            acc = 0.0
+            for p in range(NPTS):
+                acc += wm[p] * di[p]
+            xm[i] = acc
+            ai = Ad[i]
             axi = Ax[i]
             for j in range(NX):
-                axi[j] = sh * (di[1 + j] - di[1 + NX + j])
-                ai[j] = sh * (di[1 + j] + di[1 + NX + j])
+                dp = di[1 + j] - acc
+                dn = di[1 + NX + j] - acc
+                axi[j] = sh * (dp - dn)
+                ai[j] = sh * (dp + dn)
             for c in range(nq):
                 ai[NX + c] = sq_q[i, q_cols[c]]
+            d0 = di[0] - acc
+            di[0] = d0
             if w0 > 0.0:
-                ai[ncol - 1] = s0 * di[0]
+                ai[ncol - 1] = s0 * d0
         if ncol == 13:
             un.tria_3x13(Ad, Ld)
         elif ncol == 12:
