@@ -243,3 +243,38 @@ def test_unrolled_qrs_are_the_generators_output_and_the_loop_version_bit_for_bit
         fast._tria_t(A.copy(), 12, a)
         _unrolled.tria_9x12_rw(A.copy(), b)
         assert np.array_equal(a, b)
+
+
+def test_written_out_step_block_equals_the_loop_blocks_bit_for_bit():
+    """The paper's case runs the pre-reduction, the prior QR and the measurement update as one
+    written-out, interleaved function (unroll.gen_prior_update); over a whole identification with
+    the fuzzy factor on it gives the same bits as the three blocks one after the other."""
+    _, d, _, y = synthetic.zigzag(n=585, seed=11)
+    cfg = FilterConfig()
+    x0, P0 = initial_state(y[0], IDX, cfg)
+    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
+    assert w.wc[0] > 0.0
+    sq_q, sq_r = np.diag(cfg.q_std), np.diag(cfg.r_std)
+    chan = fuzzy_channel(cfg, IDX)
+    fz = np.array([*cfg.fuzzy.e_domain, *cfg.fuzzy.de_domain, *cfg.fuzzy.f_range], dtype=float)
+    Y, dp = np.ascontiguousarray(y[1:]), np.ascontiguousarray(d[:-1])
+    n = Y.shape[0]
+    res = []
+    for written_out in (True, False):
+        x, S = np.array(x0, float), np.linalg.cholesky(P0)
+        outs = (np.empty((n, 9)), np.empty((n, 9)), np.empty((n, 9)), np.empty((n, 3)), np.empty(n),
+                np.empty(n))
+        st, k = fast._steps_rw(x, S, Y, dp, H, sq_q, fast.nonzero_columns(sq_q), sq_r,
+                               fast.nonzero_columns(sq_r), IDX, w.wm, w.wc, w.gamma, True, chan, fz, RULES,
+                               fast.workspace(3), *outs, written_out)
+        assert st == 0 and k == n
+        res.append((x, S, outs))
+    (xa, Sa, a), (xb, Sb, b) = res
+    assert np.array_equal(xa, xb) and np.array_equal(Sa, Sb)
+    for ra, rb in zip(a, b, strict=True):
+        assert np.array_equal(ra, rb)
+    assert np.any(a[5] < 1.0)
+    # its failure path: a measurement noise below round-off of the innovation variance (status 3)
+    bad = dataclasses.replace(cfg, r_std=(1e-30, 1e-30, 1e-30))
+    with pytest.raises(FilterError, match="measurement update"):
+        run_filter("srukf-ffm", x0, P0, y[1:50], d[:49], H, bad, IDX)

@@ -29,6 +29,11 @@ every index a constant, so that the compiler overlaps the independent chains (me
 480 -> 310 ns, the whole step 1.33x faster, outputs bit-identical).  The 9 x 12 one also knows the
 compound's zeros (S_p and L_N triangular, no parameter rows under L_N) and leaves out the products
 with them, through the fill-in (``unroll.rw_zeros``; the whole step 1.06x, outputs bit-identical).
+In the paper's case (v r psi measured, three noise columns, wc0 > 0) the pre-reduction, the prior QR
+and the measurement update run as one written-out function with the three interleaved
+(``unroll.gen_prior_update``): the measurement update touches only the prior factor's columns 0..2,
+final after the QR's third reflection, so its chain of square roots runs beside the QR's last six
+(the whole step 1.08x, outputs bit-identical; tests/test_srukf.py).
 
 No fastmath: the additions run in the written order, so results are the same bits on every run and
 worker.  Measured and dropped (issue 12): the QR with the state as contiguous 4-wide lanes and the
@@ -326,7 +331,7 @@ def _steps_plain(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, w
 @njit(cache=True, error_model="numpy")
 def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
               use_fuzzy, chan, fz, rules, ws,
-              x_prior_out, x_out, std_out, innov_out, nis_out, f_out):
+              x_prior_out, x_out, std_out, innov_out, nis_out, f_out, written_out=True):
     """:func:`_steps_plain` when the parameters are a random walk without process noise and only v,
     r, psi are measured (the paper's filter): the same sigma points (from the same lower factor S,
     states in the same order), equal in exact arithmetic, with the work the structure makes known in
@@ -361,6 +366,9 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
     w0 = wc[0]
     s0 = math.sqrt(abs(w0))
     ncol = NX + nq + (1 if w0 > 0.0 else 0)
+    # the paper's case (3 noise columns, wc0 > 0, v r psi measured) runs the written-out block
+    fuse = (written_out and ncol == 13 and w0 > 0.0 and m == 3 and meas_idx[0] == 0 and meas_idx[1] == 1
+            and meas_idx[2] == 2)
     prev_e = 0.0
     for k in range(n):
         dl = delta_prev[k]
@@ -405,28 +413,11 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
             di[0] = d0
             if w0 > 0.0:
                 ai[ncol - 1] = s0 * d0
-        if ncol == 13:
-            un.tria_3x13(Ad, Ld)
-        elif ncol == 12:
-            un.tria_3x12(Ad, Ld)
-        else:
-            _tria_t(Ad, ncol, Ld)
-        for i in range(ND):
-            for c in range(ND):
-                Ax[i, NX + c] = Ld[i, c]
         for i in range(ND, NX):     # the known zeros (upper S_p, under L_N) are not read
             for j in range(i + 1):
                 Ax[i, j] = S[i, j]
-        un.tria_9x12_rw(Ax, S)      # the prior factor, straight into S (updated in place below)
-        if w0 < 0.0:
-            for i in range(ND):
-                xw[i] = s0 * Xd[i, 0]
-            for i in range(ND, NX):
-                xw[i] = 0.0
-            if not _cholupdate(S, xw, -1.0):
-                return 1, k
         # the fuzzy factor needs only the innovations of the prior: computed first, it overlaps the
-        # measurement update's chain of square roots
+        # factorisation's and the measurement update's chains of square roots
         for a in range(m):
             innov[a] = Y[k, a] - xm[meas_idx[a]]
         f = 1.0
@@ -436,37 +427,60 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
             f = fuzzy_factor_ws(e, e - prev_e, fz[0], fz[1], fz[2], fz[3], fz[4], fz[5], rules, me, md)
             prev_e = e
             sc = 1.0 / math.sqrt(f)
-        # ---- measurement update: one scalar measurement after the other (R diagonal), each by
-        # Givens rotations of the pre-array [[sqrt r_a, S[ra, :ra+1]], [0, S]] (see the docstring)
-        nis = 0.0
         for i in range(NX):
             x[i] = xm[i]
             x_prior_out[k, i] = xm[i]
-        for a in range(m):
-            ra = meas_idx[a]
-            al = sq_r[a, a]
-            for i in range(NX):
-                u[i] = 0.0
-            for j in range(ra, -1, -1):
-                fj = S[ra, j]
-                rho = math.sqrt(al * al + fj * fj)
-                ir = 1.0 / rho
-                c = al * ir
-                sn = fj * ir
-                al = rho
-                for i in range(j, NX):
-                    ki = u[i]
-                    sij = S[i, j]
-                    u[i] = c * ki + sn * sij
-                    S[i, j] = c * sij - sn * ki
-            # r_a / s_a below round-off: the update would leave nothing of the predicted variance
-            # (where the reference path's downdate fails); also catches a NaN
-            if not (sq_r[a, a] > SQRT_EPS * al):
+        if fuse:
+            # the three blocks below in one written-out function, interleaved (unroll.gen_prior_update)
+            nis = un.prior_update_13_012(Ad, Ax, S, x, Y, k, sq_r, SQRT_EPS)
+            if nis < 0.0:
                 return 3, k
-            z = (Y[k, a] - x[ra]) / al
-            nis += z * z
-            for i in range(NX):
-                x[i] += u[i] * z
+        else:
+            if ncol == 13:
+                un.tria_3x13(Ad, Ld)
+            elif ncol == 12:
+                un.tria_3x12(Ad, Ld)
+            else:
+                _tria_t(Ad, ncol, Ld)
+            for i in range(ND):
+                for c in range(ND):
+                    Ax[i, NX + c] = Ld[i, c]
+            un.tria_9x12_rw(Ax, S)      # the prior factor, straight into S (updated in place below)
+            if w0 < 0.0:
+                for i in range(ND):
+                    xw[i] = s0 * Xd[i, 0]
+                for i in range(ND, NX):
+                    xw[i] = 0.0
+                if not _cholupdate(S, xw, -1.0):
+                    return 1, k
+            # ---- measurement update: one scalar measurement after the other (R diagonal), each by
+            # Givens rotations of the pre-array [[sqrt r_a, S[ra, :ra+1]], [0, S]] (see the docstring)
+            nis = 0.0
+            for a in range(m):
+                ra = meas_idx[a]
+                al = sq_r[a, a]
+                for i in range(NX):
+                    u[i] = 0.0
+                for j in range(ra, -1, -1):
+                    fj = S[ra, j]
+                    rho = math.sqrt(al * al + fj * fj)
+                    ir = 1.0 / rho
+                    c = al * ir
+                    sn = fj * ir
+                    al = rho
+                    for i in range(j, NX):
+                        ki = u[i]
+                        sij = S[i, j]
+                        u[i] = c * ki + sn * sij
+                        S[i, j] = c * sij - sn * ki
+                # r_a / s_a below round-off: the update would leave nothing of the predicted variance
+                # (where the reference path's downdate fails); also catches a NaN
+                if not (sq_r[a, a] > SQRT_EPS * al):
+                    return 3, k
+                z = (Y[k, a] - x[ra]) / al
+                nis += z * z
+                for i in range(NX):
+                    x[i] += u[i] * z
         # fuzzy fading memory S <- S / sqrt(f) (sc = 1 without it: exact), and the one-sigmas
         for i in range(NX):
             acc = 0.0
