@@ -37,7 +37,13 @@ final after the QR's third reflection, so its chain of square roots runs beside 
 
 No fastmath: the additions run in the written order, so results are the same bits on every run and
 worker.  Measured and dropped (issue 12): the QR with the state as contiguous 4-wide lanes and the
-partial sums in a work array (same bits, but 0.75-0.9x: the sums live in memory, not registers).
+partial sums in a work array (same bits, but 0.75-0.9x: the sums live in memory, not registers);
+the written-out QR on a flat work array with constant offsets (0.85x: numba leaves LLVM's SLP
+vectoriser off, process-wide, so nothing gains from the layout); fused multiply-adds (``llvm.fma``,
+exactly rounded, so still deterministic: the 9 x 12 QR 4 % faster, the step ~2 %, not worth a new
+primitive); the sigma points, mean and compound filling written out (1.00x); the measurement update
+written out as a function of its own (0.96-0.98x); the rotations' square roots taken off the chain by
+summing the squares (1.00x).
 
 Status codes returned by the kernels: 0 ok; 1 time-update downdate failed; 2 innovation-factor
 downdate failed; 3 measurement-update downdate failed (structured step: a measurement noise variance
