@@ -109,15 +109,14 @@ def initial_state(s: Series, window_s: float) -> np.ndarray:
     start error (a rudder offset fitted to the drift), a false positive; or the real effect drowns in
     it, a miss.
 
-    Method: over the window, r(t) = r0 + b t + c t^2 and psi(t) = psi0 + r0 t + b t^2/2 + c t^3/3
-    (t from the first sample, r in deg/s), over the window's samples before the rudder first moves,
-    are fitted jointly by least squares, each channel weighted
-    by its own noise (std of its residual about a separate fit of the same order); v(t) by its own
-    quadratic.  The heading, far less noisy than its own derivative's measurement relative to the
-    slope it carries over a window, then fixes r0 (a 0.1 deg heading noise over 125 samples of a 10 s
-    window gives r0 to ~0.005 deg/s, against 0.1 deg/s from one sample of r).  A quadratic in r
-    follows the onset of the first rudder execution within the window (the window is a fraction of
-    the ship's own time scale, so the same on any ship and at any scale).  Model-free: the baseline
+    Method: r(t) = r0 + b t and psi(t) = psi0 + r0 t + b t^2/2 (t from the first sample, r in
+    deg/s), over the window's samples before the rudder first moves, are fitted jointly by least
+    squares, each channel weighted by its own noise (std of its residual about a separate fit of the
+    same order); v(t) by a straight line.  The heading, far less noisy than its own derivative's
+    measurement relative to the slope it carries over a window, then fixes r0 (a 0.1 deg heading
+    noise over 125 samples of a 10 s window gives r0 to ~0.005 deg/s, against 0.1 deg/s from one
+    sample of r).  The window is a fraction of the ship's own time scale, so the same on any ship
+    and at any scale.  Model-free: the baseline
     and every extension start from the same state, so no effect is credited with the estimate."""
     n = int(min(s.t.size, max(8, round(window_s / s.h) + 1)))
     # the window ends where the rudder first moves: the response to a rudder execution is no
@@ -827,7 +826,7 @@ def profile_time_params(fit: FitResult, series: list[Series], ctx, floor_s: floa
             z = fit.p.copy()
             z[i] = val
 
-            def fun(x, z=z):
+            def fun(x, z=z, free=free):
                 q = z.copy()
                 q[free] = x
                 th, tm, _ = layout.unpack(q)
