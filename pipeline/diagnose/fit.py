@@ -74,6 +74,10 @@ class Series:
         est = self.__dict__.get("_x0_est")
         if est is not None:
             return est
+        return self.first_state()
+
+    def first_state(self) -> np.ndarray:
+        """The first sample's state (v m/s, r deg/s, psi deg); v = 0 where sway is not measured."""
         return np.array([self.v[0] if self.v is not None else 0.0, self.r[0], self.psi[0]])
 
     def states(self) -> np.ndarray:
@@ -128,7 +132,7 @@ def initial_state(s: Series, window_s: float) -> np.ndarray:
     if moved.size:
         n = int(moved[0])
     if n < 8:  # too few quiet samples for the fit: the first sample
-        return np.array([s.v[0] if s.v is not None else 0.0, s.r[0], s.psi[0]])
+        return s.first_state()
     tt = s.t[:n] - s.t[0]
     one = np.ones(n)
     zero = np.zeros(n)
