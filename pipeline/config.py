@@ -214,15 +214,16 @@ class DiagnoseConfig:
     # (pipeline.diagnose.fit.boxed_initial_state).  2: each of v0 and r0 within its two-sided 95 %
     # range, so a start the approach rules out cannot absorb an effect
     x0_box_sigma: float = 2.0
-    # a structure fitted warm from a smaller one (its effect added at the start value) is also fitted
-    # cold (equation-error + prediction-error start), and the fit that predicts the fold's VALIDATION
-    # runs better is kept.  On a hull near the stability margin the output-error cost has several
-    # optima: warm, the smaller model's linear part can hold the new effect in a poor one (measured,
-    # truth case 25, rudder asymmetry: training cost 0.065 warm against 0.00053 cold, held-out 3.90
-    # against 0.11 deg); cold, the lowest training cost can be the one that generalises worse (KVLCC2
-    # fold 2, cubic damping alone: training cost 0.235 cold against 0.360 warm, held-out 17.8 against
-    # 7.7 deg).  The start is part of the model choice, so it is chosen on the data that choose
-    # (validation), never on the runs the reported gain is measured on (test / nested held-out).
+    # a one-effect structure fitted warm from the baseline (its effect added at the start value) is
+    # also fitted cold (equation-error + prediction-error start), and the fit that predicts the
+    # fold's VALIDATION runs better is kept (round one only: pipeline.diagnose.select.Search).
+    # On a hull near the stability margin the output-error cost has several optima.  Warm, the
+    # smaller model's linear part can hold the new effect in a poor one (measured, truth case 25,
+    # rudder asymmetry: training cost 0.065 warm against 0.00053 cold, held-out 3.90 against
+    # 0.11 deg).  Cold, the lowest training cost can be the one that generalises worse (KVLCC2
+    # fold 2, cubic damping alone: training cost 0.235 cold against 0.360 warm, held-out 17.8
+    # against 7.7 deg).  The start is part of the model choice, so it is chosen on the data that
+    # choose (validation), never on the runs the reported gain is measured on (test / nested).
     cold_start: bool = True
 
 

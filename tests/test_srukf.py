@@ -217,3 +217,64 @@ def test_parameter_process_noise_runs_the_plain_kernel_and_equals_full_ukf(data)
                             lambda i, p: (forgetting_factor(float(i[chan]), float(i[chan]) - p, cfg.fuzzy),
                                           float(i[chan])))
     assert np.max(np.abs(out.x - ref["x"]) / np.abs(ref["x"]).max(axis=0)) < 1e-9
+
+
+def test_unrolled_qrs_are_the_generators_output_and_the_loop_version_bit_for_bit():
+    """pipeline/identify/_unrolled.py is what pipeline/identify/unroll.py writes, and each of its
+    loop-free QRs gives the same bits as the loop version in fast.py (same operations, same order),
+    on well and badly scaled inputs, with zero columns."""
+    from pipeline.identify import _unrolled, unroll
+
+    assert unroll.TARGET.read_text() == unroll.source()
+    rng = np.random.default_rng(7)
+    for n, m in unroll.TRIA_SHAPES:
+        for _ in range(50):
+            A = rng.standard_normal((n, m)) * 10.0 ** rng.uniform(-8, 8, (n, 1))
+            A[:, rng.integers(m)] *= rng.choice([0.0, 1.0])
+            a, b = np.full((n, n), np.nan), np.full((n, n), np.nan)
+            fast._tria_t(A.copy(), m, a)
+            getattr(_unrolled, f"tria_{n}x{m}")(A.copy(), b)
+            assert np.array_equal(a, b)
+    for _ in range(200):                             # the structured step's compound, its zeros in place
+        A = rng.standard_normal((9, 12)) * 10.0 ** rng.uniform(-8, 8, (9, 1))
+        for i, c in unroll.rw_zeros():
+            A[i, c] = 0.0
+        a, b = np.full((9, 9), np.nan), np.full((9, 9), np.nan)
+        fast._tria_t(A.copy(), 12, a)
+        _unrolled.tria_9x12_rw(A.copy(), b)
+        assert np.array_equal(a, b)
+
+
+def test_written_out_step_block_equals_the_loop_blocks_bit_for_bit():
+    """The paper's case runs the pre-reduction, the prior QR and the measurement update as one
+    written-out, interleaved function (unroll.gen_prior_update); over a whole identification with
+    the fuzzy factor on it gives the same bits as the three blocks one after the other."""
+    _, d, _, y = synthetic.zigzag(n=585, seed=11)
+    cfg = FilterConfig()
+    x0, P0 = initial_state(y[0], IDX, cfg)
+    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
+    assert w.wc[0] > 0.0
+    sq_q, sq_r = np.diag(cfg.q_std), np.diag(cfg.r_std)
+    chan = fuzzy_channel(cfg, IDX)
+    fz = np.array([*cfg.fuzzy.e_domain, *cfg.fuzzy.de_domain, *cfg.fuzzy.f_range], dtype=float)
+    Y, dp = np.ascontiguousarray(y[1:]), np.ascontiguousarray(d[:-1])
+    n = Y.shape[0]
+    res = []
+    for written_out in (True, False):
+        x, S = np.array(x0, float), np.linalg.cholesky(P0)
+        outs = (np.empty((n, 9)), np.empty((n, 9)), np.empty((n, 9)), np.empty((n, 3)), np.empty(n),
+                np.empty(n))
+        st, k = fast._steps_rw(x, S, Y, dp, H, sq_q, fast.nonzero_columns(sq_q), sq_r,
+                               fast.nonzero_columns(sq_r), IDX, w.wm, w.wc, w.gamma, True, chan, fz, RULES,
+                               fast.workspace(3), *outs, written_out)
+        assert st == 0 and k == n
+        res.append((x, S, outs))
+    (xa, Sa, a), (xb, Sb, b) = res
+    assert np.array_equal(xa, xb) and np.array_equal(Sa, Sb)
+    for ra, rb in zip(a, b, strict=True):
+        assert np.array_equal(ra, rb)
+    assert np.any(a[5] < 1.0)
+    # its failure path: a measurement noise below round-off of the innovation variance (status 3)
+    bad = dataclasses.replace(cfg, r_std=(1e-30, 1e-30, 1e-30))
+    with pytest.raises(FilterError, match="measurement update"):
+        run_filter("srukf-ffm", x0, P0, y[1:50], d[:49], H, bad, IDX)

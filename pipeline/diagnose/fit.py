@@ -74,6 +74,10 @@ class Series:
         est = self.__dict__.get("_x0_est")
         if est is not None:
             return est
+        return self.first_state()
+
+    def first_state(self) -> np.ndarray:
+        """The first sample's state (v m/s, r deg/s, psi deg); v = 0 where sway is not measured."""
         return np.array([self.v[0] if self.v is not None else 0.0, self.r[0], self.psi[0]])
 
     def states(self) -> np.ndarray:
@@ -116,18 +120,21 @@ def initial_state_with_std(s: Series, window_s: float) -> tuple[np.ndarray, np.n
     Method: r(t) = r0 + b t and psi(t) = psi0 + r0 t + b t^2/2 (t from the first sample, r in
     deg/s), over the window's samples before the rudder first moves, are fitted jointly by least
     squares, each channel weighted by its own noise (std of its residual about a separate fit of the
-    same order); v(t) by a straight line.
+    same order); v(t) by a straight line.  The heading, far less noisy than its own derivative's
+    measurement relative to the slope it carries over a window, then fixes r0 (a 0.1 deg heading
+    noise over 125 samples of a 10 s window gives r0 to ~0.005 deg/s, against 0.1 deg/s from one
+    sample of r).  The window is a fraction of the ship's own time scale, so the same on any ship
+    and at any scale.
 
     Also returned: the standard deviation of (v0, r0, psi0), from the least-squares sandwich with each
     channel's noise taken as AR(1) (std and lag-1 correlation of the whole run's residual about a
     smoothing over half the ship's time scale, ``2 window_s``): correlated noise makes a short window
     far less informative than its sample count says (measured, truth case 03: AR(1) noise of 1.6 s
-    correlation time, a 1 s approach, r0 off by 0.11-0.15 deg/s where white noise gives ~0.005).  The heading, far less noisy than its own derivative's measurement relative to the
-    slope it carries over a window, then fixes r0 (a 0.1 deg heading noise over 125 samples of a 10 s
-    window gives r0 to ~0.005 deg/s, against 0.1 deg/s from one sample of r).  A quadratic in r
-    follows the onset of the first rudder execution within the window (the window is a fraction of
-    the ship's own time scale, so the same on any ship and at any scale).  Model-free: the baseline
-    and every extension start from the same state, so no effect is credited with the estimate."""
+    correlation time, a 1 s approach, r0 off by 0.11-0.15 deg/s where white noise gives ~0.005).
+    Model-free: every training fit, of the baseline and of each extension, starts from this state,
+    so no effect is credited with the estimate; a held-out free run may take its own start within the
+    returned standard deviations (:func:`boxed_initial_state`), while the per-run harm test compares
+    models from this one common start (:meth:`pipeline.diagnose.select.Search.step`)."""
     n = int(min(s.t.size, max(8, round(window_s / s.h) + 1)))
     # the window ends where the rudder first moves: the response to a rudder execution is no
     # polynomial (measured: a window across the execution biased r0 by 0.1 deg/s on the slow truth
@@ -137,10 +144,12 @@ def initial_state_with_std(s: Series, window_s: float) -> tuple[np.ndarray, np.n
     moved = np.flatnonzero(np.abs(s.delta[:n] - d0) > MIN_RUDDER_EXCITATION_DEG)
     if moved.size:
         n = int(moved[0])
-    noise = {k: _ar1_noise(getattr(s, k), window_s, s.h) for k in ("psi", "r", "v") if getattr(s, k) is not None}
+    noise = {
+        k: _ar1_noise(getattr(s, k), window_s, s.h) for k in ("psi", "r", "v") if getattr(s, k) is not None
+    }
     if n < 8:  # too few quiet samples for the fit: the first sample, with one sample's noise
-        return (np.array([s.v[0] if s.v is not None else 0.0, s.r[0], s.psi[0]]),
-                np.array([noise["v"][0] if "v" in noise else 0.0, noise["r"][0], noise["psi"][0]]))
+        one_sample = [noise["v"][0] if "v" in noise else 0.0, noise["r"][0], noise["psi"][0]]
+        return s.first_state(), np.array(one_sample)
     tt = s.t[:n] - s.t[0]
     one = np.ones(n)
     zero = np.zeros(n)
@@ -873,6 +882,9 @@ def evaluate(fit: FitResult, series: list[Series]) -> tuple[dict, list[dict]]:
                 "mse_r": float(np.mean((sim[:, 1] - s.r) ** 2)),
                 "mse_v": float(np.mean((sim[:, 0] - s.v) ** 2)) if s.v is not None else None,
                 "sim": sim,
+                # the free run from the approach's own estimate, the start common to every model
+                # (the per-run harm test compares models from it; see Search.step)
+                "sim_common": simulate_fit(fit, s) if x0 is not None else sim,
             }
         )
     mean = {
@@ -925,7 +937,7 @@ def profile_time_params(fit: FitResult, series: list[Series], ctx, floor_s: floa
             z = fit.p.copy()
             z[i] = val
 
-            def fun(x, z=z):
+            def fun(x, z=z, free=free):
                 q = z.copy()
                 q[free] = x
                 th, tm, _ = layout.unpack(q)

@@ -52,9 +52,10 @@ def _memberships(x, lo, hi, out):
     if x > hi:
         x = hi
     for i in range(5):
-        c = lo + i * w
-        m = 1.0 - abs(x - c) / w
-        out[i] = m if m > 0.0 else 0.0
+        d = abs(x - (lo + i * w))
+        # 1 - d / w > 0 exactly when d < w (d / w rounds to at most 1 then): the same numbers as
+        # max(1 - d / w, 0), with the division only for the two terms that are not zero
+        out[i] = 1.0 - d / w if d < w else 0.0
 
 
 @njit(cache=True)
