@@ -102,11 +102,11 @@ def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float, t_ship: floa
     return (base_mae - mae) / base_mae, base_mae - mae
 
 
-#: measured 2026-11-23: case 12 (a 0.35 s dead time) gives "none"; the truth's own structure fitted on
-#: the same runs cuts the held-out heading error by only 0.08 deg, below the 0.1 deg heading floor
-#: on this design; on 30/30 + 15/15 zigzags with a 30 deg/s rudder it is material and found
-#: (test_short_dead_time_is_found_where_the_design_shows_it, CASE12_DESIGN)
-KNOWN_WRONG = {12: "0.35 s dead time: cause none; the oracle's held-out cut is 0.08 deg < 0.1 deg floor"}
+#: None today.  Case 12 (a 0.35 s dead time) gives "none", which is right on this design since the
+#: held-out start is boxed by the approach's own uncertainty (DiagnoseConfig.x0_box_sigma): the
+#: baseline no longer drifts (held-out 0.080 deg), and the truth's own structure at its true
+#: parameters cuts it by 0.035 deg, below the 0.1 deg heading floor (measured 2026-11-24).
+KNOWN_WRONG: dict[int, str] = {}
 
 
 @pytest.mark.slow
@@ -136,7 +136,7 @@ def test_hidden_effect_is_found(case):
     if rel < 0.30 or cut < floor:
         # not demonstrable on held-out data by any model: no false cause, and the fit still sees it.
         # Since issue 11 a held-out gain must also be above the heading noise level in absolute terms
-        # (case 12: a 0.35 s dead time, oracle cut 0.08 deg of a 0.15 deg baseline, below 0.1 deg)
+        # (case 12: a 0.35 s dead time, oracle cut 0.035 deg of a 0.080 deg baseline, below 0.1 deg)
         assert rep["cause"] in (kind, "none"), summary
         assert set(rep["extended"]["effects"]) <= {kind}, summary
         if name in finding["estimate"]:
@@ -156,22 +156,24 @@ def test_hidden_effect_is_found(case):
     assert finding["uncertainty"][list(finding["estimate"])[0]] > 0
 
 
-#: Case 12 again (issue 11 item 6), on a design where a 0.35 s dead time is material.  Physics: the
-#: truth's time scale is T = 4.1 s and its zigzags have a period of ~30 s whatever their size (the
+#: Case 12 again (issue 11 item 6), on a design meant to make a 0.35 s dead time material.  Physics:
+#: the truth's time scale is T = 4.1 s and its zigzags have a period of ~30 s whatever their size (the
 #: heading trigger scales with the rudder), so the dead time's phase lag at the zigzag frequency is
 #: omega tau = 4 deg on either design and the linear time constants absorb most of it; what is left is
-#: the yaw acceleration tau d(delta)/dt at each reversal, which is larger and sharper the larger the
-#: swing and the faster the rudder: at 14 deg/s a 20/20 reversal is a 2.9 s ramp (0.7 T), at 30 deg/s
-#: a 30/30 one is 2.0 s (0.5 T) of twice the rate.  Oracle (the truth's structure, linear + dead time,
-#: fitted on the same runs, held-out MAE psi per fold), measured 2026-11-23:
-#:   20/20 + 10/10 at 14 deg/s: 0.181 -> 0.073 deg, 0.109 -> 0.059 deg (59 % / 46 %), mean cut 0.079
-#:                              deg < the 0.10 deg heading floor: immaterial (KNOWN_WRONG[12]);
-#:   30/30 + 15/15 at 30 deg/s: 0.201 -> 0.075 deg, 0.144 -> 0.056 deg (62 % / 61 %), mean cut 0.107
-#:                              deg >= 0.10 deg: material (a tank servo of 30 deg/s is common at
-#:                              model scale; the ITTC full-scale 2.3 deg/s is the 14 deg/s above).
-#: Neither more size alone (35/35 + 20/20 at 14 deg/s: cut 0.091 deg) nor the faster rudder alone
-#: (20/20 + 10/10 at 30 deg/s: 0.088 deg) is enough; nor a higher zigzag frequency (20/5 + 10/5 at
-#: 30 deg/s: 0.083 deg), whose heading swing is small.
+#: the yaw acceleration tau d(delta)/dt at each reversal, larger the larger the swing and the faster
+#: the rudder.  Oracle (the truth's structure at its true parameters, held-out MAE psi, each run
+#: started by the diagnosis's own rule) against the fitted baseline, measured 2026-11-24 with the
+#: boxed held-out start (before it, the baseline's start drift made 30/30 + 15/15 at 30 deg/s
+#: material, cut 0.107 deg):
+#:   20/20 + 10/10 at 14 deg/s (the standard design): 0.080 -> cut 0.035 deg (44 %);
+#:   30/30 + 15/15 at 30 deg/s: 0.120 deg -> cut 0.075 deg (62 %);
+#:   35/35 + 20/20 at 30 deg/s: 0.138 deg -> cut 0.092 deg (66 %);
+#:   30/30 + 15/15 at 60 deg/s: 0.134 deg -> cut 0.088 deg (66 %);
+#:   35/10 + 20/10 at 30 deg/s: 0.125 deg -> cut 0.079 deg (64 %);
+#:   three legs a side (30/30, 15/15, 20/20 at 30 deg/s): 0.118 deg -> cut 0.071 deg (60 %).
+#: Every design leaves the absolute cut under the 0.1 deg heading floor (a tank's heading
+#: repeatability, DiagnoseConfig.min_abs_gain_deg), and the diagnosis names none on each: a 0.35 s
+#: dead time on this ship is not material in heading on any zigzag tried.
 CASE12_DESIGN = {
     "legs": ((30, "starboard"), (15, "port"), (30, "port"), (15, "starboard")),
     "rudder_rate": 30.0,  # deg/s
@@ -179,9 +181,12 @@ CASE12_DESIGN = {
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured 2026-11-24: the design is no longer material; the "
+                   "oracle's held-out cut is 0.075 deg (62 %), under the 0.1 deg heading floor, since "
+                   "the boxed held-out start stopped the baseline's drift (CASE12_DESIGN comment)")
 def test_short_dead_time_is_found_where_the_design_shows_it():
     i, kind, mag, fa, fb, seed = CASES[12]
-    assert kind == "rudder_delay" and 12 in KNOWN_WRONG
+    assert kind == "rudder_delay"
     theta = np.array(list(PAPER_TABLE4.values()))
     theta[:4] *= fa
     theta[4:] *= fb

@@ -164,7 +164,7 @@ def _clean_own_n_rrr() -> float:
     """n_rrr (s/deg^2) of the clean symmetric KCS fitted as linear + cubic yaw damping on fold 1's
     training runs (the search's first-round fit, kept in Diagnosis.fits)."""
     _diagnosis()
-    fit = _FULL[()].fits["0:nonlinear_yaw_damping"]
+    fit = _FULL[()].fits["0:nonlinear_yaw_damping/cubic"]
     return float(fit.values["nonlinear_yaw_damping"]["n_rrr_s_per_deg2"])
 
 
@@ -193,9 +193,13 @@ def test_tank_hidden_effect_is_found_on_top_of_the_ship(case):
         own = next(f for f in rep["findings"] if f["effect"] == rep["cause"])
         assert min(own["validation_gain_folds"]) >= 0.30, _summary(rep)
         # more damping, whichever the form: the physical sign of the named term
-        sign_key = {"nonlinear_yaw_damping": "n_rrr_s_per_deg2", "nonlinear_sway_damping": "y_vv_per_m"}
-        if rep["cause"] in sign_key:
-            assert _estimate(rep, rep["cause"], sign_key[rep["cause"]]) < 0.0
+        # (yaw: n_rrr of the r^3 form or n_rr of the r|r| form; sway: y_vv)
+        sign_keys = {"nonlinear_yaw_damping": ("n_rrr_s_per_deg2", "n_rr_per_deg"),
+                     "nonlinear_sway_damping": ("y_vv_per_m",)}
+        if rep["cause"] in sign_keys:
+            est = rep["extended"]["effect_estimates"][rep["cause"]]["estimate"]
+            damping = [est[k] for k in sign_keys[rep["cause"]] if k in est]
+            assert damping and all(x < 0.0 for x in damping), est
         return
     if kind == "rudder_offset":
         rep = _diagnosis(rudder_offset=mag)

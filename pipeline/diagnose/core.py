@@ -62,6 +62,7 @@ class Diagnosis:
     series: pd.DataFrame
     baseline: FitResult
     extended: FitResult
+    #: every fit the search made, keyed "<fold>:<effect>/<form>,..." ("0:" the linear baseline of fold 0)
     fits: dict
 
 
@@ -297,7 +298,7 @@ def diagnose(
         series=series,
         baseline=base,
         extended=ext,
-        fits={f"{k}:{','.join(e for e, _ in st)}": f for (k, st), f in search._fits.items()},
+        fits={f"{k}:{','.join(f'{e}/{form}' for e, form in st)}": f for (k, st), f in search._fits.items()},
     )
 
 
