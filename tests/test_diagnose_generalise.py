@@ -208,13 +208,6 @@ KNOWN_WRONG = {
           "reported profile 95 % interval, 0.22-1.18 s, holds the truth (test_diagnose_starts)",
     "13": "servo lag 0.78 s found (cause rudder_lag, gain 0.68) but estimated 0.27 s: as case 12 "
           "(profile 95 % interval 0.21-1.07 s)",
-    "18": "v|v| (fast ship): cause none.  The oracle (the candidate nonlinear_sway_damping, the truth's "
-          "own form, fitted) recovers y_vv -5.08 / n_vv -27.0 against the truth's -5.04 / -26.7 and cuts "
-          "the training cost 4.7x, but the held-out heading only 0.12 -> 0.06 deg, below the 0.1 deg "
-          "noise floor: the effect lives in the sway (peak v 0.42 -> 0.29 m/s), which the diagnosis does "
-          "not judge",
-    "19": "v|v| (slow ship): cause none.  Oracle (own form fitted): held-out heading 0.15 -> 0.15 deg "
-          "(fold 1), 0.13 -> 0.11 deg (fold 2), training cost 1.8x lower: below the heading noise floor",
 }
 #: make test runs a CI-sized cut (a clean case per sensor kind and one case of each effect family
 #: the method finds today, both ships); `make generalise` (TANKTEST_GENERALISE=full) runs all 32.
@@ -232,8 +225,62 @@ def _case_param(c):
 @pytest.mark.parametrize("case", [_case_param(c) for c in CASES if FULL or c.cid in CI_CASES])
 def test_case(case, tmp_path):
     rep, _ = run_case(case, tmp_path)
-    ok, why, fig = tc.judge(case, rep)
+    ok, why, fig = tc.judge(case, rep, tc.noise_mae_psi(case))
     assert ok, f"{case.truth}: " + "; ".join(why) + f" | got {fig}"
+
+
+def _fake_report(base_deg, cause="none", effects=(), noise_deg=0.02, gain=0.0):
+    return {"cause": cause, "extended": {"effects": list(effects)}, "findings": [],
+            "gain": {"mae_psi_relative_reduction": gain},
+            "baseline": {"validation": {"mae_psi_deg": base_deg}},
+            "settings": {"heading_noise_deg": noise_deg, "min_abs_gain_deg": 0.1}}
+
+
+def test_immaterial_effect_rule_known_answers():
+    """cases.demonstrable: room = baseline - the truth's own (noise) MAE against the diagnosis's floor
+    max(2 noise, 0.1 deg) and MIN_GAIN; and judge's consequences, on hand-made reports."""
+    shown, words = tc.demonstrable(_fake_report(0.12), 0.04)       # room 0.08 < 0.1
+    assert not shown and "0.080 deg" in words
+    assert tc.demonstrable(_fake_report(0.28), 0.04)[0]              # room 0.24, 86 %
+    assert not tc.demonstrable(_fake_report(0.28, noise_deg=0.15), 0.04)[0]   # floor 0.30
+    assert not tc.demonstrable(_fake_report(1.0), 0.75)[0]           # 0.25 deg but 25 % < MIN_GAIN
+    vv = next(c for c in CASES if c.cid == "18")
+    # immaterial: "none" is right, a rudder-side name is not, an accepted name is
+    assert tc.judge(vv, _fake_report(0.12), 0.04)[0]
+    assert not tc.judge(vv, _fake_report(0.12, "rudder_offset", ["rudder_offset"]), 0.04)[0]
+    named = _fake_report(0.12, "nonlinear_sway_damping", ["nonlinear_sway_damping"])
+    assert not tc.judge(vv, named, 0.04)[0]          # a name without its findings row
+    named["findings"] = [{"effect": "nonlinear_sway_damping", "significant": True, "estimate": {}}]
+    assert tc.judge(vv, named, 0.04)[0]
+    # material: "none" is a miss
+    assert not tc.judge(vv, _fake_report(0.50), 0.04)[0]
+    # without the noise figure the old rule: "none" is a miss
+    assert not tc.judge(vv, _fake_report(0.12))[0]
+    # a clean case never relaxes
+    clean = next(c for c in CASES if c.cid == "00")
+    assert not tc.judge(clean, _fake_report(0.05, "rudder_offset", ["rudder_offset"]), 0.04)[0]
+
+
+def test_noise_mae_is_the_logged_noise():
+    """noise_mae_psi of a clean white-noise case is the MAE of its heading noise: sigma sqrt(2/pi)."""
+    c = next(c for c in CASES if c.cid == "00")
+    sigma = sy.Sensors(**c.sensors).noise_psi
+    assert tc.noise_mae_psi(c) == pytest.approx(sigma * math.sqrt(2.0 / math.pi), rel=0.15)
+
+
+@pytest.mark.xfail(strict=True, reason="measured 2026-11-24: v|v| share 0.70 (fast ship, case 18) gives "
+                   "none.  It is immaterial in heading: the baseline's held-out heading MAE is 0.12 deg "
+                   "against the truth's own 0.04 deg (its noise), 0.08 deg of room under the 0.1 deg floor, "
+                   "so test_case judges 'none' right (cases.demonstrable).  The effect lives in the sway "
+                   "(the candidate of the truth's form, fitted, recovers y_vv -5.08 / n_vv -27.0 against "
+                   "-5.04 / -26.7; peak v 0.42 -> 0.29 m/s, baseline against the fit), and the "
+                   "diagnosis judges the heading only")
+def test_sway_only_effect_is_named(tmp_path):
+    """What a sway-channel judge would have to do: name the hull's nonlinearity of case 18, whose
+    whole signature is in the sway."""
+    case = next(c for c in CASES if c.cid == "18")
+    rep, _ = run_case(case, tmp_path)
+    assert rep["cause"] in tc.HULL_NL, (rep["cause"], rep["extended"]["effects"])
 
 
 # ------------------------------------------------------------------ another ship and tank: KVLCC2

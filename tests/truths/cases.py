@@ -18,7 +18,11 @@ Judging (:func:`judge`), from diagnosis.json's SPEC keys only:
   ``extended.effects`` and nothing outside the accepted set there (a single-effect truth has no
   second cause to find), the accepted finding ``significant``, the reported held-out gain
   ``gain.mae_psi_relative_reduction >= MIN_GAIN``, and the estimate within ``EST_TOL`` of the truth
-  where the candidate's form matches the truth's (a key the method reports for that form).
+  where the candidate's form matches the truth's (a key the method reports for that form);
+- injected effect that no model could show in heading (:func:`demonstrable`: the baseline's
+  validation heading MAE is within the diagnosis's own floor of the truth's, i.e. of the noise):
+  "none" or an accepted name, nothing else, no gain required.  Only the v|v| cases 18 and 19 are
+  judged so (measured); a sway-channel judge is what they would need, held by a strict xfail.
 
 Why some cases accept more than one name (stated per case in ``reason``):
 
@@ -209,24 +213,43 @@ def draw_cases(seed: int) -> list[Case]:
     return cases
 
 
+def _legs(case: Case):
+    """(role, zigzag, seed) of every run of ``case``, in the order the seeds are drawn."""
+    j = 0
+    for role, legs in (("train", TRAIN), ("validate", VALIDATE), ("test", TEST)):
+        for a, side in legs:
+            yield role, sy.Zigzag(a, a, side, DURATION[case.ship]), case.seed * 10 + j
+            j += 1
+
+
 def write_runs(case: Case, folder: Path) -> dict[str, list[Path]]:
     """Simulate the case's runs and write them as canonical CSVs; {"train", "validate", "test"}."""
     folder.mkdir(parents=True, exist_ok=True)
     truth = case.truth_model()
-    out: dict[str, list[Path]] = {}
-    j = 0
-    for role, legs in (("train", TRAIN), ("validate", VALIDATE), ("test", TEST)):
-        paths = []
-        for a, side in legs:
-            zz = sy.Zigzag(a, a, side, DURATION[case.ship])
-            f = sy.simulate(truth, zz, seed=case.seed * 10 + j)
-            j += 1
-            header = {"ship": f"{case.ship} (tests/truths.swayyaw)", "test": zz.test_name,
-                      "provenance": "virtual (tests/truths, independent truth)",
-                      "lpp": sy.SHIPS[case.ship].lpp_m, "seed": case.seed * 10 + j}
-            paths.append(write_csv(f, folder / f"{case.cid}_{zz.name}.csv", header))
-        out[role] = paths
+    out: dict[str, list[Path]] = {"train": [], "validate": [], "test": []}
+    for role, zz, seed in _legs(case):
+        f = sy.simulate(truth, zz, seed=seed)
+        header = {"ship": f"{case.ship} (tests/truths.swayyaw)", "test": zz.test_name,
+                  "provenance": "virtual (tests/truths, independent truth)",
+                  "lpp": sy.SHIPS[case.ship].lpp_m, "seed": seed + 1}
+        out[role].append(write_csv(f, folder / f"{case.cid}_{zz.name}.csv", header))
     return out
+
+
+def noise_mae_psi(case: Case, role: str = "validate") -> float:
+    """Mean over the ``role`` runs of the heading MAE (deg) of the TRUTH itself: its noise-free heading
+    against the logged one, i.e. the heading error of a perfect model started from the true state.
+
+    No model fitted on the data can do better on average, so ``baseline MAE - noise_mae_psi`` is the
+    most any extension could cut on those runs (:func:`judge`).  Re-simulates the runs with the seeds
+    of :func:`write_runs` (the same bytes)."""
+    truth = case.truth_model()
+    maes = []
+    for r, zz, seed in _legs(case):
+        if r == role:
+            f = sy.simulate(truth, zz, seed=seed)
+            maes.append(float(np.mean(np.abs(f["psi"].to_numpy() - f.attrs["true"]["psi"].to_numpy()))))
+    return float(np.mean(maes))
 
 
 def _finding(report: dict, effect: str) -> dict | None:
@@ -238,8 +261,32 @@ def _est_value(est: dict, key: str):
     return float(v) if isinstance(v, (int, float)) and np.isfinite(v) else None
 
 
-def judge(case: Case, report: dict) -> tuple[bool, list[str], dict]:
-    """(passed, reasons it failed, figures for the table) from diagnosis.json's SPEC keys."""
+def demonstrable(report: dict, noise_mae: float) -> tuple[bool, str]:
+    """Can ANY model show the case's effect on the runs that choose?  (bool, the figures in words).
+
+    The most an extension can cut the baseline's validation heading MAE by is down to the truth's own
+    (:func:`noise_mae_psi`: the measurement noise).  When that room is under the diagnosis's own
+    materiality bars, the floor in degrees (max of twice the heading noise and ``min_abs_gain_deg``,
+    from the report's settings) or ``MIN_GAIN`` relative, the effect is immaterial in heading on these
+    runs and "none" is as right as the effect's name: issue #11 names an effect only when it is
+    material in held-out heading.  The linear-truth cases apply the same rule with the truth's own
+    structure (tests/test_diagnose_cases.py ``_oracle_gain``).  Measured: a v|v| share of 0.70 on the
+    fast ship leaves the baseline at 0.12 deg against a noise MAE of 0.08 deg."""
+    s = report.get("settings", {})
+    base = report["baseline"]["validation"]["mae_psi_deg"]
+    floor = max(2.0 * s.get("heading_noise_deg", 0.0), s.get("min_abs_gain_deg", 0.0))
+    room = base - noise_mae
+    ok = room >= floor and room >= MIN_GAIN * base
+    return ok, (f"baseline {base:.3f} deg, truth's own (noise) {noise_mae:.3f} deg: at most {room:.3f} deg "
+                f"({room / base:.0%}) to cut, against the floor {floor:.3f} deg and {MIN_GAIN:.0%}")
+
+
+def judge(case: Case, report: dict, noise_mae: float | None = None) -> tuple[bool, list[str], dict]:
+    """(passed, reasons it failed, figures for the table) from diagnosis.json's SPEC keys.
+
+    With ``noise_mae`` (:func:`noise_mae_psi` of the validation runs), a case whose effect is not
+    :func:`demonstrable` in heading is right when it names the effect or nothing, and names nothing
+    else; no gain is then required (a named effect's estimate is still checked)."""
     cause = report.get("cause")
     ext = list(report.get("extended", {}).get("effects", []))
     gain = report.get("gain", {}).get("mae_psi_relative_reduction")
@@ -251,6 +298,17 @@ def judge(case: Case, report: dict) -> tuple[bool, list[str], dict]:
         if ext:
             why.append(f"clean truth, but extended effects {ext}")
         return not why, why, figures
+    if noise_mae is not None:
+        shown, words = demonstrable(report, noise_mae)
+        figures["demonstrable"] = (shown, words)
+        if not shown:
+            if cause != "none" and cause not in case.accepted:
+                why.append(f"immaterial effect ({words}), but cause {cause!r}")
+            extra = [e for e in ext if e not in case.accepted]
+            if extra:
+                why.append(f"immaterial effect, but spurious effects {extra}")
+            _check_estimates(case, report, [e for e in case.accepted if e in ext or e == cause], why, figures)
+            return not why, why, figures
     if cause not in case.accepted:
         why.append(f"cause {cause!r} not in {list(case.accepted)}")
     both = "+" in case.expected
@@ -267,6 +325,13 @@ def judge(case: Case, report: dict) -> tuple[bool, list[str], dict]:
     if gain is None or not gain >= MIN_GAIN:
         why.append(f"held-out gain {gain} < {MIN_GAIN}")
     named = [e for e in (need or case.accepted) if e in ext or e == cause]
+    _check_estimates(case, report, named, why, figures)
+    return not why, why, figures
+
+
+def _check_estimates(case: Case, report: dict, named: list[str], why: list[str], figures: dict) -> None:
+    """Each named effect significant, its estimate within ``EST_TOL`` where the form matches, its sign
+    right in the other form (appends to ``why`` and ``figures``)."""
     for e in named:
         f = _finding(report, e)
         if f is None:
@@ -288,4 +353,3 @@ def judge(case: Case, report: dict) -> tuple[bool, list[str], dict]:
                 figures["estimates"][key] = (got, "sign " + ("-" if sgn < 0 else "+"))
                 if got * sgn <= 0:
                     why.append(f"{e}: {key} {got:.3g} has the wrong sign (truth adds damping)")
-    return not why, why, figures

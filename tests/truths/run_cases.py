@@ -22,6 +22,11 @@ sys.path.insert(0, str(HERE.parents[1]))       # tests/ (for ``truths`` and the 
 sys.path.insert(0, str(HERE.parents[2]))       # the worktree (for ``pipeline``)
 
 
+def _immaterial(fig: dict) -> str:
+    shown, words = fig.get("demonstrable", (True, ""))
+    return "" if shown else f" (immaterial in heading: {words})"
+
+
 def _one(args):
     cid, folder = args
     import test_diagnose_generalise as tg
@@ -34,7 +39,7 @@ def _one(args):
         rep, sec = tg.run_case(case, Path(folder) / cid)
     except Exception as exc:  # noqa: BLE001 - a crash is a FAIL row, with its message
         return cid, False, [f"crashed: {type(exc).__name__}: {exc}"], {}, time.process_time() - t0
-    ok, why, fig = tc.judge(case, rep)
+    ok, why, fig = tc.judge(case, rep, tc.noise_mae_psi(case))
     fig["baseline_mae"] = rep.get("baseline", {}).get("validation", {}).get("mae_psi_deg")
     fig["extended_mae"] = rep.get("extended", {}).get("validation", {}).get("mae_psi_deg")
     return cid, ok, why, fig, sec
@@ -76,7 +81,7 @@ def main(argv=None) -> int:
         print(f"| {cid} | {c.ship} | {c.truth} | {exp} | {fig.get('cause', '-')} | "
               f"{','.join(fig.get('extended', [])) or '-'} | {_fmt(fig.get('gain'))} | "
               f"{_fmt(fig.get('baseline_mae'))}/{_fmt(fig.get('extended_mae'))} | {est or '-'} | {sec:.1f} | "
-              f"{'PASS' if ok else 'FAIL: ' + '; '.join(why)} |")
+              f"{'PASS' if ok else 'FAIL: ' + '; '.join(why)}{_immaterial(fig)} |")
     print(f"\n{npass}/{len(results)} cases pass")
     if a.no_kvlcc2:
         return 0
