@@ -348,8 +348,10 @@ for rid in runs_drawn:
             f"{dt.num(pb.get('mae_psi_deg'), 3)} deg)"
             + (f" and the extended model (red, MAE psi {dt.num(pe.get('mae_psi_deg'), 3)} deg)"
                if named else "")
-            + ", free-run from the first sample. This run chose the effects; the honest gain is measured on "
-            "the runs listed above.")
+            + ", free-run from the initial state estimated on the run's quiet approach"
+            + (f" (each model from its best start within {settings['x0_box_sigma']:g} standard deviations of "
+               "that estimate)" if settings.get("x0_box_sigma") else "")
+            + ". This run chose the effects; the honest gain is measured on the runs listed above.")
 
 # %% [markdown]
 # ## Every effect tried, and why it was kept or rejected

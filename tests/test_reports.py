@@ -399,3 +399,6 @@ def test_banner_names_the_builtin_tank_only_for_its_runs(tmp_path, ship, note, b
     assert ("SIMULATED data, NOT measured" in html) is (not builtin)
     if not builtin:
         assert ship in html and "not the built-in KCS tank" in html
+    # the figures' legend says the same: a user's simulated runs are not "virtual tank"
+    want = "virtual tank (logged)" if builtin else "simulated (logged)"
+    assert Data(tmp_path, "usersim").source_label == want

@@ -122,9 +122,25 @@ class Data:
         return str(self.index.get("provenance", "unknown"))
 
     @property
+    def builtin_tank(self) -> bool:
+        """The runs are the built-in virtual tank's: provenance virtual, the KCS (or no ship named), and
+        no file note other than the tank's own (a user's simulator writing "provenance: virtual" is
+        simulated data, but not this tank)."""
+        if self.provenance != "virtual":
+            return False
+        runs = self.runs()
+        ships = sorted({str(x) for x in runs["ship"].dropna()}) if "ship" in runs.columns else []
+        notes = [str((h or {}).get("note", "")) if isinstance(h, dict) else ""
+                 for h in (runs["header"] if "header" in runs.columns else [None] * len(runs))]
+        return ships in ([], ["KCS"]) and all(not n or n.startswith(TANK_NOTE_PREFIX) for n in notes)
+
+    @property
     def source_label(self) -> str:
-        """Legend label of the logged signals: says plainly whether they are measured or virtual."""
-        return "virtual tank (logged)" if self.provenance == "virtual" else "tank (measured)"
+        """Legend label of the logged signals: says plainly whether they are measured, the built-in
+        virtual tank's, or a user's own simulated runs."""
+        if self.provenance != "virtual":
+            return "tank (measured)"
+        return "virtual tank (logged)" if self.builtin_tank else "simulated (logged)"
 
     def runs(self) -> pd.DataFrame:
         """The runs index as a table (one row per run)."""
@@ -208,12 +224,7 @@ def banner(data: Data, title: str, settings: dict[str, Any] | None = None):
     prov = data.provenance
     runs = data.runs()
     ships = sorted({str(x) for x in runs["ship"].dropna()}) if "ship" in runs.columns else []
-    notes = [str((h or {}).get("note", "")) if isinstance(h, dict) else ""
-             for h in (runs["header"] if "header" in runs.columns else [None] * len(runs))]
-    # the built-in tank's runs: the KCS, and no file note other than the tank's own (a user's
-    # simulator writing "provenance: virtual" is simulated data, but not this tank)
-    tank_runs = all(not n or n.startswith(TANK_NOTE_PREFIX) for n in notes)
-    if prov == "virtual" and ships in ([], ["KCS"]) and tank_runs:
+    if data.builtin_tank:
         box = ("#b00020", "VIRTUAL TANK: simulated data, NOT measured",
                "Every figure and table below comes from the built-in virtual tank (3-DOF MMG model of "
                "the KCS at model scale 1:37.89, SIMMAN 2020 deep water), run through the same stages "
