@@ -332,8 +332,8 @@ def test_tank_dead_time_is_found_with_a_fast_rudder():
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="measured: at constant rps the KCS's rudder inflow hardly drops "
-                   "with speed; speed dependence gains -5 % / -1 % held-out on top of its cubic damping (2026-11-24, "
-                   "boxed start: -7 % / -3 % alone); the "
+                   "with speed; speed dependence gains -5 % / -1 % held-out on top of its cubic damping "
+                   "(2026-11-24, boxed start: -7 % / -3 % alone); the "
                    "oracle reaches 7 % / 7 % on 20/20 + 10/10, 23 % / 21 % on 35/35 + 20/20 (docstring)")
 def test_tank_speed_loss_is_found():
     rep = _diagnosis(hold_speed=False)
