@@ -27,6 +27,31 @@ def test_effects_are_read_from_the_diagnosis_catalogue():
     assert "nonlinear_yaw_damping" in skipped and "speed_loss" in skipped   # own effect, not injectable
 
 
+def test_truth_injects_servo_lag_and_asymmetry_as_they_say():
+    """The linear truth's new injections (pipeline.diagnose.truth, used by the power study):
+    an asymmetry a scales the yaw response to a one-sided rudder by exactly (1 + a) to starboard and
+    (1 - a) to port (linear model, before the first counter-rudder); a first-order servo lag tau
+    delays a rudder ramp by tau once its transient has died, so its response comes far closer to a
+    dead time tau than to no lag at all."""
+    from pipeline.diagnose.truth import TruthConfig, zigzag_truth
+
+    clean = TruthConfig(noise=False)
+    k = int(3.0 / clean.dt)                        # 3 s: before the heading reaches 20 deg
+    for side, factor in (("starboard", 1.2), ("port", 0.8)):
+        r0 = zigzag_truth(20, 20, side, 10.0, clean).frame["r"].to_numpy()[:k]
+        asym = dc.replace(clean, rudder_asymmetry=0.2)
+        ra = zigzag_truth(20, 20, side, 10.0, asym).frame["r"].to_numpy()[:k]
+        assert np.allclose(ra, factor * r0, rtol=1e-9, atol=1e-12), side
+        assert np.max(np.abs(r0)) > 0.5              # deg/s: a real response, not a vacuous match
+
+    def r_of(**kw):
+        return zigzag_truth(20, 20, "starboard", 10.0, dc.replace(clean, **kw)).frame["r"].to_numpy()[:k]
+
+    r0, r_lag, r_delay = r_of(), r_of(rudder_lag=0.5), r_of(rudder_delay=0.5)
+    assert np.max(np.abs(r_lag - r_delay)) < 0.3 * np.max(np.abs(r_lag - r0))
+    assert np.all(np.abs(r_lag[:k]) <= np.abs(r0[:k]) + 1e-12)   # a lag never leads
+
+
 def ci_sized(spec):
     """studies/power-ci.toml (what CI's `make study` variant runs, 22 cases of 50 s) cut to test size:
     12 cases of 40 s.  Every effect of the catalogue keeps one magnitude (its larger one) x 2 seeds,

@@ -35,6 +35,8 @@ class TruthConfig:
     rudder_rate: float = 14.0  # deg/s servo rate
     rudder_offset: float = 0.0  # deg
     rudder_delay: float = 0.0  # s
+    rudder_lag: float = 0.0  # s, first-order servo lag: d(delta_eff)/dt = (delta - delta_eff) / lag
+    rudder_asymmetry: float = 0.0  # 1: force ~ delta_eff (1 + a sign(delta_eff)), a > 0 stronger to starboard
     n_rrr: float = 0.0  # s/deg^2
     speed_loss_k: float = 0.0  # non-dimensional surge loss coefficient
     tau_u: float = 12.0  # s, surge recovery time constant
@@ -69,6 +71,7 @@ def zigzag_truth(
     v = r = psi = 0.0
     u = cfg.u0
     d = 0.0
+    d_lagged = 0.0  # deg, the servo lag's state
     cmd = sign * rudder_deg
     out = np.zeros((n, 6))  # time psi r v u delta (true)
     noise_psi = rng.normal(0.0, cfg.noise_psi, n) if cfg.noise else np.zeros(n)
@@ -86,7 +89,11 @@ def zigzag_truth(
         step = np.clip(cmd - d, -cfg.rudder_rate * h, cfg.rudder_rate * h)
         d += step
         hist[i] = d
-        d_eff = (hist[i - lag] if i >= lag else 0.0) + cfg.rudder_offset
+        d_in = hist[i - lag] if i >= lag else 0.0
+        if cfg.rudder_lag > 0.0:  # explicit Euler of the lag: h / lag <= 0.1 for lags >= 0.1 s
+            d_in, d_lagged = d_lagged, d_lagged + h * (d_in - d_lagged) / cfg.rudder_lag
+        d_eff = d_in + cfg.rudder_offset
+        d_eff *= 1.0 + cfg.rudder_asymmetry * np.sign(d_eff)
         s = u / cfg.u0
         dv = s * a11 * v + s * a12 * r + s * s * b11 * d_eff
         dr = s * a21 * v + s * a22 * r + s * s * b21 * d_eff + cfg.n_rrr * r**3
@@ -155,7 +162,8 @@ def damping_for_cut(cut: float, cfg: TruthConfig = TruthConfig(), duration: floa
     import dataclasses
 
     clean = dataclasses.replace(
-        cfg, noise=False, n_rrr=0.0, rudder_offset=0.0, rudder_delay=0.0, speed_loss_k=0.0
+        cfg, noise=False, n_rrr=0.0, rudder_offset=0.0, rudder_delay=0.0, speed_loss_k=0.0,
+        rudder_lag=0.0, rudder_asymmetry=0.0,
     )
     amp0 = yaw_rate_amplitude(zigzag_truth(20, 20, "starboard", duration, clean))
 
@@ -171,7 +179,8 @@ def speed_loss_for(loss: float, cfg: TruthConfig = TruthConfig(), duration: floa
     import dataclasses
 
     clean = dataclasses.replace(
-        cfg, noise=False, n_rrr=0.0, rudder_offset=0.0, rudder_delay=0.0, speed_loss_k=0.0
+        cfg, noise=False, n_rrr=0.0, rudder_offset=0.0, rudder_delay=0.0, speed_loss_k=0.0,
+        rudder_lag=0.0, rudder_asymmetry=0.0,
     )
 
     def drop(k):

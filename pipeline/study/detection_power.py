@@ -50,10 +50,13 @@ from pipeline.study.stats import clopper_pearson, logistic_level, rng_for
 PLANTS = ("truth", "tank")
 #: The estimate key holding each effect's size in the same terms as the injected truth value.
 ESTIMATE_KEY = {"rudder_offset": "offset_deg", "rudder_delay": "delay_s",
-                "nonlinear_yaw_damping": "n_rrr_s_per_deg2", "speed_loss": "coefficient_loss"}
+                "nonlinear_yaw_damping": "n_rrr_s_per_deg2", "speed_loss": "coefficient_loss",
+                "rudder_lag": "lag_s", "rudder_asymmetry": "asymmetry"}
 MAGNITUDE_UNIT = {"rudder_offset": "deg", "rudder_delay": "s",
                   "nonlinear_yaw_damping": "cut of the 20/20 yaw-rate amplitude",
-                  "speed_loss": "fraction of approach speed lost"}
+                  "speed_loss": "fraction of approach speed lost",
+                  "rudder_lag": "s (servo time constant)",
+                  "rudder_asymmetry": "a: rudder force x (1 + a sign(delta))"}
 
 
 def catalogue_effects() -> tuple[str, ...]:
@@ -81,6 +84,10 @@ def _truth_inject(effect: str, mag: float, cfg):
     if effect == "speed_loss":
         k = _cached(speed_loss_for, mag, cfg)
         return dc.replace(cfg, speed_loss_k=k), mag
+    if effect == "rudder_lag":
+        return dc.replace(cfg, rudder_lag=mag), mag
+    if effect == "rudder_asymmetry":
+        return dc.replace(cfg, rudder_asymmetry=mag), mag
     raise KeyError(effect)
 
 
@@ -94,7 +101,8 @@ def _tank_inject(effect: str, mag: float, cfg: TankConfig):
 
 #: what each plant can inject, and why not the rest
 INJECTABLE = {
-    "truth": ("rudder_offset", "rudder_delay", "nonlinear_yaw_damping", "speed_loss"),
+    "truth": ("rudder_offset", "rudder_delay", "nonlinear_yaw_damping", "speed_loss", "rudder_lag",
+              "rudder_asymmetry"),
     "tank": ("rudder_offset", "rudder_delay"),
 }
 WHY_NOT = {
