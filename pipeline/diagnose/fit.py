@@ -102,6 +102,8 @@ class Series:
 
 
 def initial_state(s: Series, window_s: float) -> np.ndarray:
+    """The state (v m/s, r deg/s, psi deg) at the first sample of ``s``: :func:`initial_state_with_std`
+    without its standard deviation."""
     return initial_state_with_std(s, window_s)[0]
 
 

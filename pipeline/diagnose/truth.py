@@ -93,7 +93,8 @@ def zigzag_truth(
         if cfg.rudder_lag > 0.0:  # explicit Euler of the lag: h / lag <= 0.1 for lags >= 0.1 s
             d_in, d_lagged = d_lagged, d_lagged + h * (d_in - d_lagged) / cfg.rudder_lag
         d_eff = d_in + cfg.rudder_offset
-        d_eff *= 1.0 + cfg.rudder_asymmetry * np.sign(d_eff)
+        if cfg.rudder_asymmetry:
+            d_eff *= 1.0 + cfg.rudder_asymmetry * np.sign(d_eff)
         s = u / cfg.u0
         dv = s * a11 * v + s * a12 * r + s * s * b11 * d_eff
         dr = s * a21 * v + s * a22 * r + s * s * b21 * d_eff + cfg.n_rrr * r**3

@@ -129,10 +129,15 @@ class Data:
         if self.provenance != "virtual":
             return False
         runs = self.runs()
-        ships = sorted({str(x) for x in runs["ship"].dropna()}) if "ship" in runs.columns else []
         notes = [str((h or {}).get("note", "")) if isinstance(h, dict) else ""
                  for h in (runs["header"] if "header" in runs.columns else [None] * len(runs))]
-        return ships in ([], ["KCS"]) and all(not n or n.startswith(TANK_NOTE_PREFIX) for n in notes)
+        return self.ships in ([], ["KCS"]) and all(not n or n.startswith(TANK_NOTE_PREFIX) for n in notes)
+
+    @property
+    def ships(self) -> list[str]:
+        """The ship names the runs give (sorted, distinct; empty when none is named)."""
+        runs = self.runs()
+        return sorted({str(x) for x in runs["ship"].dropna()}) if "ship" in runs.columns else []
 
     @property
     def source_label(self) -> str:
@@ -223,7 +228,7 @@ def banner(data: Data, title: str, settings: dict[str, Any] | None = None):
 
     prov = data.provenance
     runs = data.runs()
-    ships = sorted({str(x) for x in runs["ship"].dropna()}) if "ship" in runs.columns else []
+    ships = data.ships
     if data.builtin_tank:
         box = ("#b00020", "VIRTUAL TANK: simulated data, NOT measured",
                "Every figure and table below comes from the built-in virtual tank (3-DOF MMG model of "
