@@ -52,6 +52,60 @@ def test_truth_injects_servo_lag_and_asymmetry_as_they_say():
     assert np.all(np.abs(r_lag[:k]) <= np.abs(r0[:k]) + 1e-12)   # a lag never leads
 
 
+def test_truth_hull_and_stall_injections_are_the_documented_equations():
+    """The truth's cross-flow drag (y_vv v|v| in sway), yaw cross term (n_vvr v^2 r) and tanh stall,
+    held to an independent integration: scipy's adaptive RK45 of the documented continuous-time
+    equations, driven by the truth's own logged (servo) rudder, linearly interpolated (the servo is a
+    rate-limited ramp, so that is exact between its corners).  The truth integrates by Euler at
+    0.01 s: agreement within 1 % of the response amplitude (Euler's error measured 0.3-0.4 %), while
+    each effect moves the response by over 10x that; and the study's magnitude helpers hit their
+    targets."""
+    from scipy.integrate import solve_ivp
+
+    from pipeline.diagnose import truth as tr
+    from pipeline.model import as_theta
+
+    clean = tr.TruthConfig(noise=False)
+    a11, a12, a21, a22, b11, b21 = as_theta(clean.theta)
+    base = tr.zigzag_truth(20, 20, "starboard", 40.0, clean).frame
+    for kw in ({"y_vv": -1.0}, {"n_vvr": -2.0}, {"rudder_stall_deg": 20.0}):
+        cfg = dc.replace(clean, **kw)
+        f = tr.zigzag_truth(20, 20, "starboard", 40.0, cfg).frame
+        t, d = f["time"].to_numpy(), f["delta"].to_numpy()
+        stall = cfg.rudder_stall_deg
+
+        def rhs(ti, x, t=t, d=d, stall=stall, cfg=cfg):
+            v, r = x
+            de = float(np.interp(ti, t, d))
+            force = stall * np.tanh(de / stall) if stall else de
+            return [a11 * v + a12 * r + b11 * force + cfg.y_vv * v * abs(v),
+                    a21 * v + a22 * r + b21 * force + cfg.n_vvr * v * v * r]
+
+        ref = solve_ivp(rhs, (0.0, t[-1]), [0.0, 0.0], t_eval=t, rtol=1e-8, atol=1e-10, max_step=0.02)
+        for j, col in enumerate(("v", "r")):
+            amp = np.max(np.abs(ref.y[j]))
+            err = np.max(np.abs(f[col].to_numpy() - ref.y[j]))
+            moved = np.max(np.abs(f[col].to_numpy() - base[col].to_numpy()))
+            assert err < 0.01 * amp, (kw, col, err, amp)   # measured 0.26-0.40 %
+            assert moved > 10 * err, (kw, col, moved, err)
+    # the magnitude helpers: a 20 % cut of the sway amplitude, a 10 % cut of the yaw-rate amplitude,
+    # 10 % of the rudder force lost at 20 deg
+    def zz(c):
+        return tr.zigzag_truth(20, 20, "starboard", 60.0, c)
+
+    y = tr.sway_drag_for_cut(0.2, clean)
+    v_amp = tr.sway_velocity_amplitude
+    cut = 1 - v_amp(zz(dc.replace(clean, y_vv=y))) / v_amp(zz(clean))
+    assert y < 0 and cut == pytest.approx(0.2, abs=1e-4)
+    n = tr.cross_term_for_change(0.1, clean)
+    cut = 1 - tr.yaw_rate_amplitude(zz(dc.replace(clean, n_vvr=n))) / tr.yaw_rate_amplitude(zz(clean))
+    assert n < 0 and cut == pytest.approx(0.1, abs=1e-4)
+    s = tr.stall_for_loss(0.1, 20.0)
+    assert s * np.tanh(20.0 / s) == pytest.approx(18.0, rel=1e-9)
+    with pytest.raises(ValueError, match="must be in"):
+        tr.stall_for_loss(1.2)
+
+
 def ci_sized(spec):
     """studies/power-ci.toml (what CI's `make study` variant runs, 22 cases of 50 s) cut to test size:
     12 cases of 40 s.  Every effect of the catalogue keeps one magnitude (its larger one) x 2 seeds,

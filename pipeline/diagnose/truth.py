@@ -8,6 +8,13 @@ Effects (each off by default) act as SPEC section 7 defines them:
 - ``rudder_offset`` deg: effective rudder = logged + offset;
 - ``rudder_delay`` s: effective rudder = logged(t - delay);
 - ``n_rrr`` s/deg^2: r' gains n_rrr r^3 (Norrbin cubic yaw damping, negative = more damping);
+- ``y_vv`` 1/m, ``n_vv`` deg/m^2: cross-flow drag, v' gains y_vv v|v| and r' gains n_vv v|v|
+  (negative y_vv = more sway damping; in pure sway the drag of a fore-aft near-symmetric hull has
+  little moment, so the study injects y_vv alone, as the KCS's MMG N'vvv is small beside Y'vvv);
+- ``n_vvr`` s/m^2: r' gains n_vvr v^2 r (Abkowitz's sway-yaw cross term, in the yaw equation only;
+  negative = more yaw damping while drifting);
+- ``rudder_stall_deg`` deg: the rudder force follows stall_deg tanh(delta_eff / stall_deg) instead of
+  delta_eff (a smooth lift saturation, not the catalogue's cubic form; 0 = off);
 - ``speed_loss_k``: surge u' = -(u - U0)/tau_u - k U0 (r in rad/s)^2; the linear coefficients scale
   with u/U0 and the rudder terms with (u/U0)^2 (dimensional coefficients ~ U/L, rudder force ~ U^2).
 
@@ -17,6 +24,7 @@ The logged rudder is the servo's output (what a rudder-angle sensor reads).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +46,10 @@ class TruthConfig:
     rudder_lag: float = 0.0  # s, first-order servo lag: d(delta_eff)/dt = (delta - delta_eff) / lag
     rudder_asymmetry: float = 0.0  # 1: force ~ delta_eff (1 + a sign(delta_eff)), a > 0 stronger to starboard
     n_rrr: float = 0.0  # s/deg^2
+    y_vv: float = 0.0  # 1/m, sway cross-flow drag v|v|
+    n_vv: float = 0.0  # deg/m^2, its yaw moment
+    n_vvr: float = 0.0  # s/m^2, yaw cross term v^2 r
+    rudder_stall_deg: float = 0.0  # deg, rudder force ~ stall tanh(delta_eff / stall); 0 = linear
     speed_loss_k: float = 0.0  # non-dimensional surge loss coefficient
     tau_u: float = 12.0  # s, surge recovery time constant
     noise: bool = True
@@ -95,9 +107,14 @@ def zigzag_truth(
         d_eff = d_in + cfg.rudder_offset
         if cfg.rudder_asymmetry:
             d_eff *= 1.0 + cfg.rudder_asymmetry * np.sign(d_eff)
+        if cfg.rudder_stall_deg > 0.0:
+            d_eff = cfg.rudder_stall_deg * np.tanh(d_eff / cfg.rudder_stall_deg)
         s = u / cfg.u0
         dv = s * a11 * v + s * a12 * r + s * s * b11 * d_eff
         dr = s * a21 * v + s * a22 * r + s * s * b21 * d_eff + cfg.n_rrr * r**3
+        if cfg.y_vv or cfg.n_vv or cfg.n_vvr:  # only when set: a clean truth keeps the linear bits
+            dv += cfg.y_vv * v * abs(v)
+            dr += cfg.n_vv * v * abs(v) + cfg.n_vvr * v * v * r
         du = -(u - cfg.u0) / cfg.tau_u - cfg.speed_loss_k * cfg.u0 * np.deg2rad(r) ** 2
         psi += h * r
         v += h * dv
@@ -158,14 +175,17 @@ def _bisect(fun, lo: float, hi: float, target: float, iters: int = 30) -> float:
     return 0.5 * (lo + hi)
 
 
+def _clean(cfg: TruthConfig) -> TruthConfig:
+    """``cfg`` without noise and without any effect (the same ship)."""
+    return dataclasses.replace(
+        cfg, noise=False, n_rrr=0.0, rudder_offset=0.0, rudder_delay=0.0, speed_loss_k=0.0,
+        rudder_lag=0.0, rudder_asymmetry=0.0, y_vv=0.0, n_vv=0.0, n_vvr=0.0, rudder_stall_deg=0.0,
+    )
+
+
 def damping_for_cut(cut: float, cfg: TruthConfig = TruthConfig(), duration: float = 60.0) -> float:
     """n_rrr (s/deg^2, negative) that cuts the yaw-rate amplitude of the truth's 20/20 zigzag by ``cut``."""
-    import dataclasses
-
-    clean = dataclasses.replace(
-        cfg, noise=False, n_rrr=0.0, rudder_offset=0.0, rudder_delay=0.0, speed_loss_k=0.0,
-        rudder_lag=0.0, rudder_asymmetry=0.0,
-    )
+    clean = _clean(cfg)
     amp0 = yaw_rate_amplitude(zigzag_truth(20, 20, "starboard", duration, clean))
 
     def reduction(mag):
@@ -177,12 +197,7 @@ def damping_for_cut(cut: float, cfg: TruthConfig = TruthConfig(), duration: floa
 
 def speed_loss_for(loss: float, cfg: TruthConfig = TruthConfig(), duration: float = 60.0) -> float:
     """speed_loss_k giving the lowest speed (1 - ``loss``) u0 in the truth's 20/20 zigzag."""
-    import dataclasses
-
-    clean = dataclasses.replace(
-        cfg, noise=False, n_rrr=0.0, rudder_offset=0.0, rudder_delay=0.0, speed_loss_k=0.0,
-        rudder_lag=0.0, rudder_asymmetry=0.0,
-    )
+    clean = _clean(cfg)
 
     def drop(k):
         return 1.0 - lowest_speed_ratio(
@@ -190,3 +205,46 @@ def speed_loss_for(loss: float, cfg: TruthConfig = TruthConfig(), duration: floa
         )
 
     return _bisect(drop, 0.0, 20.0, loss)
+
+
+def sway_velocity_amplitude(run: Run, skip_s: float = 10.0) -> float:
+    """Largest |v| (m/s) after ``skip_s`` seconds (the zigzag's sway-velocity amplitude)."""
+    f = run.frame
+    return float(np.abs(f["v"].to_numpy()[f["time"].to_numpy() >= skip_s]).max())
+
+
+def _coefficient_for_change(name: str, sign: float, change: float, hi: float, cfg: TruthConfig,
+                            duration: float, amplitude=yaw_rate_amplitude) -> float:
+    """Value of the truth field ``name`` (sign ``sign``) that changes ``amplitude`` (default: the peak
+    yaw rate) of the truth's 20/20 zigzag by the fraction ``change`` (either way); bisection on the
+    field's size in [0, ``hi``]."""
+    clean = _clean(cfg)
+    amp0 = amplitude(zigzag_truth(20, 20, "starboard", duration, clean))
+
+    def rel(mag):
+        run = zigzag_truth(20, 20, "starboard", duration, dataclasses.replace(clean, **{name: sign * mag}))
+        return abs(1.0 - amplitude(run) / amp0)
+
+    return sign * _bisect(rel, 0.0, hi, change)
+
+
+def sway_drag_for_cut(cut: float, cfg: TruthConfig = TruthConfig(), duration: float = 60.0) -> float:
+    """y_vv (1/m, negative) cutting the 20/20 peak sway velocity by the fraction ``cut`` (sway only)."""
+    return _coefficient_for_change("y_vv", -1.0, cut, 50.0, cfg, duration, sway_velocity_amplitude)
+
+
+def cross_term_for_change(change: float, cfg: TruthConfig = TruthConfig(), duration: float = 60.0) -> float:
+    """n_vvr (s/m^2, negative) changing the 20/20 peak yaw rate by the fraction ``change``."""
+    return _coefficient_for_change("n_vvr", -1.0, change, 200.0, cfg, duration)
+
+
+def stall_for_loss(loss: float, max_deg: float = 20.0) -> float:
+    """Stall angle (deg) at which stall tanh(max_deg / stall) falls ``loss`` (a fraction) short of
+    max_deg: the rudder force lost at ``max_deg``.  Bisection on 1/stall (the loss grows with it)."""
+    if not 0.0 < loss < 1.0:
+        raise ValueError(f"rudder force loss must be in (0, 1), got {loss}")
+
+    def lost(inv):
+        return 1.0 - np.tanh(max_deg * inv) / (max_deg * inv)
+
+    return 1.0 / _bisect(lost, 1e-9, 50.0 / max_deg, loss, iters=60)

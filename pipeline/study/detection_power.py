@@ -11,13 +11,16 @@ folds); with 1, train on R/R starboard and validate on R/R port (one fold: cheap
 Plants:
 
 * ``truth``: the linear truth model (:mod:`pipeline.diagnose.truth`, continuous time, 8 sub-steps,
-  seeded white noise); the ship is the paper's Table 4 with the hull block and the rudder block each
-  scaled by a factor drawn in [0.85, 1.15] per case (from the case's seed), so the study does not
-  measure one ship only.  Clean means exactly linear plus white noise: any significant effect there
+  seeded white noise; every catalogue effect injectable, each in a form of its own, not the
+  candidate's: a servo lag, v|v| drag in sway only, v^2 r in yaw only, a tanh rudder stall); the
+  ship is the paper's Table 4 with the hull block and the rudder block each scaled by a factor
+  drawn in [0.85, 1.15] per case (from the case's seed), so the study does not measure one ship
+  only.  Clean means exactly linear plus white noise: any significant effect there
   is a false positive.
 * ``tank``: the virtual KCS (:mod:`pipeline.tank`, port/starboard-symmetric rudder, speed held),
   effects injected through TankConfig.  The KCS has effects of its own (``tank_own_effects``: its
-  cubic yaw damping); those are not counted as false positives there, and not studied on it.
+  hull nonlinearity, which any hull effect may carry); those are not counted as false positives
+  there, and not studied on it.
 
 Per case: ``detected`` = the injected effect's finding is significant; ``named`` = it is the named
 cause; ``false_positive`` = some other effect (not one of the plant's own) is significant; the
@@ -51,12 +54,17 @@ PLANTS = ("truth", "tank")
 #: The estimate key holding each effect's size in the same terms as the injected truth value.
 ESTIMATE_KEY = {"rudder_offset": "offset_deg", "rudder_delay": "delay_s",
                 "nonlinear_yaw_damping": "n_rrr_s_per_deg2", "speed_loss": "coefficient_loss",
-                "rudder_lag": "lag_s", "rudder_asymmetry": "asymmetry"}
+                "rudder_lag": "lag_s", "rudder_asymmetry": "asymmetry",
+                "nonlinear_sway_damping": "y_vv_per_m", "sway_yaw_coupling": "n_vvr_s_per_m2",
+                "rudder_saturation": "force_change_at_max_rudder"}
 MAGNITUDE_UNIT = {"rudder_offset": "deg", "rudder_delay": "s",
                   "nonlinear_yaw_damping": "cut of the 20/20 yaw-rate amplitude",
                   "speed_loss": "fraction of approach speed lost",
                   "rudder_lag": "s (servo time constant)",
-                  "rudder_asymmetry": "a: rudder force x (1 + a sign(delta))"}
+                  "rudder_asymmetry": "a: rudder force x (1 + a sign(delta))",
+                  "nonlinear_sway_damping": "cut of the 20/20 sway-velocity amplitude (v|v| drag, sway only)",
+                  "sway_yaw_coupling": "cut of the 20/20 yaw-rate amplitude (v^2 r in the yaw equation)",
+                  "rudder_saturation": "rudder force lost at 20 deg (stall tanh(delta/stall) law)"}
 
 
 def catalogue_effects() -> tuple[str, ...]:
@@ -72,7 +80,13 @@ def catalogue_effects() -> tuple[str, ...]:
 
 def _truth_inject(effect: str, mag: float, cfg):
     """(truth config with the effect, true value in the estimate's terms)."""
-    from pipeline.diagnose.truth import damping_for_cut, speed_loss_for
+    from pipeline.diagnose.truth import (
+        cross_term_for_change,
+        damping_for_cut,
+        speed_loss_for,
+        stall_for_loss,
+        sway_drag_for_cut,
+    )
 
     if effect == "rudder_offset":
         return dc.replace(cfg, rudder_offset=mag), mag
@@ -88,6 +102,17 @@ def _truth_inject(effect: str, mag: float, cfg):
         return dc.replace(cfg, rudder_lag=mag), mag
     if effect == "rudder_asymmetry":
         return dc.replace(cfg, rudder_asymmetry=mag), mag
+    if effect == "nonlinear_sway_damping":
+        y = _cached(sway_drag_for_cut, mag, cfg)
+        return dc.replace(cfg, y_vv=y), y
+    if effect == "sway_yaw_coupling":
+        n = _cached(cross_term_for_change, mag, cfg)
+        return dc.replace(cfg, n_vvr=n), n
+    if effect == "rudder_saturation":
+        # the magnitude is the force lost at 20 deg (the rudder of the 20/20 design that defines every
+        # truth magnitude); the estimate is the cubic's force change at the largest logged rudder,
+        # the same quantity in other terms when the study's rudder_deg is 20
+        return dc.replace(cfg, rudder_stall_deg=stall_for_loss(mag, 20.0)), -mag
     raise KeyError(effect)
 
 
@@ -102,7 +127,7 @@ def _tank_inject(effect: str, mag: float, cfg: TankConfig):
 #: what each plant can inject, and why not the rest
 INJECTABLE = {
     "truth": ("rudder_offset", "rudder_delay", "nonlinear_yaw_damping", "speed_loss", "rudder_lag",
-              "rudder_asymmetry"),
+              "rudder_asymmetry", "nonlinear_sway_damping", "sway_yaw_coupling", "rudder_saturation"),
     "tank": ("rudder_offset", "rudder_delay"),
 }
 WHY_NOT = {
@@ -287,8 +312,12 @@ def summarise(frame: pd.DataFrame, cfg: DetectionPowerConfig, study_seed: int) -
                 k, n = int(g["detected"].astype(bool).sum()), len(g)
                 lo, hi = clopper_pearson(k, n, conf)
                 named = int(g["named"].astype(bool).sum())
+                # what the diagnosis named instead, when not this effect: in a zigzag the drift follows
+                # the turn, so a hull effect may be carried by another (the rates stay strict)
+                causes = g["cause"].value_counts()
                 rates.append({"magnitude": float(m), "n": n, "detected": k, "rate": k / n,
-                              "interval": [lo, hi], "named_rate": named / n})
+                              "interval": [lo, hi], "named_rate": named / n,
+                              "causes": {str(c): int(causes[c]) for c in sorted(causes.index)}})
                 err = pd.to_numeric(g["estimate_error"], errors="coerce").dropna().to_numpy()
                 tv = pd.to_numeric(g["truth_value"], errors="coerce").dropna().to_numpy()
                 est_rows.append({
@@ -395,7 +424,7 @@ def render(frame: pd.DataFrame, summary: dict, out: Path) -> None:
     for ax in axes.ravel()[len(effects):]:
         ax.axis("off")
     fig.suptitle(f"Detection power: {summary['study']['name']} (simulated cases)")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - 0.4 / fig.get_figheight()))  # 0.4 in for the title
     with atomic_path(out / "power_curves.png", suffix=".png") as tmp:
         fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
     plt.close(fig)
@@ -433,6 +462,16 @@ def _page(summary: dict) -> str:
                 f"<td>{_fmt(fit.get('value'))}</td>"
                 f"<td>[{_fmt(iv[0])}, {_fmt(iv[1])}]</td><td class=l>{e(entry['magnitude_unit'])}</td>"
                 f"<td class=l>{e(fit.get('note') or '')}</td></tr>")
+    parts.append("</table><h2>Detected, and what was named, per magnitude</h2><table><tr>"
+                 "<th class=l>effect</th><th class=l>plant</th><th>magnitude</th><th>detected</th>"
+                 "<th class=l>cause named (cases)</th></tr>")
+    for effect, entry in summary["effects"].items():
+        for plant, rates in entry["detection"].items():
+            for r in rates:
+                named = ", ".join(f"{c} {k}" for c, k in (r.get("causes") or {}).items())
+                parts.append(f"<tr><td class=l>{e(effect)}</td><td class=l>{e(plant)}</td>"
+                             f"<td>{_fmt(r['magnitude'])}</td><td>{r['detected']}/{r['n']}</td>"
+                             f"<td class=l>{e(named)}</td></tr>")
     parts.append("</table><h2>False positives on clean data</h2><table><tr><th class=l>plant</th>"
                  "<th>rate</th><th>interval</th><th>cases</th><th class=l>counts as false</th></tr>")
     for plant, fp in summary["clean"]["false_positive_rate"].items():
