@@ -225,6 +225,11 @@ class DiagnoseConfig:
     # against 7.7 deg).  The start is part of the model choice, so it is chosen on the data that
     # choose (validation), never on the runs the reported gain is measured on (test / nested).
     cold_start: bool = True
+    # worker processes of the nested leave-one-run-out (its selections are independent of the main
+    # one and of each other): 0 = one per core of this process, 1 = in this process.  Used only where
+    # a fork is safe (a single-threaded, non-daemon process; pipeline.diagnose.core._nested_workers),
+    # so never inside a Dask worker or a threaded host.  The report is the same bytes for any value
+    nested_workers: int = 0
 
 
 @dataclass(frozen=True)
@@ -249,9 +254,13 @@ class DetectionPowerConfig:
     is not there.
 
     Magnitudes are in each effect's physical terms: rudder_offset deg, rudder_delay s (dead time),
-    nonlinear_yaw_damping the fraction by which the extra damping cuts the 20/20 yaw-rate amplitude,
-    speed_loss the fraction of approach speed lost in the 20/20 zigzag.  An effect of the catalogue
-    with no magnitudes here is listed in summary.json as not studied.
+    rudder_lag s (servo time constant), rudder_asymmetry the fraction a (force x (1 + a sign delta)),
+    nonlinear_yaw_damping and sway_yaw_coupling the fraction by which the term cuts the 20/20
+    yaw-rate amplitude, nonlinear_sway_damping the fraction by which v|v| drag cuts the 20/20
+    sway-velocity amplitude, rudder_saturation the fraction of rudder force lost at 20 deg, speed_loss
+    the fraction of approach speed lost in the 20/20 zigzag (the truth's forms:
+    pipeline.diagnose.truth).  An effect of the catalogue with no magnitudes here is listed in
+    summary.json as not studied.
     """
 
     effects: tuple[str, ...] = ()        # empty: every effect of the diagnosis catalogue

@@ -574,3 +574,45 @@ def test_report_verdict_of_an_effect_that_harms_a_held_out_run():
     v, why = dt.verdict(f, settings)
     assert v == "harms a held-out run" and "Z_10_01 2.71 -> 7.81 deg" in why and "added to" not in why
     assert dt.failed_tests(f, settings) == ("harms a held-out run",)
+
+
+@pytest.mark.slow
+def test_nested_workers_give_the_same_report_bytes():
+    """The nested leave-one-run-out in 2 worker processes (forked while the parent makes the main
+    selection) gives the report of the in-process run byte for byte, in a fresh single-threaded
+    interpreter (the only place the workers are used; tests/nested_bytes.py)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run([sys.executable, str(root / "tests" / "nested_bytes.py")], cwd=root,
+                          capture_output=True, text=True,
+                          env={**__import__("os").environ, "PYTHONPATH": str(root)}, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+    assert got == {"same": True, "nested": 4}
+
+
+def test_nested_workers_stay_in_process_where_a_fork_is_unsafe():
+    """1 when asked, with fewer than two runs, and in a process with another thread (a fork would
+    copy its held locks); otherwise the count asked, capped by the runs (the subprocess test above
+    checks 2 in a fresh interpreter)."""
+    import threading
+
+    from pipeline.config import DiagnoseConfig
+    from pipeline.diagnose.core import _nested_workers
+
+    stop = threading.Event()
+    t = threading.Thread(target=stop.wait, daemon=True)
+    t.start()
+    try:
+        assert _nested_workers(DiagnoseConfig(nested_workers=2), 4) == 1
+        assert _nested_workers(DiagnoseConfig(nested_workers=0), 4) == 1
+    finally:
+        stop.set()
+        t.join()
+    assert _nested_workers(DiagnoseConfig(nested_workers=1), 4) == 1
+    assert _nested_workers(DiagnoseConfig(nested_workers=8), 1) == 1
+    if threading.active_count() == 1:   # pytest-xdist's worker has its own threads: then only the above
+        assert _nested_workers(DiagnoseConfig(nested_workers=8), 3) == 3

@@ -24,11 +24,17 @@ Nothing here knows the ship: scales come from the data.
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
+import os
+import threading
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 from scipy.signal import savgol_filter
+from threadpoolctl import threadpool_limits
 
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
@@ -40,6 +46,8 @@ from pipeline.diagnose.fit import (
     _u_ratio,
     is_stable,
     memoised,
+    plain_active,
+    plain_fits,
     profile_time_params,
     reference_speed,
     series_from_run,
@@ -247,7 +255,18 @@ def diagnose(
     progress: bool = False,
     test: list[Run] | None = None,
 ) -> Diagnosis:
-    """Run the diagnosis of SPEC section 7 on processed runs; pure (no files)."""
+    """Run the diagnosis of SPEC section 7 on processed runs; pure (no files).
+
+    BLAS runs on one thread here (threadpoolctl): the least-squares steps are products of a Jacobian
+    a few thousand rows by a dozen columns, too small for threads, whose start-up and spinning cost
+    more than they save (measured on the 2-core machine: the bench case 26.2 -> 25.4 s alone, 32 -> 17
+    s wall with the nested workers, which would otherwise run 2 BLAS threads each on the same 2
+    cores); and a reduction's order, hence its last bits, no longer depends on the host's cores."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _diagnose_runs(train, validate, cfg, progress, test)
+
+
+def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     cfg = cfg if cfg is not None else DiagnoseConfig()
     test = list(test or [])
     if not train:
@@ -276,6 +295,22 @@ def diagnose(
         cfg.x0_box_sigma,
     )
     noise = heading_noise_deg(va, ctx.t_ship)
+    # the nested leave-one-run-out's selections do not depend on the main one: with workers, they run
+    # in worker processes while this one makes the main selection (same results, any worker count)
+    pool, futures = None, None
+    workers = 1 if te else _nested_workers(cfg, len(tr) + len(va))
+    if workers > 1:
+        pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
+        futures = [pool.submit(_nested_task, folds, i, ctx, cfg, noise, plain_active())
+                   for i in range(len(tr) + len(va))]
+    try:
+        return _diagnose(train, validate, test, cfg, progress, folds, te, ctx, noise, futures)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _diagnose(train, validate, test, cfg, progress, folds, te, ctx, noise, futures) -> Diagnosis:
     bar = None
     if progress:
         from tqdm import tqdm
@@ -285,7 +320,8 @@ def diagnose(
     search = Search(folds, ctx, cfg)
     ks = list(range(len(folds)))
     sel = select(search, ks, noise, progress=tick)
-    honest = _honest_gain(search, sel, folds, te, ctx, cfg, noise)
+    nested = None if futures is None else [f.result() for f in futures]
+    honest = _honest_gain(search, sel, folds, te, ctx, cfg, noise, nested)
     # stability: each fold alone (with --test runs; otherwise the leave-one-run-out selections are the folds)
     per_fold = [select(search, [k], noise) for k in ks] if te and len(folds) > 1 else []
     if bar is not None:
@@ -324,8 +360,75 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
     return inner
 
 
-def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> dict:
-    """The gain on runs no choice has seen, with its 95 % interval; and each rung of the ladder there."""
+def _nested_one(folds, held, ctx, cfg, noise):
+    """One round of the nested leave-one-run-out: the selection repeated without ``held``
+    (:func:`_inner_folds`), the chosen structure refitted on the other runs and both models evaluated
+    on ``held`` alone.  Returns ((baseline evaluation, extended evaluation), nested entry), or None
+    when ``held`` cannot be held out (no training or no validation run left) or a fit fails."""
+    tr, va = folds[0].train, folds[0].val
+    tr_i = [s for s in tr if s is not held]
+    va_i = [s for s in va if s is not held]
+    if not tr_i or not va_i:
+        return None
+    inner = _inner_folds(folds, held, cfg)
+    isearch = Search(inner, ctx, cfg)
+    try:
+        isel = select(isearch, list(range(len(inner))), noise)
+        refit = Search([Fold(tr_i + va_i, [held])], ctx, cfg)
+        b0 = refit.fit(0, (), start=isearch.fit(0, ()))
+        st = isel.structure
+        if st:
+            refit.fit(0, st, start=b0)
+            refit.refine(0, (), st)
+    except ModelError:
+        return None
+    pb = refit.eval(0, ())[1]
+    pe = refit.eval(0, st)[1] if st else pb
+    entry = {
+        "fold": f"hold out {held.name}",
+        "effects": [e for e, _ in st],
+        "cause": isel.cause,
+        "chosen_on": [s.name for s in tr_i + va_i],
+        "measured_on": [held.name],
+        "baseline_mae_psi_deg": pb[0]["mae_psi_deg"],
+        "extended_mae_psi_deg": pe[0]["mae_psi_deg"],
+        "gain": _gain(pb[0]["mae_psi_deg"], pe[0]["mae_psi_deg"]),
+    }
+    return (pb, pe), entry
+
+
+def _nested_task(folds, i: int, ctx, cfg, noise, plain: bool):
+    """:func:`_nested_one` of run ``i`` (of training + validation), in a worker process: ``folds``
+    arrive as one pickled graph, so the runs are shared objects there as here; its own fit memo (the
+    same bits as the parent's: a fit is a deterministic function of its inputs)."""
+    held = (folds[0].train + folds[0].val)[i]
+    with plain_fits() if plain else contextlib.nullcontext():
+        return memoised(_nested_one)(folds, held, ctx, cfg, noise)
+
+
+def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
+    """Worker processes for the nested leave-one-run-out (:attr:`DiagnoseConfig.nested_workers`).
+
+    More than one only where forking is safe and useful: this process runs a single thread (a fork
+    copies only the calling thread, so a lock held by another thread, a Dask client's or a progress
+    bar's, would stay locked in the child forever) and is not a daemon (a Dask worker: daemons may
+    not have children, and its cores are the study's).  ``fork`` rather than ``spawn``: the child
+    has the compiled kernels and imported modules at once, and a user's script without a
+    ``__main__`` guard is not run again."""
+    w = cfg.nested_workers
+    if w == 1 or n_runs < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        return 1
+    if multiprocessing.current_process().daemon or threading.active_count() > 1:
+        return 1
+    if w <= 0:
+        w = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(w, n_runs))
+
+
+def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nested_results=None) -> dict:
+    """The gain on runs no choice has seen, with its 95 % interval; and each rung of the ladder there.
+    ``nested_results``: :func:`_nested_one` of every training and validation run, when already made
+    (in worker processes); otherwise they are made here."""
     block_s = cfg.block_T * ctx.t_ship
     rungs = [st for st, _ in sel.ladder]
     if te:
@@ -373,40 +476,16 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise) -> 
     # the same manoeuvres as in the outer selection (a fold trained on one run of two would judge the
     # effects on a model that never saw the large manoeuvre, and choose nothing).
     pairs, nested, measured = [], [], []
-    tr, va = folds[0].train, folds[0].val
-    for held in tr + va:
-        tr_i = [s for s in tr if s is not held]
-        va_i = [s for s in va if s is not held]
-        if not tr_i or not va_i:
+    runs = folds[0].train + folds[0].val
+    if nested_results is None:  # in this process, sharing the fits already made (the memo)
+        nested_results = [_nested_one(folds, held, ctx, cfg, noise) for held in runs]
+    for held, res in zip(runs, nested_results, strict=True):
+        if res is None:
             continue
-        inner = _inner_folds(folds, held, cfg)
-        isearch = Search(inner, ctx, cfg)
-        try:
-            isel = select(isearch, list(range(len(inner))), noise)
-            refit = Search([Fold(tr_i + va_i, [held])], ctx, cfg)
-            b0 = refit.fit(0, (), start=isearch.fit(0, ()))
-            st = isel.structure
-            if st:
-                refit.fit(0, st, start=b0)
-                refit.refine(0, (), st)
-        except ModelError:
-            continue
-        pb = refit.eval(0, ())[1]
-        pe = refit.eval(0, st)[1] if st else pb
+        (pb, pe), entry = res
         pairs.append(([held], pb, pe))
         measured.append(held.name)
-        nested.append(
-            {
-                "fold": f"hold out {held.name}",
-                "effects": [e for e, _ in st],
-                "cause": isel.cause,
-                "chosen_on": [s.name for s in tr_i + va_i],
-                "measured_on": [held.name],
-                "baseline_mae_psi_deg": pb[0]["mae_psi_deg"],
-                "extended_mae_psi_deg": pe[0]["mae_psi_deg"],
-                "gain": _gain(pb[0]["mae_psi_deg"], pe[0]["mae_psi_deg"]),
-            }
-        )
+        nested.append(entry)
     if not pairs:
         return {
             "mae_psi_relative_reduction": None,

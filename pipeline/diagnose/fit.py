@@ -695,6 +695,11 @@ def plain_fits():
         _PLAIN.reset(token)
 
 
+def plain_active() -> bool:
+    """True within :func:`plain_fits`."""
+    return _PLAIN.get()
+
+
 def memoised(func):
     """Decorator: within one call of ``func`` (one diagnosis), :func:`fit_structure` of the same runs
     (the same objects), structure, context, start (its exact parameter vector) and settings returns
