@@ -33,6 +33,10 @@ class TankConfig:
     rudder_offset: float = 0.0           # deg, effective rudder = logged + offset
     rudder_delay: float = 0.0            # s, effective rudder lags the logged one
     extra_yaw_damping: float = 0.0       # non-dimensional N'_rrr added (negative adds damping)
+    # applied in this order to the (delayed) servo angle, before the offset (issue 12's power study):
+    rudder_lag: float = 0.0              # s, first-order servo lag (explicit Euler at sim_dt)
+    rudder_asymmetry: float = 0.0        # a: effective angle x (1 + a sign(angle)); a > 0: starboard stronger
+    rudder_stall_deg: float = 0.0        # deg, effective angle = stall tanh(angle / stall); 0 = off
     hold_speed: bool = False             # True: surge speed held at approach speed (no speed loss)
 
 

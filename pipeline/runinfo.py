@@ -90,38 +90,3 @@ def choose_runs(runs: list[dict[str, Any]], identification: str | None = None) -
         ident = sorted(zig, key=key)[0]["run_id"]
     val = [r["run_id"] for r in zig if r["run_id"] != ident]
     return ident, val
-
-
-def choose_diagnosis_runs(runs: list[dict[str, Any]], other_side: bool = True) -> tuple[list[str], list[str]]:
-    """Training and validation runs for the diagnosis in catalog mode: a crossed design.
-
-    Training: the identification run (test A, side s1, from :func:`choose_runs`) plus, when
-    ``other_side``, a zigzag of the other side s2, preferably of another test B.  Validation: the
-    mirror images (A, s2) and (B, s1) when both exist, so that the held-out runs cover both sides and
-    both amplitudes and none repeats a training condition; otherwise every other zigzag.
-    Raises ``ValueError`` when there is nothing to validate on.
-    """
-    ident, rest = choose_runs(runs)
-    by_id = {r["run_id"]: r for r in runs}
-
-    def test(rid):
-        return (by_id[rid].get("rudder_deg"), by_id[rid].get("heading_deg"))
-
-    def side(rid):
-        return by_id[rid].get("first_side")
-
-    train = [ident]
-    if other_side and len(rest) >= 2:
-        opp = [r for r in rest if side(r) not in (None, side(ident))]
-        opp.sort(key=lambda r: (test(r) == test(ident), r))      # prefer another test
-        if opp:
-            train.append(opp[0])
-    val = [r for r in rest if r not in train]
-    if len(train) == 2 and test(train[0]) != test(train[1]):
-        wanted = {(test(train[0]), side(train[1])), (test(train[1]), side(train[0]))}
-        mirrors = [r for r in val if (test(r), side(r)) in wanted]
-        if len({(test(r), side(r)) for r in mirrors}) == 2:
-            val = mirrors
-    if not val:
-        raise ValueError("no zigzag left to validate on (need at least two zigzag runs)")
-    return train, val

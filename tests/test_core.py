@@ -92,20 +92,3 @@ def test_choose_runs_prefers_20_20_starboard():
         choose_runs(runs, "nope")
     with pytest.raises(ValueError):
         choose_runs(runs[3:])
-
-
-def test_choose_diagnosis_runs_is_a_crossed_design():
-    from pipeline.runinfo import choose_diagnosis_runs
-
-    def z(rid, rud, head, side):
-        return {"run_id": rid, "kind": "zigzag", "rudder_deg": rud, "heading_deg": head, "first_side": side}
-
-    runs = [z("a_s", 20, 10, "starboard"), z("a_p", 20, 10, "port"), z("b_s", 10, 10, "starboard"),
-            z("b_p", 10, 10, "port"), z("c", 10, 1, "starboard"), z("d", 35, 5, "starboard")]
-    train, val = choose_diagnosis_runs(runs)
-    assert train == ["a_s", "b_p"] and sorted(val) == ["a_p", "b_s"]
-    # without the mirror images: every other zigzag validates
-    train, val = choose_diagnosis_runs(runs[:1] + runs[3:])
-    assert train == ["a_s", "b_p"] and sorted(val) == ["c", "d"]
-    with pytest.raises(ValueError):
-        choose_diagnosis_runs(runs[:1])

@@ -25,6 +25,13 @@ def test_effects_are_read_from_the_diagnosis_catalogue():
     spec = spec_from_dict({"study": {"kind": "detection_power"}, "detection_power": {"plants": ["tank"]}})
     skipped = not_studied(spec.settings)["tank"]
     assert "nonlinear_yaw_damping" in skipped and "speed_loss" in skipped   # own effect, not injectable
+    mags = {e: [0.1] for e in catalogue_effects()}
+    spec = spec_from_dict({"study": {"kind": "detection_power"},
+                           "detection_power": {"plants": ["truth", "tank"], "magnitudes": mags}})
+    skipped = not_studied(spec.settings)
+    assert "truth" not in skipped                    # the linear truth takes every effect of the catalogue
+    assert set(skipped["tank"]) == {"nonlinear_yaw_damping", "nonlinear_sway_damping", "sway_yaw_coupling",
+                                    "speed_loss"}     # the KCS's own: its hull and its speed
 
 
 def test_truth_injects_servo_lag_and_asymmetry_as_they_say():
@@ -168,3 +175,17 @@ def test_page_escapes_data_text():
                "failures": [{"case_id": "x", "params": {"f": evil}, "error": evil}]}
     page = _page(summary)
     assert "<script>" not in page and "&lt;script&gt;" in page
+
+
+def test_tank_stall_truth_value_is_the_loss_at_the_tanks_rudder():
+    """The tank's zigzags reach 10 deg: a stall defined by 10 % lost at 20 deg loses
+    1 - stall tanh(10 / stall) / 10 there (about a quarter as much, tanh being cubic at first), and
+    that, negative, is what the cubic's force change at the largest rudder is compared with."""
+    from pipeline.config import TankConfig
+    from pipeline.study.detection_power import _tank_inject
+
+    cfg, tv = _tank_inject("rudder_saturation", 0.1, TankConfig(), 10.0)
+    s = cfg.rudder_stall_deg
+    assert s * np.tanh(20.0 / s) == pytest.approx(18.0, rel=1e-9)
+    assert s * np.tanh(10.0 / s) == pytest.approx(10.0 * (1.0 + tv), rel=1e-12)
+    assert -0.04 < tv < -0.02

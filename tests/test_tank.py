@@ -205,6 +205,44 @@ def test_rudder_delay_shifts_the_response_not_the_logged_rudder(clean_runs):
     assert zigzag_figures(run, 20)["overshoots"][0] > zigzag_figures(ref, 20)["overshoots"][0] + 0.5
 
 
+@pytest.mark.parametrize("side, factor", [("starboard", 1.15), ("port", 0.85)])
+def test_rudder_asymmetry_is_a_scaled_rudder_on_each_side(side, factor):
+    """Known answer: an asymmetry a scales the angle the forces see by 1 + a to starboard and 1 - a
+    to port, so until the first counter-rudder the tank with a = 0.15 is the clean tank with the
+    rudder and its rate scaled by that factor (the servo ramp scales exactly), to rounding."""
+    asym = tank.simulate(tank.zigzag(10, 10, side, duration=30),
+                         dataclasses.replace(CLEAN, rudder_asymmetry=0.15))
+    scaled = dataclasses.replace(CLEAN, rudder_rate=CLEAN.rudder_rate * factor)
+    ref = tank.simulate(tank.zigzag(10 * factor, 10, side, duration=30), scaled)
+    k = np.argmax(np.abs(ref.col("psi")) >= 10.0)     # the first counter-rudder decision
+    assert k > 20
+    for c in ("psi", "r", "v", "u"):
+        np.testing.assert_allclose(asym.col(c)[:k], ref.col(c)[:k], atol=1e-9, err_msg=c)
+    np.testing.assert_allclose(asym.col("delta")[:k] * factor, ref.col("delta")[:k], atol=1e-9)
+
+
+def test_rudder_stall_and_lag_act_as_they_say(clean_runs):
+    """A tanh stall (stall 25 deg) turns at steady state as the clean tank with the rudder at
+    stall tanh(20 / stall); a first-order servo lag of 0.5 s leaves the logged servo angle alone and
+    moves the response far closer to a 0.5 s dead time than it is to no lag."""
+    stall = 25.0
+    run = tank.simulate(tank.turning_circle(20, duration=60),
+                        dataclasses.replace(CLEAN, rudder_stall_deg=stall))
+    eq = tank.simulate(tank.turning_circle(stall * np.tanh(20 / stall), duration=60), CLEAN)
+    full = tank.simulate(tank.turning_circle(20, duration=60), CLEAN)
+    r_end = [x.col("r")[-25:].mean() for x in (run, eq, full)]
+    assert r_end[0] == pytest.approx(r_end[1], rel=1e-4)   # measured 4e-6: the ramps differ, not the turn
+    assert abs(r_end[2] - r_end[0]) > 20 * abs(r_end[1] - r_end[0])   # the stall itself is large
+    ref = clean_runs["kcs_zigzag_20_20_S"]
+    lag = tank.simulate(tank.zigzag(20, 20), dataclasses.replace(CLEAN, rudder_lag=0.5))
+    dead = tank.simulate(tank.zigzag(20, 20), dataclasses.replace(CLEAN, rudder_delay=0.5))
+    k = np.argmax(ref.col("psi") >= 20.0)
+    np.testing.assert_allclose(lag.col("delta")[:k], ref.col("delta")[:k], atol=1e-12)
+    psi_lag, psi_dead, psi0 = (x.col("psi")[:k] for x in (lag, dead, ref))
+    assert np.max(np.abs(psi_lag - psi_dead)) < 0.2 * np.max(np.abs(psi_lag - psi0))
+    assert lag.meta["effects"]["rudder_lag"] == 0.5 and "rudder_lag" not in ref.meta["effects"]
+
+
 def test_extra_yaw_damping_cuts_the_yaw_rate(clean_runs):
     ref = clean_runs["kcs_zigzag_20_20_S"]
     damped = tank.simulate(tank.zigzag(20, 20), dataclasses.replace(CLEAN, extra_yaw_damping=-0.1))
@@ -223,9 +261,14 @@ def test_hold_speed_keeps_u_constant(clean_runs):
 
 # ------------------------------------------------------------------ KCSShip
 
-def test_kcs_ship_reproduces_simulate():
-    run = tank.simulate(tank.turning_circle(35, "port", duration=20), CLEAN)
-    ship = tank.KCSShip(CLEAN)
+@pytest.mark.parametrize("effects", [{}, {"rudder_delay": 0.3, "rudder_lag": 0.4, "rudder_asymmetry": -0.1,
+                                             "rudder_stall_deg": 30.0, "rudder_offset": 0.5}])
+def test_kcs_ship_reproduces_simulate(effects):
+    """The stepping simulator (closed loop) and the kernel (open loop) are two copies of the servo
+    path: the same trajectory, with and without every servo effect."""
+    cfg = dataclasses.replace(CLEAN, **effects)
+    run = tank.simulate(tank.turning_circle(35, "port", duration=20), cfg)
+    ship = tank.KCSShip(cfg)
     st = ship.reset()
     assert st["u"] == CLEAN.approach_speed and st["psi"] == 0 and st["delta"] == 0
     rows = [st] + [ship.step(-35.0, 0.08) for _ in range(len(run.frame) - 1)]
@@ -310,7 +353,8 @@ def test_bad_manoeuvres_are_refused():
                  lambda: tank.turning_circle(float("nan"))):
         with pytest.raises(InputError):
             call()
-    for bad in ({"rudder_delay": -0.1}, {"rudder_rate": 0.0}, {"approach_speed": -2.0}):
+    for bad in ({"rudder_delay": -0.1}, {"rudder_rate": 0.0}, {"approach_speed": -2.0}, {"rudder_lag": -1.0},
+                {"rudder_asymmetry": 1.0}, {"rudder_stall_deg": -5.0}):
         with pytest.raises(InputError, match=next(iter(bad))):
             tank.simulate(tank.straight(1.0), dataclasses.replace(CLEAN, **bad))
 

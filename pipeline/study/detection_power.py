@@ -116,11 +116,25 @@ def _truth_inject(effect: str, mag: float, cfg):
     raise KeyError(effect)
 
 
-def _tank_inject(effect: str, mag: float, cfg: TankConfig):
+def _tank_inject(effect: str, mag: float, cfg: TankConfig, rudder_deg: float):
+    """(tank config with the effect, true value in the estimate's terms); ``rudder_deg``: the
+    largest rudder of the tank's zigzags (where the stall's estimate is read)."""
+    from pipeline.diagnose.truth import stall_for_loss
+
     if effect == "rudder_offset":
         return dc.replace(cfg, rudder_offset=mag), mag
     if effect == "rudder_delay":
         return dc.replace(cfg, rudder_delay=mag), mag
+    if effect == "rudder_lag":
+        return dc.replace(cfg, rudder_lag=mag), mag
+    if effect == "rudder_asymmetry":
+        return dc.replace(cfg, rudder_asymmetry=mag), mag
+    if effect == "rudder_saturation":
+        # the magnitude is the loss at 20 deg (as on the truth model); the tank's zigzags reach only
+        # rudder_deg, where the cubic's estimate is read: the loss there is the true value
+        stall = stall_for_loss(mag, 20.0)
+        loss = 1.0 - stall * math.tanh(rudder_deg / stall) / rudder_deg
+        return dc.replace(cfg, rudder_stall_deg=stall), -loss
     raise KeyError(effect)
 
 
@@ -128,7 +142,7 @@ def _tank_inject(effect: str, mag: float, cfg: TankConfig):
 INJECTABLE = {
     "truth": ("rudder_offset", "rudder_delay", "nonlinear_yaw_damping", "speed_loss", "rudder_lag",
               "rudder_asymmetry", "nonlinear_sway_damping", "sway_yaw_coupling", "rudder_saturation"),
-    "tank": ("rudder_offset", "rudder_delay"),
+    "tank": ("rudder_offset", "rudder_delay", "rudder_lag", "rudder_asymmetry", "rudder_saturation"),
 }
 WHY_NOT = {
     ("tank", "speed_loss"): "the tank's speed loss is its own (speed free or held), not a set magnitude",
@@ -230,7 +244,7 @@ def _runs(params: dict, seed: int, cfg: DetectionPowerConfig):
     tc = TankConfig(hold_speed=True, seed=int(rng.integers(1, 2**31)))
     truth_value = None
     if effect != "none":
-        tc, truth_value = _tank_inject(effect, mag, tc)
+        tc, truth_value = _tank_inject(effect, mag, tc, cfg.tank_rudder_deg)
     a = cfg.tank_rudder_deg
     runs = [tank.simulate(tank.zigzag(f * a, f * a, s, duration=cfg.duration_s), tc, coeffs=coeffs)
             for f, s in legs]

@@ -239,15 +239,34 @@ def _rk4(s, delta, h, p):
 
 
 @njit(cache=True)
+def _servo_effects(d_in, lag_state, h, lag, asym, stall):
+    """(rudder angle the forces see before the offset, new lag state) [rad] from the delayed servo
+    angle ``d_in``: a first-order lag of time constant ``lag`` s (explicit Euler; its output is the
+    state before the step), then x (1 + asym sign), then ``stall`` tanh(angle / stall) (rad; 0 =
+    off).  The one definition: :func:`_run` and :class:`KCSShip` both call it."""
+    if lag > 0.0:
+        d_in, lag_state = lag_state, lag_state + h * (d_in - lag_state) / lag
+    if asym != 0.0:
+        if d_in > 0.0:
+            d_in = d_in * (1.0 + asym)
+        elif d_in < 0.0:
+            d_in = d_in * (1.0 - asym)
+    if stall > 0.0:
+        d_in = stall * math.tanh(d_in / stall)
+    return d_in, lag_state
+
+
+@njit(cache=True)
 def _run(p, s0, zigzag, rudder, trigger, side, n_log, substeps, h, rate, dmax,
-         delay_steps, offset, psi_noise):
+         delay_steps, offset, psi_noise, lag=0.0, asym=0.0, stall=0.0):
     """Simulate a manoeuvre; returns (n_log, 7): u, v, r, x0, y0, psi, servo rudder (SI, rad).
 
     Row k is the state at t = k * substeps * h.  The rudder command is decided at each logging
     instant from the MEASURED heading psi + psi_noise[k] (zigzag: counter-rudder when the measured
     heading reaches +-trigger; otherwise a constant command side * rudder).  The servo moves toward
     the command at ``rate`` (rad/s) within +-dmax; the force model sees the servo angle
-    ``delay_steps`` integration steps earlier, plus ``offset``.
+    ``delay_steps`` integration steps earlier, through :func:`_servo_effects` (``lag`` s, ``asym``,
+    ``stall`` rad), plus ``offset``.
     """
     out = np.empty((n_log, 7))
     s = s0.copy()
@@ -255,6 +274,7 @@ def _run(p, s0, zigzag, rudder, trigger, side, n_log, substeps, h, rate, dmax,
     sign = side
     hist = np.zeros(delay_steps + 1)
     pos = 0
+    lag_state = 0.0
     for k in range(n_log):
         out[k, :6] = s
         out[k, 6] = delta
@@ -277,8 +297,8 @@ def _run(p, s0, zigzag, rudder, trigger, side, n_log, substeps, h, rate, dmax,
             delta = min(max(delta + step, -dmax), dmax)
             hist[pos] = delta
             pos = (pos + 1) % (delay_steps + 1)
-            d_eff = hist[pos] + offset       # oldest entry = delta delay_steps steps ago
-            s = _rk4(s, d_eff, h, p)
+            d_in, lag_state = _servo_effects(hist[pos], lag_state, h, lag, asym, stall)  # oldest entry
+            s = _rk4(s, d_in + offset, h, p)
     return out
 
 
@@ -343,8 +363,9 @@ class KCSShip:
 
     ``step(delta_cmd_deg, dt, disturbance_deg=0.0)`` advances ``dt`` seconds (RK4 substeps no longer
     than ``cfg.sim_dt``): the servo moves toward the command at ``cfg.rudder_rate`` within
-    +-``cfg.rudder_max``; the forces see the servo angle (delayed by ``cfg.rudder_delay``) plus
-    ``cfg.rudder_offset`` plus ``disturbance_deg`` (wind and waves as an equivalent rudder angle).
+    +-``cfg.rudder_max``; the forces see the servo angle (delayed by ``cfg.rudder_delay``, through the
+    lag, asymmetry and stall of ``cfg``) plus ``cfg.rudder_offset`` plus ``disturbance_deg`` (wind
+    and waves as an equivalent rudder angle).
     Returns dict(time s, x0 m, y0 m, psi deg, u m/s, v m/s, r deg/s, delta deg = actual servo angle).
     The effect settings of ``cfg`` apply as in :func:`pipeline.tank.simulate`.
     """
@@ -363,6 +384,7 @@ class KCSShip:
         self._s = initial_state(self.cfg)
         self._delta = 0.0
         self._hist: deque[float] = deque()
+        self._lag = 0.0
         return self.state()
 
     def state(self) -> dict:
@@ -387,6 +409,8 @@ class KCSShip:
             while len(self._hist) > lag + 1:
                 self._hist.popleft()
             d_eff = self._hist[0] if len(self._hist) == lag + 1 else 0.0
+            d_eff, self._lag = _servo_effects(d_eff, self._lag, h, cfg.rudder_lag, cfg.rudder_asymmetry,
+                                              deg2rad(cfg.rudder_stall_deg))
             self._s = _rk4(self._s, d_eff + extra, h, self._p)
             self.time += h
         return self.state()

@@ -29,6 +29,8 @@ from pipeline.units import deg2rad, rad2deg
 
 NOTE = "virtual tank (MMG model of the KCS, SIMMAN 2020 model scale); not measured data"
 EFFECT_FIELDS = ("rudder_offset", "rudder_delay", "extra_yaw_damping", "hold_speed")
+#: the servo effects of the power study, in the metadata only when set (a clean run's metadata as before)
+SERVO_FIELDS = ("rudder_lag", "rudder_asymmetry", "rudder_stall_deg")
 #: Column formats of the CSV (decimals well below the noise sizes).
 CSV_FORMATS = {"time": "%.3f", "x0": "%.4f", "y0": "%.4f", "psi": "%.4f", "u": "%.5f", "v": "%.5f",
                "r": "%.4f", "delta": "%.4f", "rpm": "%.2f"}
@@ -48,6 +50,12 @@ def _steps(cfg: TankConfig) -> tuple[int, float]:
             raise InputError(f"tank: TankConfig.{name} must be positive, got {getattr(cfg, name)}")
     if not cfg.rudder_delay >= 0:
         raise InputError(f"tank: TankConfig.rudder_delay must be >= 0 s, got {cfg.rudder_delay}")
+    if not cfg.rudder_lag >= 0:
+        raise InputError(f"tank: TankConfig.rudder_lag must be >= 0 s, got {cfg.rudder_lag}")
+    if not abs(cfg.rudder_asymmetry) < 1:
+        raise InputError(f"tank: TankConfig.rudder_asymmetry must be in (-1, 1), got {cfg.rudder_asymmetry}")
+    if not cfg.rudder_stall_deg >= 0:
+        raise InputError(f"tank: TankConfig.rudder_stall_deg must be >= 0 deg, got {cfg.rudder_stall_deg}")
     sub = max(1, int(round(cfg.log_dt / cfg.sim_dt)))
     return sub, cfg.log_dt / sub
 
@@ -75,7 +83,8 @@ def simulate(manoeuvre: Manoeuvre, cfg: TankConfig = DEFAULT_TANK,
     out = _run(p, initial_state(cfg), manoeuvre.kind == "zigzag", deg2rad(manoeuvre.rudder_deg),
                deg2rad(manoeuvre.heading_deg or 0.0), manoeuvre.sign, n_log, sub, h,
                deg2rad(cfg.rudder_rate), deg2rad(cfg.rudder_max), int(round(cfg.rudder_delay / h)),
-               deg2rad(cfg.rudder_offset), deg2rad(noise["psi"]))
+               deg2rad(cfg.rudder_offset), deg2rad(noise["psi"]), float(cfg.rudder_lag),
+               float(cfg.rudder_asymmetry), deg2rad(cfg.rudder_stall_deg))
     time = np.arange(n_log) * cfg.log_dt
     frame = pd.DataFrame({
         "time": time,
@@ -106,12 +115,13 @@ def simulate(manoeuvre: Manoeuvre, cfg: TankConfig = DEFAULT_TANK,
         "rpm": 60.0 * rps,
         "rudder_rate": cfg.rudder_rate,
         "rudder_max": cfg.rudder_max,
-        "effects": {k: getattr(cfg, k) for k in EFFECT_FIELDS},
+        "effects": {k: getattr(cfg, k) for k in EFFECT_FIELDS}
+        | {k: getattr(cfg, k) for k in SERVO_FIELDS if getattr(cfg, k)},
         "model": "3-DOF MMG (Yasukawa & Yoshimura 2015), Yoshimura's KCS coefficients",
         "coefficients": asdict(coeffs),
         "note": NOTE,
     }
-    meta.update({k: getattr(cfg, k) for k in EFFECT_FIELDS})
+    meta.update(meta["effects"])
     return Run(frame=frame, meta=meta)
 
 
