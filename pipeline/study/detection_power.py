@@ -77,37 +77,32 @@ def catalogue_effects() -> tuple[str, ...]:
 
 # ---------------------------------------------------------------- injection
 
+#: effects whose magnitude is a setting of the same name and meaning in both plants (TruthConfig and
+#: TankConfig): the injected value is the magnitude itself, in the estimate's own terms
+DIRECT = ("rudder_offset", "rudder_delay", "rudder_lag", "rudder_asymmetry")
+
+
+#: truth effects set through a coefficient solved from the magnitude (pipeline.diagnose.truth):
+#: effect -> (solver, TruthConfig field, True when the estimate is that coefficient, False when it is
+#: the magnitude itself)
+SOLVED = {
+    "nonlinear_yaw_damping": ("damping_for_cut", "n_rrr", True),
+    "speed_loss": ("speed_loss_for", "speed_loss_k", False),
+    "nonlinear_sway_damping": ("sway_drag_for_cut", "y_vv", True),
+    "sway_yaw_coupling": ("cross_term_for_change", "n_vvr", True),
+}
+
 
 def _truth_inject(effect: str, mag: float, cfg):
     """(truth config with the effect, true value in the estimate's terms)."""
-    from pipeline.diagnose.truth import (
-        cross_term_for_change,
-        damping_for_cut,
-        speed_loss_for,
-        stall_for_loss,
-        sway_drag_for_cut,
-    )
+    from pipeline.diagnose.truth import stall_for_loss
 
-    if effect == "rudder_offset":
-        return dc.replace(cfg, rudder_offset=mag), mag
-    if effect == "rudder_delay":
-        return dc.replace(cfg, rudder_delay=mag), mag
-    if effect == "nonlinear_yaw_damping":
-        n = _cached(damping_for_cut, mag, cfg)
-        return dc.replace(cfg, n_rrr=n), n
-    if effect == "speed_loss":
-        k = _cached(speed_loss_for, mag, cfg)
-        return dc.replace(cfg, speed_loss_k=k), mag
-    if effect == "rudder_lag":
-        return dc.replace(cfg, rudder_lag=mag), mag
-    if effect == "rudder_asymmetry":
-        return dc.replace(cfg, rudder_asymmetry=mag), mag
-    if effect == "nonlinear_sway_damping":
-        y = _cached(sway_drag_for_cut, mag, cfg)
-        return dc.replace(cfg, y_vv=y), y
-    if effect == "sway_yaw_coupling":
-        n = _cached(cross_term_for_change, mag, cfg)
-        return dc.replace(cfg, n_vvr=n), n
+    if effect in DIRECT:
+        return dc.replace(cfg, **{effect: mag}), mag
+    if effect in SOLVED:
+        solver, field, is_coefficient = SOLVED[effect]
+        c = _cached_impl(solver, float(mag), tuple(sorted(dc.asdict(cfg).items())))
+        return dc.replace(cfg, **{field: c}), (c if is_coefficient else mag)
     if effect == "rudder_saturation":
         # the magnitude is the force lost at 20 deg (the rudder of the 20/20 design that defines every
         # truth magnitude); the estimate is the cubic's force change at the largest logged rudder,
@@ -121,14 +116,8 @@ def _tank_inject(effect: str, mag: float, cfg: TankConfig, rudder_deg: float):
     largest rudder of the tank's zigzags (where the stall's estimate is read)."""
     from pipeline.diagnose.truth import stall_for_loss
 
-    if effect == "rudder_offset":
-        return dc.replace(cfg, rudder_offset=mag), mag
-    if effect == "rudder_delay":
-        return dc.replace(cfg, rudder_delay=mag), mag
-    if effect == "rudder_lag":
-        return dc.replace(cfg, rudder_lag=mag), mag
-    if effect == "rudder_asymmetry":
-        return dc.replace(cfg, rudder_asymmetry=mag), mag
+    if effect in DIRECT:
+        return dc.replace(cfg, **{effect: mag}), mag
     if effect == "rudder_saturation":
         # the magnitude is the loss at 20 deg (as on the truth model); the tank's zigzags reach only
         # rudder_deg, where the cubic's estimate is read: the loss there is the true value
@@ -155,10 +144,6 @@ def _cached_impl(fn_name: str, mag: float, cfg_items: tuple) -> float:
 
     cfg = truth.TruthConfig(**dict(cfg_items))
     return getattr(truth, fn_name)(mag, cfg)
-
-
-def _cached(fn, mag, cfg):
-    return _cached_impl(fn.__name__, float(mag), tuple(sorted(dc.asdict(cfg).items())))
 
 
 # ---------------------------------------------------------------- cases
