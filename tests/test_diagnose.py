@@ -616,3 +616,21 @@ def test_nested_workers_stay_in_process_where_a_fork_is_unsafe():
     assert _nested_workers(DiagnoseConfig(nested_workers=8), 1) == 1
     if threading.active_count() == 1:   # pytest-xdist's worker has its own threads: then only the above
         assert _nested_workers(DiagnoseConfig(nested_workers=8), 3) == 3
+
+
+def test_nested_workers_stay_in_a_daemon_process(monkeypatch):
+    """A daemon process (a Dask worker) may not have children: in-process there, whatever is asked;
+    the same single-threaded process that is not a daemon gets the workers (the branch is isolated
+    by pretending this process has one thread)."""
+    import multiprocessing
+    import threading
+    from types import SimpleNamespace
+
+    from pipeline.config import DiagnoseConfig
+    from pipeline.diagnose.core import _nested_workers
+
+    monkeypatch.setattr(threading, "active_count", lambda: 1)
+    monkeypatch.setattr(multiprocessing, "current_process", lambda: SimpleNamespace(daemon=False))
+    assert _nested_workers(DiagnoseConfig(nested_workers=2), 4) == 2
+    monkeypatch.setattr(multiprocessing, "current_process", lambda: SimpleNamespace(daemon=True))
+    assert _nested_workers(DiagnoseConfig(nested_workers=2), 4) == 1
