@@ -297,20 +297,29 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     noise = heading_noise_deg(va, ctx.t_ship)
     # the nested leave-one-run-out's selections do not depend on the main one: with workers, they run
     # in worker processes while this one makes the main selection (same results, any worker count)
-    pool, futures = None, None
     workers = 1 if te else _nested_workers(cfg, len(tr) + len(va))
-    if workers > 1:
-        pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
-        futures = [pool.submit(_nested_task, folds, i, ctx, cfg, noise, plain_active())
-                   for i in range(len(tr) + len(va))]
-    try:
-        return _diagnose(train, validate, test, cfg, progress, folds, te, ctx, noise, futures)
-    finally:
-        if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
+    with _nested_in_workers(folds, ctx, cfg, noise, workers) as futures:
+        return _select_and_report(train, validate, test, cfg, progress, folds, te, ctx, noise, futures)
 
 
-def _diagnose(train, validate, test, cfg, progress, folds, te, ctx, noise, futures) -> Diagnosis:
+@contextlib.contextmanager
+def _nested_in_workers(folds, ctx, cfg, noise, workers: int):
+    """Futures of :func:`_nested_task` for every training and validation run, submitted to
+    ``workers`` forked processes (shut down on leaving); None with one worker (made in-process)."""
+    if workers <= 1:
+        yield None
+        return
+    n = len(folds[0].train) + len(folds[0].val)
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+        futures = [pool.submit(_nested_task, folds, i, ctx, cfg, noise, plain_active()) for i in range(n)]
+        try:
+            yield futures
+        finally:
+            for f in futures:
+                f.cancel()
+
+
+def _select_and_report(train, validate, test, cfg, progress, folds, te, ctx, noise, futures) -> Diagnosis:
     bar = None
     if progress:
         from tqdm import tqdm

@@ -185,14 +185,7 @@ def _clean(cfg: TruthConfig) -> TruthConfig:
 
 def damping_for_cut(cut: float, cfg: TruthConfig = TruthConfig(), duration: float = 60.0) -> float:
     """n_rrr (s/deg^2, negative) that cuts the yaw-rate amplitude of the truth's 20/20 zigzag by ``cut``."""
-    clean = _clean(cfg)
-    amp0 = yaw_rate_amplitude(zigzag_truth(20, 20, "starboard", duration, clean))
-
-    def reduction(mag):
-        run = zigzag_truth(20, 20, "starboard", duration, dataclasses.replace(clean, n_rrr=-mag))
-        return 1.0 - yaw_rate_amplitude(run) / amp0
-
-    return -_bisect(reduction, 0.0, 0.05, cut)
+    return _coefficient_for_change("n_rrr", -1.0, cut, 0.05, cfg, duration)
 
 
 def speed_loss_for(loss: float, cfg: TruthConfig = TruthConfig(), duration: float = 60.0) -> float:
@@ -238,13 +231,15 @@ def cross_term_for_change(change: float, cfg: TruthConfig = TruthConfig(), durat
     return _coefficient_for_change("n_vvr", -1.0, change, 200.0, cfg, duration)
 
 
+def stall_loss(stall_deg: float, at_deg: float) -> float:
+    """Fraction of the rudder force lost at ``at_deg`` (deg) under the stall law stall tanh(delta /
+    stall) of ``rudder_stall_deg`` = ``stall_deg`` (deg): 1 - stall tanh(at / stall) / at."""
+    return float(1.0 - stall_deg * np.tanh(at_deg / stall_deg) / at_deg)
+
+
 def stall_for_loss(loss: float, max_deg: float = 20.0) -> float:
-    """Stall angle (deg) at which stall tanh(max_deg / stall) falls ``loss`` (a fraction) short of
-    max_deg: the rudder force lost at ``max_deg``.  Bisection on 1/stall (the loss grows with it)."""
+    """Stall angle (deg) whose :func:`stall_loss` at ``max_deg`` is ``loss`` (a fraction): the rudder
+    force lost at ``max_deg``.  Bisection on 1/stall (the loss grows with it)."""
     if not 0.0 < loss < 1.0:
         raise ValueError(f"rudder force loss must be in (0, 1), got {loss}")
-
-    def lost(inv):
-        return 1.0 - np.tanh(max_deg * inv) / (max_deg * inv)
-
-    return 1.0 / _bisect(lost, 1e-9, 50.0 / max_deg, loss, iters=60)
+    return 1.0 / _bisect(lambda inv: stall_loss(1.0 / inv, max_deg), 1e-9, 50.0 / max_deg, loss, iters=60)

@@ -114,7 +114,7 @@ def _truth_inject(effect: str, mag: float, cfg):
 def _tank_inject(effect: str, mag: float, cfg: TankConfig, rudder_deg: float):
     """(tank config with the effect, true value in the estimate's terms); ``rudder_deg``: the
     largest rudder of the tank's zigzags (where the stall's estimate is read)."""
-    from pipeline.diagnose.truth import stall_for_loss
+    from pipeline.diagnose.truth import stall_for_loss, stall_loss
 
     if effect in DIRECT:
         return dc.replace(cfg, **{effect: mag}), mag
@@ -122,8 +122,7 @@ def _tank_inject(effect: str, mag: float, cfg: TankConfig, rudder_deg: float):
         # the magnitude is the loss at 20 deg (as on the truth model); the tank's zigzags reach only
         # rudder_deg, where the cubic's estimate is read: the loss there is the true value
         stall = stall_for_loss(mag, 20.0)
-        loss = 1.0 - stall * math.tanh(rudder_deg / stall) / rudder_deg
-        return dc.replace(cfg, rudder_stall_deg=stall), -loss
+        return dc.replace(cfg, rudder_stall_deg=stall), -stall_loss(stall, rudder_deg)
     raise KeyError(effect)
 
 
