@@ -197,6 +197,11 @@ class DiagnoseConfig:
     max_nfev: int = 200                  # function evaluations per least-squares stage
     structured_r2: float = 0.2           # residuals "stay structured" when signatures explain this share
     two_fold: bool = True  # also the reverse fold (train on the validation runs) when exchangeable
+    # groups of the nested leave-one-run-out's inner folds under a two-fold design (pipeline.diagnose.
+    # core._inner_folds): each remaining run validated once, as in the outer selection; 3 makes every
+    # leave-one-out fold of a four-run design, and bounds the cost (one inner selection per group) of
+    # a design with many runs
+    inner_folds: int = 3
     # relative: runs whose approach speeds differ by more than this are refused together (Froude
     # number, hence the dimensional coefficients, would differ by as much: 15 % of U is ~30 % of the
     # rudder force)
