@@ -56,7 +56,7 @@ reports: $(STAMP)
 	$(PY) -m pipeline report --all --changed --out reports
 
 test: $(STAMP)
-	$(PY) -m pytest -n 2 --dist loadgroup --durations=15
+	$(PY) -m pytest -n 2 --durations=15
 
 bench: $(STAMP)
 	$(PY) -m pipeline bench
@@ -84,4 +84,4 @@ study: $(STAMP)
 #                                 (make test runs a CI-sized cut of 8 cases)
 .PHONY: generalise
 generalise: $(STAMP)
-	TANKTEST_GENERALISE=full $(PY) -m pytest -n 2 --dist loadgroup -m generalise tests/test_diagnose_generalise.py
+	TANKTEST_GENERALISE=full $(PY) -m pytest -n 2 -m generalise tests/test_diagnose_generalise.py

@@ -159,7 +159,6 @@ def hsva_design(hsva_dir):
     return runs, tr, va, te, rep
 
 
-@pytest.mark.xdist_group("hsva_design")  # one worker computes the module fixture once
 @pytest.mark.slow
 def test_hsva_measured_kvlcc2(hsva_design):
     """All 13 measured HSVA zigzags, roles by the stated rule of the catalog mode (issue 11, item 5).
@@ -205,7 +204,6 @@ def test_hsva_measured_kvlcc2(hsva_design):
         assert away and all(pre + "Z_10_01" in f["evidence"] for f in away)
 
 
-@pytest.mark.xdist_group("hsva_design")  # one worker computes the module fixture once
 @pytest.mark.slow
 @pytest.mark.xfail(
     strict=True,
