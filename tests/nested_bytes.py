@@ -1,7 +1,8 @@
 """Run by tests/test_diagnose.py::test_nested_workers_give_the_same_report_bytes in a fresh,
 single-threaded interpreter (the only kind that uses the nested workers): one 4-run diagnosis with
 the nested leave-one-run-out in this process and in 2 worker processes; prints whether the two
-reports are the same bytes, and how many runs were held out."""
+reports are the same bytes, and how many runs were held out; and which keys of the report change
+when the nested leave-one-run-out is switched off (DiagnoseConfig.nested_gain)."""
 
 from __future__ import annotations
 
@@ -31,7 +32,14 @@ def main() -> None:
         if _nested_workers(d, 4) != w:
             raise SystemExit(f"not single-threaded: {threading.active_count()} threads")
         out[w] = _dump(diagnose(runs[:2], runs[2:], d).report)
-    print(json.dumps({"same": out[1] == out[2], "nested": len(json.loads(out[2])["gain"]["nested"])}))
+    # the same case with the nested leave-one-run-out switched off (DiagnoseConfig.nested_gain): the
+    # report's keys that differ from the full one
+    on = json.loads(out[2])
+    off = json.loads(_dump(diagnose(runs[:2], runs[2:], DiagnoseConfig(nested_gain=False)).report))
+    differ = sorted(k for k in set(on) | set(off) if _dump(on.get(k)) != _dump(off.get(k)))
+    print(json.dumps({"same": out[1] == out[2], "nested": len(on["gain"]["nested"]), "off_differ": differ,
+                      "off_gain": off["gain"]["mae_psi_relative_reduction"],
+                      "off_method": off["gain"]["method"], "cause": [on["cause"], off["cause"]]}))
 
 
 if __name__ == "__main__":

@@ -580,7 +580,8 @@ def test_report_verdict_of_an_effect_that_harms_a_held_out_run():
 def test_nested_workers_give_the_same_report_bytes():
     """The nested leave-one-run-out in 2 worker processes (forked while the parent makes the main
     selection) gives the report of the in-process run byte for byte, in a fresh single-threaded
-    interpreter (the only place the workers are used; tests/nested_bytes.py)."""
+    interpreter (the only place the workers are used; tests/nested_bytes.py).  And switched off
+    (DiagnoseConfig.nested_gain), it changes nothing but the gain and the stability."""
     import subprocess
     import sys
     from pathlib import Path
@@ -591,7 +592,12 @@ def test_nested_workers_give_the_same_report_bytes():
                           env={**__import__("os").environ, "PYTHONPATH": str(root)}, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     got = json.loads(done.stdout.strip().splitlines()[-1])
-    assert got == {"same": True, "nested": 4}
+    assert got["same"] is True and got["nested"] == 4
+    # nested_gain off (a detection study's setting): the main selection and every finding are the
+    # same; only the honest gain (none, with the reason) and the held-out-run stability are not made
+    assert got["off_differ"] == ["gain", "stability"], got
+    assert got["off_gain"] is None and "switched off" in got["off_method"]
+    assert got["cause"][0] == got["cause"][1] != "none"
 
 
 def test_nested_workers_stay_in_process_where_a_fork_is_unsafe():

@@ -297,7 +297,7 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     noise = heading_noise_deg(va, ctx.t_ship)
     # the nested leave-one-run-out's selections do not depend on the main one: with workers, they run
     # in worker processes while this one makes the main selection (same results, any worker count)
-    workers = 1 if te else _nested_workers(cfg, len(tr) + len(va))
+    workers = 1 if te or not cfg.nested_gain else _nested_workers(cfg, len(tr) + len(va))
     with _nested_in_workers(folds, ctx, cfg, noise, workers) as futures:
         return _select_and_report(train, validate, test, cfg, progress, folds, te, ctx, noise, futures)
 
@@ -500,6 +500,9 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
     # run alone.  Inner folds: :func:`_inner_folds` (the outer design repeated on the remaining runs).
     pairs, nested, measured = [], [], []
     runs = folds[0].train + folds[0].val
+    if not cfg.nested_gain:
+        return _no_honest_gain("not measured: the nested leave-one-run-out is switched off "
+                               "(DiagnoseConfig.nested_gain), and no --test runs were given")
     if nested_results is None:  # in this process, sharing the fits already made (the memo)
         nested_results = [_nested_one(folds, held, ctx, cfg, noise) for held in runs]
     for held, res in zip(runs, nested_results, strict=True):
@@ -510,15 +513,8 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
         measured.append(held.name)
         nested.append(entry)
     if not pairs:
-        return {
-            "mae_psi_relative_reduction": None,
-            "interval_95": None,
-            "measured_on": [],
-            "method": "none: fewer than three runs, so no run can be held out of a selection, and no --test "
-            "runs were given; the validation gain in the ladder is optimistic (chosen on the same runs)",
-            "ladder": {},
-            "nested": [],
-        }
+        return _no_honest_gain("none: fewer than three runs, so no run can be held out of a selection, and "
+                               "no --test runs were given")
     g, iv, bm, em = _pair_gain(pairs, cfg, block_s)
     return {
         "mae_psi_relative_reduction": g,
@@ -532,6 +528,18 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
         "per_run": [x for v, pb, pe in pairs for x in _per_run(v, pb, pe)],
         "ladder": {},
         "nested": nested,
+    }
+
+
+def _no_honest_gain(why: str) -> dict:
+    """The gain entry when no run unseen by every choice exists (``why``, in words)."""
+    return {
+        "mae_psi_relative_reduction": None,
+        "interval_95": None,
+        "measured_on": [],
+        "method": why + "; the validation gain in the ladder is optimistic (chosen on the same runs)",
+        "ladder": {},
+        "nested": [],
     }
 
 
