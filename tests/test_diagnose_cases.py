@@ -24,6 +24,12 @@ from pipeline.diagnose import TruthConfig, diagnose, zigzag_truth
 from pipeline.diagnose.truth import damping_for_cut, speed_loss_for
 from pipeline.model import PAPER_TABLE4
 
+#: these tests assert the selection and its findings; the honest gain's nested leave-one-run-out does not
+#: change them (test_diagnose.py::test_nested_workers_give_the_same_report_bytes compares every key) and
+#: takes two thirds of a 4-run diagnosis, so it is off here; it is asserted where it is the subject
+#: (the KVLCC2 side-swap folds, the catalog-mode and CLI contract tests)
+SELECTION_ONLY = DiagnoseConfig(nested_gain=False)
+
 N_CASES = 20
 KINDS = ("none", "rudder_offset", "rudder_delay", "nonlinear_yaw_damping", "speed_loss")
 
@@ -122,7 +128,7 @@ def test_hidden_effect_is_found(case):
     theta[4:] *= fb
     cfg, truth = _true_estimate(kind, mag, TruthConfig(theta=tuple(theta), seed=seed))
     train, val = _truth_runs(cfg)
-    rep = diagnose(train, val).report
+    rep = diagnose(train, val, SELECTION_ONLY).report
     summary = {f["effect"]: (f["significant"], f["validation_gain"], f["z"]) for f in rep["findings"]}
     if kind == "none":
         assert rep["cause"] == "none", summary
@@ -196,7 +202,7 @@ def test_short_dead_time_is_found_where_the_design_shows_it():
         zigzag_truth(a, a, side, 80.0, dc.replace(cfg, seed=cfg.seed + j))
         for j, (a, side) in enumerate(CASE12_DESIGN["legs"])
     ]
-    rep = diagnose(runs[:2], runs[2:]).report
+    rep = diagnose(runs[:2], runs[2:], SELECTION_ONLY).report
     summary = {f["effect"]: (f["significant"], f["validation_gain_folds"]) for f in rep["findings"]}
     # the design is material: the truth's own structure at its true parameters clears both bars
     rel, cut = _oracle_gain(kind, cfg, runs[2:], rep["baseline"]["validation"]["mae_psi_deg"],

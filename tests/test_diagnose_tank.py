@@ -104,6 +104,12 @@ from pipeline.diagnose import diagnose
 tank = pytest.importorskip("pipeline.tank")
 from pipeline.tank.effects import extra_damping_for_cut, n_rrr_equivalent  # noqa: E402
 
+#: these tests assert the selection and its findings; the honest gain's nested leave-one-run-out does not
+#: change them (test_diagnose.py::test_nested_workers_give_the_same_report_bytes compares every key) and
+#: takes two thirds of a 4-run diagnosis, so it is off here; it is asserted where it is the subject
+#: (the KVLCC2 side-swap folds, the catalog-mode and CLI contract tests)
+SELECTION_ONLY = DiagnoseConfig(nested_gain=False)
+
 TRAIN = [(10, "starboard"), (5, "port")]
 VALIDATE = [(10, "port"), (5, "starboard")]
 OWN = "nonlinear_yaw_damping"
@@ -152,7 +158,7 @@ def _diagnosis(**kw):
     if key not in _CACHE:
         coeffs = _symmetric()
         cfg = dc.replace(TankConfig(), **{"hold_speed": True, **kw})
-        _FULL[key] = diagnose(*_runs(cfg, coeffs))
+        _FULL[key] = diagnose(*_runs(cfg, coeffs), SELECTION_ONLY)
         _CACHE[key] = _FULL[key].report
     return _CACHE[key]
 
@@ -236,7 +242,7 @@ def test_default_kcs_claims_no_dead_time_or_speed():
     +27 %, and worsens it on the other, -7 %, and offset + cubic damping worsen both, so the diagnosis
     names none; on 20/20 zigzags alone an offset of -0.99 deg passes.)"""
     cfg = dc.replace(TankConfig(), hold_speed=True)
-    rep = diagnose(*_runs(cfg, None)).report
+    rep = diagnose(*_runs(cfg, None), SELECTION_ONLY).report
     sig = {f["effect"] for f in rep["findings"] if f["significant"]}
     assert not sig & {"rudder_delay", "speed_loss"}, _summary(rep)
     assert set(rep["extended"]["effects"]) <= {"rudder_offset", "rudder_asymmetry", *HULL_NL}, _summary(rep)
@@ -321,7 +327,7 @@ def test_tank_dead_time_oracle_is_below_the_bar(design):
                    "16 % / 50 % held-out with a 50 deg/s rudder; no exchangeable zigzag design tried clears "
                    "30 % in both folds (module docstring's table)")
 def test_tank_dead_time_is_found_with_a_fast_rudder():
-    rep = diagnose(*_design_runs(FAST, rudder_delay=0.6)).report
+    rep = diagnose(*_design_runs(FAST, rudder_delay=0.6), SELECTION_ONLY).report
     finding = next(f for f in rep["findings"] if f["effect"] == "rudder_delay")
     assert "rudder_delay" in rep["extended"]["effects"], _summary(rep)
     assert finding["significant"], finding["evidence"]

@@ -76,6 +76,18 @@ def test_marin_text_with_a_broken_value_names_row_and_column():
     assert "row 11" in str(exc.value) and "column 'time'" in str(exc.value)
 
 
+def test_marin_text_with_a_fortran_exponent_is_read():
+    """A value written with a Fortran exponent (1.5D+00) is a number: the column is read, the value
+    parsed (found by the fuzz test below: pandas 3 handed out a read-only array, ValueError)."""
+    lines = MARIN_FILE.read_text().splitlines()
+    toks = lines[10].split()
+    first = float(toks[0])
+    lines[10] = lines[10].replace(toks[0], f"{first:.6E}".replace("E", "D"), 1)
+    run = parse_raw("\n".join(lines), name="m.dat", scale=45.7)  # the file is full scale
+    ref = parse_raw(MARIN_FILE.read_text(), name="m.dat", scale=45.7)
+    assert run.frame.equals(ref.frame)
+
+
 # ---------------------------------------------------------------- property: never another exception
 _token = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True).map(lambda x: f"{x:.3g}"),

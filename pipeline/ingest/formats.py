@@ -309,7 +309,8 @@ def _numeric_block(rows: list[str], linenos: np.ndarray, names: tuple[str, ...],
         if col.dtype.kind in "fi":
             out[name] = col.to_numpy(dtype=float)
             continue
-        num = pd.to_numeric(col, errors="coerce").to_numpy(dtype=float)
+        # a copy: written below, and pandas 3 (copy-on-write) may hand out a read-only view
+        num = pd.to_numeric(col, errors="coerce").to_numpy(dtype=float, copy=True)
         miss = np.isnan(num)
         if miss.any():
             as_text = col.astype(str).str.strip().str.strip('"').str.strip("'").str.strip()
