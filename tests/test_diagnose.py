@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from selection_only import SELECTION_ONLY  # the setting, and its reason, of selection-only tests
 
 from pipeline.cli import main
 from pipeline.config import DiagnoseConfig
@@ -28,12 +29,6 @@ SPEC_EFFECTS = {
     "rudder_saturation",
     "rudder_asymmetry",
 }
-
-
-#: for tests that assert the selection and its findings only: the honest gain's nested leave-one-run-out
-#: does not change them (test_nested_workers_give_the_same_report_bytes compares every key) and takes
-#: two thirds of a 4-run diagnosis (see tests/test_diagnose_cases.py)
-SELECTION_ONLY = DiagnoseConfig(nested_gain=False)
 
 
 def test_extended_without_effects_is_the_continuous_model():
@@ -511,7 +506,6 @@ def test_step_refuses_an_effect_that_runs_away_or_harms_one_held_out_manoeuvre()
     gain is large; the same cut with the small run's error grown by less than its swing (1 -> 1.5 deg)
     is not refused for that reason, but is when it holds on every block (significant harm); an
     unchanged small run with noise is no harm."""
-    from pipeline.config import DiagnoseConfig
     from pipeline.diagnose.effects import BY_NAME, Context
     from pipeline.diagnose.fit import Series
     from pipeline.diagnose.select import Fold, Search
@@ -613,7 +607,6 @@ def test_nested_workers_stay_in_process_where_a_fork_is_unsafe():
     checks 2 in a fresh interpreter)."""
     import threading
 
-    from pipeline.config import DiagnoseConfig
     from pipeline.diagnose.core import _nested_workers
 
     stop = threading.Event()
@@ -639,7 +632,6 @@ def test_nested_workers_stay_in_a_daemon_process(monkeypatch):
     import threading
     from types import SimpleNamespace
 
-    from pipeline.config import DiagnoseConfig
     from pipeline.diagnose.core import _nested_workers
 
     monkeypatch.setattr(threading, "active_count", lambda: 1)
@@ -663,7 +655,6 @@ def _names(folds):
 def test_inner_folds_validate_every_remaining_run_once_under_a_two_fold_design():
     """Outer train A B / validate C D with the reverse fold: holding out A, each of B, C, D is validated
     once by a model trained on the other two (known answer of core._inner_folds)."""
-    from pipeline.config import DiagnoseConfig
     from pipeline.diagnose.core import _inner_folds
     from pipeline.diagnose.select import Fold
 
@@ -686,7 +677,6 @@ def test_inner_folds_validate_every_remaining_run_once_under_a_two_fold_design()
 def test_inner_folds_keep_the_users_one_fold_design():
     """One outer fold (two_fold off, or sides not exchangeable): the design is kept, the held-out run
     taken from its side (the training runs stay whole when a validation run is held out)."""
-    from pipeline.config import DiagnoseConfig
     from pipeline.diagnose.core import _inner_folds
     from pipeline.diagnose.select import Fold
 

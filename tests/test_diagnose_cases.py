@@ -18,17 +18,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from selection_only import SELECTION_ONLY  # the setting, and its reason, of selection-only tests
 
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose import TruthConfig, diagnose, zigzag_truth
 from pipeline.diagnose.truth import damping_for_cut, speed_loss_for
 from pipeline.model import PAPER_TABLE4
-
-#: these tests assert the selection and its findings; the honest gain's nested leave-one-run-out does not
-#: change them (test_diagnose.py::test_nested_workers_give_the_same_report_bytes compares every key) and
-#: takes two thirds of a 4-run diagnosis, so it is off here; it is asserted where it is the subject
-#: (the KVLCC2 side-swap folds, the catalog-mode and CLI contract tests)
-SELECTION_ONLY = DiagnoseConfig(nested_gain=False)
 
 N_CASES = 20
 KINDS = ("none", "rudder_offset", "rudder_delay", "nonlinear_yaw_damping", "speed_loss")

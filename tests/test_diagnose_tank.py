@@ -102,13 +102,9 @@ from pipeline.config import DiagnoseConfig, TankConfig
 from pipeline.diagnose import diagnose
 
 tank = pytest.importorskip("pipeline.tank")
-from pipeline.tank.effects import extra_damping_for_cut, n_rrr_equivalent  # noqa: E402
+from selection_only import SELECTION_ONLY  # noqa: E402  (the setting, and its reason, of selection-only tests)
 
-#: these tests assert the selection and its findings; the honest gain's nested leave-one-run-out does not
-#: change them (test_diagnose.py::test_nested_workers_give_the_same_report_bytes compares every key) and
-#: takes two thirds of a 4-run diagnosis, so it is off here; it is asserted where it is the subject
-#: (the KVLCC2 side-swap folds, the catalog-mode and CLI contract tests)
-SELECTION_ONLY = DiagnoseConfig(nested_gain=False)
+from pipeline.tank.effects import extra_damping_for_cut, n_rrr_equivalent  # noqa: E402
 
 TRAIN = [(10, "starboard"), (5, "port")]
 VALIDATE = [(10, "port"), (5, "starboard")]

@@ -501,11 +501,11 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
     # nested leave-one-run-out: every run of the selection is held out in turn; the whole selection is
     # repeated on the others, the chosen structure refitted on all of them, and measured on the held-out
     # run alone.  Inner folds: :func:`_inner_folds` (the outer design repeated on the remaining runs).
-    pairs, nested, measured = [], [], []
-    runs = folds[0].train + folds[0].val
     if not cfg.nested_gain:
         return _no_honest_gain("not measured: the nested leave-one-run-out is switched off "
                                "(DiagnoseConfig.nested_gain), and no --test runs were given")
+    pairs, nested, measured = [], [], []
+    runs = folds[0].train + folds[0].val
     if nested_results is None:  # in this process, sharing the fits already made (the memo)
         nested_results = [_nested_one(folds, held, ctx, cfg, noise) for held in runs]
     for held, res in zip(runs, nested_results, strict=True):
