@@ -2,9 +2,20 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# Property tests: `make test` (and CI) replays the same examples every run (derandomize: the draw is
+# seeded from the test itself), so a green clone stays green and a failure reproduces byte for byte.
+# `make fuzz` explores: fresh random examples each run, ten times as many, for finding new bad inputs
+# (how the Fortran-exponent ingest bug of 2026-11-24 surfaced).  A new failure found there becomes an
+# explicit regression test, not a random one.
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+settings.register_profile("fuzz", derandomize=False, print_blob=True)
+settings.load_profile(os.environ.get("TANKTEST_HYPOTHESIS", "ci"))
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fuzzing import examples  # the example count: CI-sized, or ten times under make fuzz
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -50,14 +51,14 @@ def test_other_range_and_domain():
     assert forgetting_factor(-1.0, 0.0, cfg) == pytest.approx(0.95, abs=1e-15)   # NM x ZO -> M
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(st.floats(-5, 5), st.floats(-5, 5))
 def test_factor_always_in_range(e, de):
     f = forgetting_factor(e, de)
     assert 0.95 <= f <= 1.0
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=examples(100), deadline=None)
 @given(st.floats(-1, 1))
 def test_memberships_partition_of_unity(x):
     m = memberships(x, (-0.5, 0.5))

@@ -15,6 +15,7 @@ from pipeline.ingest import FORMATS, parse_raw
 from pipeline.io import Run
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fuzzing import examples  # noqa: E402
 from make_fixtures import BAD, MARIN_FILE  # noqa: E402
 
 BAD_DIR = Path(__file__).resolve().parent / "data" / "bad"
@@ -104,7 +105,7 @@ _headers = st.sampled_from(["", "# test: zigzag 20/20\ntime,psi,r,delta\n",
                             " HSVA, experimental data CPMC\n KVLCC2\n Z20°/10° starting to port\n Title\n"])
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(header=_headers, lines=st.lists(_line, max_size=30), fmt=st.sampled_from([None, *FORMATS]),
        as_bytes=st.booleans())
 def test_malformed_text_gives_run_or_pipeline_error(header, lines, fmt, as_bytes):
@@ -118,7 +119,7 @@ def test_malformed_text_gives_run_or_pipeline_error(header, lines, fmt, as_bytes
     assert isinstance(run, Run) and {"time", "psi", "r", "delta"} <= set(run.frame.columns)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(cut=st.integers(0, 4000), junk=st.binary(max_size=40), fmt=st.sampled_from([None, *FORMATS]))
 def test_damaged_real_layouts_give_run_or_pipeline_error(cut, junk, fmt):
     data = MARIN_FILE.read_bytes()
