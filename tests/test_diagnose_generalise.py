@@ -15,6 +15,12 @@ The truths (tests/truths/, no import of pipeline.model or pipeline.diagnose):
   full scale written as MARIN SIMMAN .dat files, read with ``--scale 45.7``.  Side-swap folds (train
   starboard 20/20 + 10/10, validate port; and the reverse): each must name a cause and cut the
   held-out heading MAE by >= 50 % (issue #11, item 7).
+- :mod:`truths.mariner`: a third ship and another model family: the Mariner's Abkowitz model
+  (Chislett & Stroem-Tejsen 1965) at full scale, only just course-stable when linear, forces made
+  non-dimensional by the instantaneous speed, a hull moment Y_0, N_0 worth a 1.1 deg rudder offset,
+  the measured rudder logged; MARIN .dat read with ``--scale 40``; the same side-swap folds.  Its
+  linear form must give "none", its linear form with Y_0, N_0 the offset within 25 %, the published
+  model a cause and a >= 50 % held-out cut with the offset among the effects.
 - Scale invariance: the same KVLCC2 runs (a) Froude-scaled to model scale and read without
   ``--scale``, (b) read at full scale without ``--scale`` (a 320 m "model"; logged step scaled by
   sqrt(45.7) so that the runs have the same number of samples): the cause must be the one found
@@ -38,6 +44,7 @@ import numpy as np
 import pytest
 from truths import cases as tc
 from truths import kvlcc2 as kv
+from truths import mariner as mr
 from truths import swayyaw as sy
 from truths.files import froude_to_model, marin_test_name, write_marin
 
@@ -334,3 +341,118 @@ def test_kvlcc2_full_scale_files_without_scale_are_refused(kv_files):
 
     with pytest.raises(InputError, match="scale"):
         load(kv_files[(20, "starboard")], dt=0.08 * math.sqrt(SCALE))
+
+
+# ------------------------------------------------------------ a third ship and model family: Mariner
+MR_SCALE = 40.0           # a 4.0 m tank model of the 160.93 m Mariner
+MR_DURATION = 600.0       # s full scale (95 s at 1:40): 3-4 periods of the 20/20 zigzag
+MR_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry")   # not in the truth (the measured
+#           rudder is logged, so the servo is no hidden effect; the published model is port/starboard
+#           symmetric but for the constant Y_0, N_0, which is an offset)
+
+
+def write_mariner(folder: Path, form: str, seed: int) -> dict[tuple[int, str], Path]:
+    """The four Mariner zigzags of one form as full-scale MARIN .dat files."""
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for j, (a, side) in enumerate(KV_LEGS):
+        f = mr.simulate_zigzag(mr.Mariner(form=form), a, a, side, duration=MR_DURATION, seed=seed + j,
+                               scale=MR_SCALE)
+        out[(a, side)] = write_marin(f, folder / f"mariner_{form}_zz{a}_{side[0].upper()}.dat",
+                                     marin_test_name("Mariner", a, a))
+    return out
+
+
+_MR: dict = {}
+
+
+def mariner_fold(tmp_root: Path, form: str, fold: int, nested_gain: bool = False) -> dict:
+    """Side-swap fold 1 (train starboard 20/20 + 10/10, validate port) or 2 (the reverse) of one
+    Mariner form, made once per process (files, then the diagnosis)."""
+    key = (form, fold, nested_gain)
+    if key not in _MR:
+        files = _MR.get(form)
+        if files is None:
+            files = _MR[form] = write_mariner(tmp_root / form, form, seed=SEED * 100 + 50)
+        sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
+        runs = [[load(files[(a, side)], scale=MR_SCALE) for a in (20, 10)] for side in sides]
+        _MR[key] = diagnose_report(runs[0], runs[1], cfg=DiagnoseConfig(nested_gain=nested_gain))
+    return _MR[key]
+
+
+@pytest.fixture(scope="module")
+def mr_root(tmp_path_factory):
+    return tmp_path_factory.mktemp("mariner")
+
+
+def test_mariner_truth_is_what_it_says():
+    """SPEC signs in every form; the linear Mariner is only just stable (slow pole 118 s); the published
+    model loses speed in a 20/20 zigzag and overshoots far less than its linear part (its nonlinear
+    sway and cross terms stabilise it); the equivalent offset balances the hull constants."""
+    for form in ("linear", "offset", "full"):
+        s = mr.check_signs(form)
+        assert s["r_deg_s"] > 0 and s["v_m_s"] < 0, (form, s)
+    slow = -1.0 / mr.linear_poles()[1]          # s; L/U = 20.9 s
+    assert 100.0 < slow < 140.0, slow
+    full = kv.zigzag_metrics(mr.simulate_zigzag(mr.Mariner(), 20, 20, noise=False), 20)
+    lin = kv.zigzag_metrics(mr.simulate_zigzag(mr.Mariner(form="linear"), 20, 20, noise=False), 20)
+    assert full["lowest_speed_ratio"] < 0.9 and lin["lowest_speed_ratio"] == 1.0
+    assert max(full["overshoots_deg"]) < 0.5 * max(lin["overshoots_deg"]), (full, lin)
+    # the offset: the linear ship with the rudder at the equivalent offset (SPEC sign; the published
+    # rudder is its minus) and the constants' ship at zero rudder have the same steady yaw rate: the
+    # yaw rates at which each ship's linear forces vanish
+    d0 = mr.equivalent_offset_deg() * mr.RAD
+    lin_s, off_s = mr.Mariner(form="linear"), mr.Mariner(form="offset")
+
+    def steady_r(s, d_pub):
+        a = np.array([[mr.forces(s, 0, 1, 0, 0)[k] - mr.forces(s, 0, 0, 0, 0)[k],
+                       mr.forces(s, 0, 0, 1, 0)[k] - mr.forces(s, 0, 0, 0, 0)[k]] for k in (1, 2)])
+        return np.linalg.solve(a, -np.array(mr.forces(s, 0, 0, 0, d_pub)[1:]))[1]
+
+    assert steady_r(lin_s, -d0) == pytest.approx(steady_r(off_s, 0.0), rel=1e-9)
+    assert 0.5 < mr.equivalent_offset_deg() < 2.0
+
+
+@pytest.mark.parametrize("fold", [1, 2])
+def test_mariner_linear_is_none(mr_root, fold):
+    """The linear Mariner is the baseline's own family in another parameterisation (a slow pole near the
+    stability margin):
+    nothing may be named.  Measured 2026-11-24: none, held-out 0.05 / 0.11 deg in the two folds."""
+    rep = mariner_fold(mr_root, "linear", fold)
+    assert rep["cause"] == "none" and rep["extended"]["effects"] == [], (rep["cause"], rep["extended"])
+
+
+@pytest.mark.parametrize("fold", [1, 2])
+def test_mariner_hull_constants_are_an_offset(mr_root, fold):
+    """The linear Mariner with its Y_0, N_0: rudder_offset alone, within 25 % (tc.EST_TOL) of the
+    equivalent offset.  Measured 2026-11-24: 1.12 / 1.13 deg against 1.11, held-out cut 95 % / 90 %."""
+    rep = mariner_fold(mr_root, "offset", fold)
+    assert rep["cause"] == "rudder_offset", rep["extended"]
+    assert rep["extended"]["effects"] == ["rudder_offset"], rep["extended"]
+    f = next(x for x in rep["findings"] if x["effect"] == "rudder_offset")
+    assert f["estimate"]["offset_deg"] == pytest.approx(mr.equivalent_offset_deg(), rel=tc.EST_TOL)
+
+
+@pytest.mark.parametrize("fold", [1, 2])
+def test_mariner_side_swap(mr_root, fold):
+    """The published Mariner, as the MARIN KVLCC2 folds (issue #11 item 7): each side-swap fold names
+    a cause and cuts the held-out heading MAE by at least half; every named effect is one the truth
+    has (hull nonlinearity, speed dependence, the constants as an offset, the cubic rudder terms),
+    and the hull's offset is among them, within 25 % of its equivalent.  Fold 1 also measures the
+    honest gain (nested leave-one-run-out over the 4 runs; the same runs in fold 2), which must reach
+    the truth cases' bar, 30 % (tc.MIN_GAIN).
+
+    Measured 2026-11-24: offset + speed loss + cross terms in both folds, offset 1.17 / 1.19 deg
+    against 1.11, held-out 3.09 -> 0.60 and 4.10 -> 0.30 deg (81 % / 93 %), honest gain 0.44.
+    Before the forward-backward cycles of select (the same day) the offset was left out (speed loss
+    + sway damping, 61 % / 57 %) though it passed on top of that final model."""
+    rep = mariner_fold(mr_root, "full", fold, nested_gain=fold == 1)
+    base = rep["baseline"]["validation"]["mae_psi_deg"]
+    ext = rep["extended"]["validation"]["mae_psi_deg"]
+    assert rep["cause"] != "none" and 1.0 - ext / base >= KV_MIN_GAIN, (rep["cause"], base, ext)
+    assert not set(rep["extended"]["effects"]) & set(MR_WRONG), rep["extended"]["effects"]
+    assert "rudder_offset" in rep["extended"]["effects"], rep["extended"]["effects"]
+    f = next(x for x in rep["findings"] if x["effect"] == "rudder_offset")
+    assert f["estimate"]["offset_deg"] == pytest.approx(mr.equivalent_offset_deg(), rel=tc.EST_TOL)
+    if fold == 1:
+        assert rep["gain"]["mae_psi_relative_reduction"] >= tc.MIN_GAIN, rep["gain"]

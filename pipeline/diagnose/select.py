@@ -8,10 +8,23 @@ Rule (stated, nothing else decides):
   candidates are ranked by the pooled relative reduction of held-out free-run MAE psi; the first that
   passes :func:`step_passes` joins S.  Up to ``max_effects`` effects.
 - Among passing candidates the one-standard-error rule picks the fewest parameters (:func:`_one_se`).
-- Pairs: when no single effect passes, pairs among the best ``pair_top`` single candidates, each
-  member needed (:func:`_best_pair`).
+- Pairs: when no single effect passes, pairs among the ``pair_top`` single candidates that cut the
+  TRAINING cost most (:func:`_pair_pool`), each member needed (:func:`_best_pair`).  Not the best by
+  held-out gain: a pair is for effects that matter only together, and each of those hurts held-out
+  alone (its partner's misfit is extrapolated), so a pool ranked by held-out gain leaves them out.
+  Measured on the Mariner truth (tests/truths/mariner.py, 2026-11-24): on top of rudder saturation
+  the offset and the cross terms gain -18 % and -87 % held-out alone, +38 % together; by training
+  cost they rank 3rd and 1st, by held-out gain 7th and 8th.
 - Backward elimination: every effect of S is dropped in turn (S refitted without it); when the step
   back (S without it -> S) no longer passes, the effect of least worth leaves; repeated.
+- Forward and backward alternate until neither changes S: after a backward pass that removed an
+  effect, the forward round is run again on the smaller S (an effect that was redundant beside one
+  that has since left may pass now), then the backward pass again.  So the final S is one where no
+  single addition passes and every member's drop-one step passes: the rule's own fixed point.  Found
+  on the Mariner truth (tests/truths/mariner.py, 2026-11-24): forward took four effects, backward
+  left speed loss + sway damping, and the hull's 1.1 deg offset, redundant beside the dropped rudder
+  asymmetry, then passed on top of the final model (+54 % held-out) but was never added.  Bounded:
+  a structure reached twice ends it (no cycle), and at most ``_MAX_CYCLES`` forward-backward cycles.
 - Cause: the effect with the largest drop-one worth in the final S.
 
 A step S -> S' passes when ALL hold (:func:`step_passes`):
@@ -346,6 +359,18 @@ def _one_se(ranked):
     return min(tie, key=lambda x: (_n_params(x[0], x[1]), -x[2].gain))
 
 
+def _pair_pool(search: Search, ks, cur, ranked, n: int) -> list:
+    """The ``n`` candidates of ``ranked`` [(effect, (structure, step))] whose fits cut the training cost
+    of ``cur`` most, by the smallest relative cut over the folds (an effect must explain something
+    of every fold's training runs), best first; ties keep the held-out order."""
+
+    def cut(item):
+        _, (st, _) = item
+        return min(1.0 - search.fit(k, st).cost / max(search.fit(k, cur).cost, 1e-300) for k in ks)
+
+    return sorted(ranked, key=cut, reverse=True)[:n]
+
+
 def _best_pair(search: Search, ks, cur, ranked, noise_deg):
     """Two effects that pass only together (an offset that hurts a model whose damping is wrong and
     helps a great deal once it is right): tried when no single effect passes, among the ``pair_top``
@@ -393,33 +418,20 @@ def _nested_fit(search: Search, ks, smaller, richer) -> None:
             search.fit(k, smaller, start=search.fit(k, richer))
 
 
-def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Selection:
-    """Stepwise selection (module docstring) judged on folds ``ks`` of ``search``."""
-    cfg, ctx = search.cfg, search.ctx
-    untried = {e.name: e.applicable(ctx) for e in CATALOGUE if e.applicable(ctx)}
-    names = [e.name for e in CATALOGUE if e.name not in untried]
-    cur: tuple = ()
-    for k in ks:
-        search.fit(k, cur)
-    ladder = [(cur, None)]
-    alone: dict = {}
-    last: dict = {}
+#: forward-backward cycles of :func:`select` at most: each one follows a backward pass that removed an
+#: effect and reaches a structure not reached before; three cover every case measured (one is usual)
+_MAX_CYCLES = 3
 
-    def round_(base):
-        out = {}
-        for e in names:
-            if e in dict(base):
-                continue
-            st = search.choose_form(ks, base, e)
-            if st is None:
-                continue
-            out[e] = (st, search.step(ks, base, st, e, noise_deg))
-            if progress:
-                progress(e)
-        return out
 
+def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone, last):
+    """One forward pass (add the best passing effect or pair while one passes) from ``cur``, then one
+    backward pass (drop the least worth member while its drop-one step fails).  Returns (structure,
+    the base of the last forward round, that round's steps, the round-1 steps, ladder, whether the
+    backward pass removed anything)."""
+    cfg = search.cfg
     last_base = None
     rejudged = 0
+    removed = False
     while len(cur) < cfg.max_effects:
         cands = round_(cur)
         last_base = cur
@@ -429,7 +441,7 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
         ranked = sorted(cands.items(), key=lambda kv: -kv[1][1].gain)
         pick = _one_se(ranked)
         if pick is None and len(cur) + 2 <= cfg.max_effects:
-            pick = _best_pair(search, ks, cur, ranked[: cfg.pair_top], noise_deg)
+            pick = _best_pair(search, ks, cur, _pair_pool(search, ks, cur, ranked, cfg.pair_top), noise_deg)
         if pick is None:
             break
         e, st, s = pick
@@ -456,6 +468,45 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
             break
         cur = tuple(x for x in cur if x[0] != worst[0])
         ladder.append((cur, None))
+        removed = True
+    return cur, last_base, last, alone, ladder, removed
+
+
+def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Selection:
+    """Stepwise selection (module docstring) judged on folds ``ks`` of ``search``."""
+    cfg, ctx = search.cfg, search.ctx
+    untried = {e.name: e.applicable(ctx) for e in CATALOGUE if e.applicable(ctx)}
+    names = [e.name for e in CATALOGUE if e.name not in untried]
+    cur: tuple = ()
+    for k in ks:
+        search.fit(k, cur)
+    ladder = [(cur, None)]
+    alone: dict = {}
+    last: dict = {}
+
+    def round_(base):
+        out = {}
+        for e in names:
+            if e in dict(base):
+                continue
+            st = search.choose_form(ks, base, e)
+            if st is None:
+                continue
+            out[e] = (st, search.step(ks, base, st, e, noise_deg))
+            if progress:
+                progress(e)
+        return out
+
+    last_base = None
+    seen: set = set()
+    for _cycle in range(_MAX_CYCLES):
+        cur, last_base, last, alone, ladder, removed = _forward_backward(
+            search, ks, cur, round_, noise_deg, ladder, alone, last
+        )
+        key = structure_of(*cur)
+        if not removed or key in seen:
+            break
+        seen.add(key)
     worth = {}
     for e, _ in cur:
         without = tuple(x for x in cur if x[0] != e)
