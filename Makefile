@@ -80,14 +80,15 @@ SPEC ?= studies/power-full.toml
 study: $(STAMP)
 	$(PY) -m pipeline study $(SPEC) --out data/studies/$(basename $(notdir $(SPEC))) $(STUDY_ARGS)
 
-# make generalise                 all 32 truth cases + KVLCC2 of tests/test_diagnose_generalise.py
-#                                 (make test runs a CI-sized cut of 8 cases)
 # make fuzz: the property tests with fresh random examples, ten times as many (make test replays
 #            the same derandomised ones every run; see tests/conftest.py)
 .PHONY: fuzz
 fuzz: $(STAMP)
 	TANKTEST_HYPOTHESIS=fuzz $(PY) -m pytest -n 2 tests/test_fuzzy.py tests/test_ingest_bad.py
 
+# make generalise                 all 32 truth cases + KVLCC2 + the Mariner at 7 noise seeds
+#                                 (tests/test_diagnose_generalise.py)
+#                                 (make test runs a CI-sized cut of 8 cases)
 .PHONY: generalise
 generalise: $(STAMP)
 	TANKTEST_GENERALISE=full $(PY) -m pytest -n 2 -m generalise tests/test_diagnose_generalise.py

@@ -346,6 +346,18 @@ def test_kvlcc2_full_scale_files_without_scale_are_refused(kv_files):
 # ------------------------------------------------------------ a third ship and model family: Mariner
 MR_SCALE = 40.0           # a 4.0 m tank model of the 160.93 m Mariner
 MR_DURATION = 600.0       # s full scale (95 s at 1:40): 3-4 periods of the 20/20 zigzag
+MR_SEED = SEED * 100 + 50   # the noise seed of make test's Mariner runs (1350)
+#: other noise seeds, run by make generalise (TANKTEST_GENERALISE=full): the same ship, the same design
+MR_SEEDS = (700, 2000, 3000, 4000, 5000, 6000)
+MR_KNOWN_WRONG = {
+    2000: "rudder_saturation alone (-44 % rudder force at 20 deg; the truth's cubic rudder terms give -4 %), "
+          "held-out 32 % / 21 %: on top of saturation the offset + cross terms pair gains 18 % but with "
+          "block t = 1.05 < 1.68, and the triple offset + speed loss + cross terms (89 % from the "
+          "baseline) is beyond a forward step or a pair",
+    5000: "offset + cross terms + saturation + rudder asymmetry (80 % / 88 %, offset 0.91 / 0.94 deg): "
+          "saturation (-33 %) and asymmetry (4 %) stand for the speed loss, which then gains -75 % on top; "
+          "the structure is full (max_effects 4) and every member's drop-one step passes",
+}
 MR_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry")   # not in the truth (the measured
 #           rudder is logged, so the servo is no hidden effect; the published model is port/starboard
 #           symmetric but for the constant Y_0, N_0, which is an offset)
@@ -366,14 +378,15 @@ def write_mariner(folder: Path, form: str, seed: int) -> dict[tuple[int, str], P
 _MR: dict = {}
 
 
-def mariner_fold(tmp_root: Path, form: str, fold: int, nested_gain: bool = False) -> dict:
+def mariner_fold(tmp_root: Path, form: str, fold: int, nested_gain: bool = False,
+                 seed: int = MR_SEED) -> dict:
     """Side-swap fold 1 (train starboard 20/20 + 10/10, validate port) or 2 (the reverse) of one
-    Mariner form, made once per process (files, then the diagnosis)."""
-    key = (form, fold, nested_gain)
+    Mariner form and noise seed, made once per process (files, then the diagnosis)."""
+    key = (form, seed, fold, nested_gain)
     if key not in _MR:
-        files = _MR.get(form)
+        files = _MR.get((form, seed))
         if files is None:
-            files = _MR[form] = write_mariner(tmp_root / form, form, seed=SEED * 100 + 50)
+            files = _MR[(form, seed)] = write_mariner(tmp_root / f"{form}{seed}", form, seed=seed)
         sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
         runs = [[load(files[(a, side)], scale=MR_SCALE) for a in (20, 10)] for side in sides]
         _MR[key] = diagnose_report(runs[0], runs[1], cfg=DiagnoseConfig(nested_gain=nested_gain))
@@ -435,8 +448,15 @@ def test_mariner_hull_constants_are_an_offset(mr_root, fold):
     assert f["estimate"]["offset_deg"] == pytest.approx(mr.equivalent_offset_deg(), rel=tc.EST_TOL)
 
 
+def _mr_seed_param(seed):
+    marks = [pytest.mark.xfail(strict=True, reason="measured 2026-11-24: " + MR_KNOWN_WRONG[seed])] \
+        if seed in MR_KNOWN_WRONG else []
+    return pytest.param(seed, id=f"seed{seed}", marks=marks)
+
+
+@pytest.mark.parametrize("seed", [_mr_seed_param(s) for s in (MR_SEED, *(MR_SEEDS if FULL else ()))])
 @pytest.mark.parametrize("fold", [1, 2])
-def test_mariner_side_swap(mr_root, fold):
+def test_mariner_side_swap(mr_root, fold, seed):
     """The published Mariner, as the MARIN KVLCC2 folds (issue #11 item 7): each side-swap fold names
     a cause and cuts the held-out heading MAE by at least half; every named effect is one the truth
     has (hull nonlinearity, speed dependence, the constants as an offset, the cubic rudder terms),
@@ -446,13 +466,15 @@ def test_mariner_side_swap(mr_root, fold):
 
     Measured 2026-11-24 (seed 1350): offset + speed loss + cross terms in both folds, offset 1.15 /
     1.16 deg against 1.11, held-out 3.15 -> 0.35 and 5.44 -> 0.27 deg (89 % / 95 %), honest gain 0.90.
-    The same with another seed (700): 81 % / 93 %, offset 1.17 / 1.19 deg.  Before the two changes
+    Other seeds (make generalise): 700, 3000, 4000, 6000 the same (81-96 %, offset 1.15-1.19 deg);
+    2000 and 5000 wrong (strict xfails, MR_KNOWN_WRONG), so 5 of 7 seeds.  Before the two changes
     to select of that day (pipeline.diagnose.select's docstring): seed 1350 named rudder saturation
     alone (-45 % force at 20 deg, the truth's cubic rudder terms give -4 %), 32 % / 23 %, since the
     offset and the cross terms hurt held-out alone and the pair fallback's pool held neither; seed 700
     named speed loss + sway damping, 61 % / 57 %, and left out the offset though it passed on top.
     """
-    rep = mariner_fold(mr_root, "full", fold, nested_gain=fold == 1)
+    honest = fold == 1 and seed == MR_SEED
+    rep = mariner_fold(mr_root, "full", fold, nested_gain=honest, seed=seed)
     base = rep["baseline"]["validation"]["mae_psi_deg"]
     ext = rep["extended"]["validation"]["mae_psi_deg"]
     assert rep["cause"] != "none" and 1.0 - ext / base >= KV_MIN_GAIN, (rep["cause"], base, ext)
@@ -460,5 +482,5 @@ def test_mariner_side_swap(mr_root, fold):
     assert "rudder_offset" in rep["extended"]["effects"], rep["extended"]["effects"]
     f = next(x for x in rep["findings"] if x["effect"] == "rudder_offset")
     assert f["estimate"]["offset_deg"] == pytest.approx(mr.equivalent_offset_deg(), rel=tc.EST_TOL)
-    if fold == 1:
+    if honest:
         assert rep["gain"]["mae_psi_relative_reduction"] >= tc.MIN_GAIN, rep["gain"]
