@@ -354,9 +354,6 @@ MR_KNOWN_WRONG = {
           "held-out 32 % / 21 %: on top of saturation the offset + cross terms pair gains 18 % but with "
           "block t = 1.05 < 1.68, and the triple offset + speed loss + cross terms (89 % from the "
           "baseline) is beyond a forward step or a pair",
-    5000: "offset + cross terms + saturation + rudder asymmetry (80 % / 88 %, offset 0.91 / 0.94 deg): "
-          "saturation (-33 %) and asymmetry (4 %) stand for the speed loss, which then gains -75 % on top; "
-          "the structure is full (max_effects 4) and every member's drop-one step passes",
 }
 MR_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry")   # not in the truth (the measured
 #           rudder is logged, so the servo is no hidden effect; the published model is port/starboard
@@ -466,8 +463,10 @@ def test_mariner_side_swap(mr_root, fold, seed):
 
     Measured 2026-11-24 (seed 1350): offset + speed loss + cross terms in both folds, offset 1.15 /
     1.16 deg against 1.11, held-out 3.15 -> 0.35 and 5.44 -> 0.27 deg (89 % / 95 %), honest gain 0.90.
-    Other seeds (make generalise): 700, 3000, 4000, 6000 the same (81-96 %, offset 1.15-1.19 deg);
-    2000 and 5000 wrong (strict xfails, MR_KNOWN_WRONG), so 5 of 7 seeds.  Before the two changes
+    Other seeds (make generalise): 700, 3000, 4000, 5000, 6000 the same (81-96 %, offset 1.15-1.19
+    deg); 2000 wrong (a strict xfail, MR_KNOWN_WRONG), so 6 of 7 seeds.  Seed 5000 was wrong before
+    the replacement move of select (offset + cross terms + saturation + asymmetry, full, where
+    saturation and asymmetry stood for the speed loss: 80 % / 88 %).  Before the two changes
     to select of that day (pipeline.diagnose.select's docstring): seed 1350 named rudder saturation
     alone (-45 % force at 20 deg, the truth's cubic rudder terms give -4 %), 32 % / 23 %, since the
     offset and the cross terms hurt held-out alone and the pair fallback's pool held neither; seed 700

@@ -10,6 +10,8 @@ member's drop-one step passes.
 
 from __future__ import annotations
 
+import sys
+
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose import select as sel
 from pipeline.diagnose.effects import Context
@@ -120,3 +122,31 @@ def test_pair_pool_ranks_by_training_cost_not_held_out_gain():
     ranked = [(e, (structure_of(e), None)) for e in (A, D, O, C)]     # held-out order
     assert [e for e, _ in sel._pair_pool(S(), [0, 1], base, ranked, 2)] == [C, O]
     assert [e for e, _ in sel._pair_pool(S(), [0, 1], base, ranked, 4)] == [C, O, A, D]
+
+
+#: a second table, for a limit of two effects: saturation then sway damping fill the model, and
+#: speed loss in saturation's place is better (2.5 deg against 3.5)
+TABLE2 = {
+    (): 10.0, (A,): 5.0, (C,): 7.0, (D,): 5.5, (O,): 8.0,
+    (A, C): 3.5, (A, D): 4.4, (A, O): 4.4, (C, D): 2.5, (C, O): 6.8, (D, O): 4.4,
+}
+
+
+def test_a_full_structure_tries_replacements(monkeypatch):
+    """Sequential replacement (Miller 2002): forward fills the two places with saturation and sway
+    damping, backward keeps both (each drop-one step passes); swapping saturation for speed loss cuts
+    the error by 29 %, so the rule moves there, and stops when no swap of the new pair passes."""
+    monkeypatch.setattr(sys.modules[__name__], "TABLE", TABLE2)
+    out = sel.select(FakeSearch(max_effects=2), [0], noise_deg=0.05)
+    assert _names(out.structure) == {C, D}, out.structure
+    assert [sorted(_names(st)) for st, _ in out.ladder] == [[], [A], sorted([A, C]), sorted([C, D])]
+    assert out.ladder[-1][1].passes and round(out.ladder[-1][1].gain, 3) == round(1 - 2.5 / 3.5, 3)
+
+
+def test_no_replacement_below_the_limit():
+    """Below max_effects the forward round already tries every addition: no swap is judged."""
+    search = FakeSearch()
+    out = sel.select(search, [0], noise_deg=0.05)
+    assert _names(out.structure) == {C, D, O}
+    swaps = [(b, a) for b, a in search.steps if len(a) == len(b) and set(a) != set(b)]
+    assert swaps == []
