@@ -349,12 +349,10 @@ MR_DURATION = 600.0       # s full scale (95 s at 1:40): 3-4 periods of the 20/2
 MR_SEED = SEED * 100 + 50   # the noise seed of make test's Mariner runs (1350)
 #: other noise seeds, run by make generalise (TANKTEST_GENERALISE=full): the same ship, the same design
 MR_SEEDS = (700, 2000, 3000, 4000, 5000, 6000)
-MR_KNOWN_WRONG = {
-    2000: "rudder_saturation alone (-44 % rudder force at 20 deg; the truth's cubic rudder terms give -4 %), "
-          "held-out 32 % / 21 %: on top of saturation the offset + cross terms pair gains 18 % but with "
-          "block t = 1.05 < 1.68, and the triple offset + speed loss + cross terms (89 % from the "
-          "baseline) is beyond a forward step or a pair",
-}
+#: seeds the method names wrongly (measured, each a strict xfail with its reason): none since the
+#: groups of three of 2026-11-24; before them seed 2000 named rudder saturation alone (32 % / 21 %),
+#: and before the replacement move seed 5000 named saturation + asymmetry for the speed loss
+MR_KNOWN_WRONG: dict = {}
 MR_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry")   # not in the truth (the measured
 #           rudder is logged, so the servo is no hidden effect; the published model is port/starboard
 #           symmetric but for the constant Y_0, N_0, which is an offset)
@@ -463,10 +461,11 @@ def test_mariner_side_swap(mr_root, fold, seed):
 
     Measured 2026-11-24 (seed 1350): offset + speed loss + cross terms in both folds, offset 1.15 /
     1.16 deg against 1.11, held-out 3.15 -> 0.35 and 5.44 -> 0.27 deg (89 % / 95 %), honest gain 0.90.
-    Other seeds (make generalise): 700, 3000, 4000, 5000, 6000 the same (81-96 %, offset 1.15-1.19
-    deg); 2000 wrong (a strict xfail, MR_KNOWN_WRONG), so 6 of 7 seeds.  Seed 5000 was wrong before
-    the replacement move of select (offset + cross terms + saturation + asymmetry, full, where
-    saturation and asymmetry stood for the speed loss: 80 % / 88 %).  Before the two changes
+    Other seeds (make generalise): 700, 2000, 3000, 4000, 5000, 6000 the same (81-96 %, offset
+    1.15-1.19 deg): 7 of 7.  Seed 5000 was wrong before the replacement move of select (offset +
+    cross terms + saturation + asymmetry, full, where saturation and asymmetry stood for the speed
+    loss: 80 % / 88 %), seed 2000 before the groups of three (saturation alone, 32 % / 21 %: the
+    three that replace it pass only together).  Before the two changes
     to select of that day (pipeline.diagnose.select's docstring): seed 1350 named rudder saturation
     alone (-45 % force at 20 deg, the truth's cubic rudder terms give -4 %), 32 % / 23 %, since the
     offset and the cross terms hurt held-out alone and the pair fallback's pool held neither; seed 700

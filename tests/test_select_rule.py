@@ -33,6 +33,11 @@ def _error(structure) -> float:
     return TABLE[tuple(x for x in (A, C, D, O) if x in names)]
 
 
+class _Fit:
+    def __init__(self, cost):
+        self.cost = cost
+
+
 class FakeSearch:
     """What select needs of pipeline.diagnose.select.Search, with held-out errors from TABLE."""
 
@@ -45,8 +50,10 @@ class FakeSearch:
         self.steps: list = []
 
     def fit(self, k, structure, start=None):
-        self._fits[(k, structure_of(*structure))] = structure
-        return structure
+        """A stand-in fit whose training cost is the table's error (what _pair_pool ranks by)."""
+        f = _Fit(_error(structure))
+        self._fits[(k, structure_of(*structure))] = f
+        return f
 
     def refine(self, k, structure, richer):
         return False
@@ -97,10 +104,6 @@ def test_one_cycle_is_the_old_rule(monkeypatch):
     assert out.last[O].passes and out.last[O].gain > 0.3     # reported as passing, but not added
 
 
-class _Fit:
-    def __init__(self, cost):
-        self.cost = cost
-
 
 def test_pair_pool_ranks_by_training_cost_not_held_out_gain():
     """The pool of the pair fallback: the candidates that cut the training cost most in EVERY fold
@@ -150,3 +153,34 @@ def test_no_replacement_below_the_limit():
     assert _names(out.structure) == {C, D, O}
     swaps = [(b, a) for b, a in search.steps if len(a) == len(b) and set(a) != set(b)]
     assert swaps == []
+
+
+#: a third table, for a limit of three effects: no effect and no pair cuts the error by 10 %, the
+#: three of sway damping, speed loss and offset together cut it by 70 % (each needed)
+TABLE3 = {
+    (): 10.0, (A,): 9.5, (C,): 9.8, (D,): 9.7, (O,): 9.9,
+    (A, C): 9.2, (A, D): 9.2, (A, O): 9.3, (C, D): 9.3, (C, O): 9.4, (D, O): 9.3,
+    (A, C, D): 9.2, (A, C, O): 9.2, (A, D, O): 9.2, (C, D, O): 3.0,
+}
+
+
+def test_three_effects_that_pass_only_together_are_found(monkeypatch):
+    """No single effect and no pair passes; the triple among the pool (the four of largest training
+    cut: saturation, speed loss, sway damping, offset) that passes, each member needed, is taken."""
+    monkeypatch.setattr(sys.modules[__name__], "TABLE", TABLE3)
+    search = FakeSearch(max_effects=3)
+    out = sel.select(search, [0], noise_deg=0.05)
+    assert _names(out.structure) == {C, D, O}, out.structure
+    assert [sorted(_names(st)) for st, _ in out.ladder] == [[], sorted([C, D, O])]
+    # each member's need was judged: the step from each pair to the triple
+    for pair in ((C, D), (C, O), (D, O)):
+        assert any(set(b) == set(pair) and set(a) == {C, D, O} for b, a in search.steps), pair
+
+
+def test_no_triples_without_room(monkeypatch):
+    """With a limit of two effects no triple is tried, and nothing is named."""
+    monkeypatch.setattr(sys.modules[__name__], "TABLE", TABLE3)
+    search = FakeSearch(max_effects=2)
+    out = sel.select(search, [0], noise_deg=0.05)
+    assert out.structure == () and out.cause == "none"
+    assert max(len(a) for _, a in search.steps) == 2
