@@ -188,9 +188,9 @@ class DiagnoseConfig:
     # block length in ship time scales T_ship: blocks of 2 T are close to independent (the yaw
     # response forgets its state in ~T) and a zigzag half-period holds about one
     block_T: float = 2.0
-    # pairs are tried (when no single effect passes) among this many single candidates, those that cut
-    # the training cost most (pipeline.diagnose.select._pair_pool): 4 gives 6 pairs, the cost of one
-    # more round
+    # pairs are tried (when no single effect passes), then triples (when no pair passes), among this
+    # many single candidates, those that cut the training cost most (pipeline.diagnose.select.
+    # _pair_pool): 4 gives 6 pairs and 4 triples, about the cost of one more round
     pair_top: int = 4
     max_effects: int = 4  # largest extended model (more would be an Abkowitz fit by another name)
     seed: int = 11                       # bootstrap draws of the reported interval

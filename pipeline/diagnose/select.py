@@ -10,14 +10,14 @@ Rule (stated, nothing else decides):
 - Among passing candidates the one-standard-error rule picks the fewest parameters (:func:`_one_se`).
 - Groups: when no single effect passes, pairs among the ``pair_top`` single candidates that cut the
   TRAINING cost most (:func:`_pair_pool`), then, when no pair passes either, triples among the same
-  candidates; each member needed (:func:`_best_group`).  Triples, because on the Mariner truth the
-  offset, the speed loss and the cross terms are worth 89 % held-out together from the baseline and
-  nothing on top of a saturation that stands for them, alone or in pairs (seed 2000).  Not the best by
-  held-out gain: a pair is for effects that matter only together, and each of those hurts held-out
-  alone (its partner's misfit is extrapolated), so a pool ranked by held-out gain leaves them out.
-  Measured on the Mariner truth (tests/truths/mariner.py, 2026-11-24): on top of rudder saturation
-  the offset and the cross terms gain -18 % and -87 % held-out alone, +38 % together; by training
-  cost they rank 3rd and 1st, by held-out gain 7th and 8th.
+  candidates; each member needed (:func:`_best_group`).  The pool is not the best by held-out gain:
+  a group is for effects that matter only together, and each of those hurts held-out alone (its
+  partners' misfit is extrapolated), so a pool ranked by held-out gain leaves them out.  Measured
+  on the Mariner truth (tests/truths/mariner.py, 2026-11-24): on top of rudder saturation the offset
+  and the cross terms gain -18 % and -87 % held-out alone, +38 % together; by training cost they rank
+  3rd and 1st, by held-out gain 7th and 8th.  Triples, because on another noise seed (2000) the
+  offset, the speed loss and the cross terms pass only all three together on top of a saturation
+  that stands for them (89 % held-out from the baseline), alone or in pairs nothing passes.
 - Backward elimination: every effect of S is dropped in turn (S refitted without it); when the step
   back (S without it -> S) no longer passes, the effect of least worth leaves; repeated.
 - Forward and backward alternate until neither changes S: after a backward pass that removed an
@@ -32,9 +32,9 @@ Rule (stated, nothing else decides):
   forward step can be tried), each member is swapped in turn for each effect not in it (fitted warm
   from the structure without that member); a swap S -> S' is judged as a forward step (the new
   effect's floor) and the best passing one (one-standard-error rule) is taken, then forward and
-  backward again.  Found
-  on the Mariner truth (seed 5000): offset + cross terms + saturation + asymmetry, full, where
-  saturation and asymmetry stood for the speed loss; swapping saturation for speed loss gains 73 %.
+  backward again.  Found on the Mariner truth (seed 5000): offset + cross terms + saturation +
+  asymmetry, full, where saturation and asymmetry stood for the speed loss; swapping saturation for
+  speed loss gains 73 %.
   Only on full structures: below the limit the forward round already tries every addition, and a
   swap round costs members x candidates fits (a full one is as dear as two forward rounds).
 - Bounded: a structure reached twice ends it (no cycle), and at most ``_MAX_CYCLES`` cycles.
@@ -461,7 +461,7 @@ def _best_swap(search: Search, ks, cur, names, noise_deg):
 
 
 def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone, last):
-    """One forward pass (add the best passing effect or pair while one passes) from ``cur``, then one
+    """One forward pass (add the best passing effect or group while one passes) from ``cur``, then one
     backward pass (drop the least worth member while its drop-one step fails).  Returns (structure,
     the base of the last forward round, that round's steps, the round-1 steps, ladder, whether the
     backward pass removed anything)."""
