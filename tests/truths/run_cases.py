@@ -1,11 +1,13 @@
 """Run every case of tests/test_diagnose_generalise.py and print a table (for the lead).
 
     PYTHONPATH=$PWD .venv/bin/python tests/truths/run_cases.py [--only 03,14] [--no-kvlcc2] [-j 2]
+        [--mariner-seeds 1350,2000 | all | none]
 
 Columns: case, ship, truth, expected cause, got cause, extended effects, reported held-out gain,
 estimate vs truth, CPU seconds of the diagnosis, PASS/FAIL with the reasons.  Then the KVLCC2
 free-running check (overshoots vs SIMMAN 2008), its side-swap folds with the baseline and
-extended held-out heading MAE, and the two scale-invariance checks.
+extended held-out heading MAE, and the two scale-invariance checks.  Between them the Mariner
+section (each form in both side-swap folds; ``--mariner-seeds``).
 """
 
 from __future__ import annotations
@@ -56,6 +58,9 @@ def main(argv=None) -> int:
     ap.add_argument("-j", type=int, default=1, help="worker processes")
     ap.add_argument("--oracle", action="store_true", help="also the independent linear/rich fit on KVLCC2")
     ap.add_argument("--only-kvlcc2", action="store_true")
+    ap.add_argument("--mariner-seeds", default="",
+                    help="comma-separated noise seeds of the Mariner section (default: make test's one; "
+                         "'all': make generalise's seven; 'none': skip it)")
     a = ap.parse_args(argv)
     import test_diagnose_generalise as tg
 
@@ -83,6 +88,8 @@ def main(argv=None) -> int:
               f"{_fmt(fig.get('baseline_mae'))}/{_fmt(fig.get('extended_mae'))} | {est or '-'} | {sec:.1f} | "
               f"{'PASS' if ok else 'FAIL: ' + '; '.join(why)}{_immaterial(fig)} |")
     print(f"\n{npass}/{len(results)} cases pass")
+    if a.mariner_seeds != "none" and not a.only_kvlcc2:
+        _mariner(tg, Path(folder), a.mariner_seeds)
     if a.no_kvlcc2:
         return 0
     from truths import kvlcc2 as kv
@@ -137,6 +144,34 @@ def main(argv=None) -> int:
         print(f"  scale invariance ({how}): cause {c} vs {causes[1]} with --scale "
               f"[{'PASS' if c == causes[1] else 'FAIL'}] ({time.process_time() - t0:.0f} s)")
     return 0
+
+
+def _mariner(tg, folder: Path, seeds_arg: str) -> None:
+    """The Mariner section: each form's verdict in both side-swap folds (test_mariner_*), without the
+    nested honest gain."""
+    from truths import mariner as mr
+
+    if seeds_arg == "all":
+        seeds = (tg.MR_SEED, *tg.MR_SEEDS)
+    else:
+        seeds = tuple(int(x) for x in seeds_arg.split(",")) if seeds_arg else (tg.MR_SEED,)
+    print(f"\nMariner (Abkowitz model, Chislett & Stroem-Tejsen 1965), full scale, --scale {tg.MR_SCALE:g}; "
+          f"equivalent offset of Y_0, N_0 {mr.equivalent_offset_deg():.3f} deg; slow linear pole "
+          f"{-1.0 / mr.linear_poles()[1]:.0f} s")
+    forms = [("linear", "none"), ("offset", "rudder_offset"), ("full", "a cause, offset among the effects")]
+    for seed in seeds:
+        for form, expected in forms if seed == tg.MR_SEED else forms[2:]:
+            for fold in (1, 2):
+                t0 = time.process_time()
+                rep = tg.mariner_fold(folder, form, fold, seed=seed)
+                b = rep["baseline"]["validation"]["mae_psi_deg"]
+                e = rep["extended"]["validation"]["mae_psi_deg"]
+                off = next((f["estimate"]["offset_deg"] for f in rep["findings"]
+                            if f["effect"] == "rudder_offset" and f["significant"]), None)
+                print(f"  seed {seed} {form:6s} fold {fold}: expected {expected}; cause {rep['cause']}, "
+                      f"extended {rep['extended']['effects']}, held-out MAE psi {b:.3f} -> {e:.3f} deg "
+                      f"({1.0 - e / b:.0%})" + (f", offset {off:.3f} deg" if off is not None else "")
+                      + f" ({time.process_time() - t0:.0f} s)")
 
 
 if __name__ == "__main__":
