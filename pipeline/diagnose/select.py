@@ -441,21 +441,15 @@ def _nested_fit(search: Search, ks, smaller, richer) -> None:
 _MAX_CYCLES = 4
 
 
-def _best_swap(search: Search, ks, cur, names, noise_deg):
-    """Sequential replacement on ``cur``: every member swapped for every effect of ``names`` not in
-    ``cur``, fitted warm from the rest's fit (made by the backward pass); the step cur -> swapped
-    judged with the incoming effect's floor.  Returns (incoming effect, structure, step) of the best
-    passing swap (one-standard-error rule), or None."""
+def _best_swap(cur, round_):
+    """Sequential replacement on ``cur``: every member swapped for every effect not in ``cur``, each
+    fitted warm from the rest's fit (made by the backward pass) and the step cur -> swapped judged with
+    the incoming effect's floor (``round_(rest, against=cur)``).  Returns (incoming effect, structure,
+    step) of the best passing swap (one-standard-error rule), or None."""
     ranked = []
     for m, _ in cur:
         rest = tuple(x for x in cur if x[0] != m)
-        for e in names:
-            if e in dict(cur):
-                continue
-            st = search.choose_form(ks, rest, e)
-            if st is None:
-                continue
-            ranked.append((e, (st, search.step(ks, cur, st, e, noise_deg))))
+        ranked += list(round_(rest, against=cur).items())
     ranked.sort(key=lambda kv: -kv[1][1].gain)
     return _one_se(ranked)
 
@@ -524,15 +518,18 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
     alone: dict = {}
     last: dict = {}
 
-    def round_(base):
+    def round_(base, against=None):
+        """Every effect not in ``against`` (default ``base``) added to ``base``, judged as the step
+        ``against`` -> base + effect: a forward round, or (against the full structure) its swaps."""
+        against = base if against is None else against
         out = {}
         for e in names:
-            if e in dict(base):
+            if e in dict(against):
                 continue
             st = search.choose_form(ks, base, e)
             if st is None:
                 continue
-            out[e] = (st, search.step(ks, base, st, e, noise_deg))
+            out[e] = (st, search.step(ks, against, st, e, noise_deg))
             if progress:
                 progress(e)
         return out
@@ -549,12 +546,11 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
         seen.add(key)
         if removed:
             continue
-        swap = _best_swap(search, ks, cur, names, noise_deg) if len(cur) >= cfg.max_effects else None
+        swap = _best_swap(cur, round_) if len(cur) >= cfg.max_effects else None
         if swap is None:
             break
         cur = swap[1]
         ladder.append((cur, swap[2]))
-        last_base = None
     worth = {}
     for e, _ in cur:
         without = tuple(x for x in cur if x[0] != e)
