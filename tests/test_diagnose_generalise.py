@@ -358,13 +358,15 @@ MR_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry")   # not in the tru
 #           symmetric but for the constant Y_0, N_0, which is an offset)
 
 
-def write_mariner(folder: Path, form: str, seed: int) -> dict[tuple[int, str], Path]:
-    """The four Mariner zigzags of one form as full-scale MARIN .dat files."""
+def write_mariner(folder: Path, form: str, seed: int,
+                  disturbance_deg: float = 0.0) -> dict[tuple[int, str], Path]:
+    """The four Mariner zigzags of one form as full-scale MARIN .dat files (``disturbance_deg``: the
+    process disturbance of :func:`truths.mariner.simulate_zigzag`, 0 for none)."""
     folder.mkdir(parents=True, exist_ok=True)
     out = {}
     for j, (a, side) in enumerate(KV_LEGS):
         f = mr.simulate_zigzag(mr.Mariner(form=form), a, a, side, duration=MR_DURATION, seed=seed + j,
-                               scale=MR_SCALE)
+                               scale=MR_SCALE, disturbance_deg=disturbance_deg)
         out[(a, side)] = write_marin(f, folder / f"mariner_{form}_zz{a}_{side[0].upper()}.dat",
                                      marin_test_name("Mariner", a, a))
     return out
@@ -374,14 +376,16 @@ _MR: dict = {}
 
 
 def mariner_fold(tmp_root: Path, form: str, fold: int, nested_gain: bool = False,
-                 seed: int = MR_SEED) -> dict:
+                 seed: int = MR_SEED, disturbance_deg: float = 0.0) -> dict:
     """Side-swap fold 1 (train starboard 20/20 + 10/10, validate port) or 2 (the reverse) of one
     Mariner form and noise seed, made once per process (files, then the diagnosis)."""
-    key = (form, seed, fold, nested_gain)
+    key = (form, seed, fold, nested_gain, disturbance_deg)
     if key not in _MR:
-        files = _MR.get((form, seed))
+        files = _MR.get((form, seed, disturbance_deg))
         if files is None:
-            files = _MR[(form, seed)] = write_mariner(tmp_root / f"{form}{seed}", form, seed=seed)
+            files = _MR[(form, seed, disturbance_deg)] = write_mariner(
+                tmp_root / f"{form}{seed}d{disturbance_deg:g}", form, seed=seed,
+                disturbance_deg=disturbance_deg)
         sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
         runs = [[load(files[(a, side)], scale=MR_SCALE) for a in (20, 10)] for side in sides]
         _MR[key] = diagnose_report(runs[0], runs[1], cfg=DiagnoseConfig(nested_gain=nested_gain))
@@ -482,3 +486,110 @@ def test_mariner_side_swap(mr_root, fold, seed):
     assert f["estimate"]["offset_deg"] == pytest.approx(mr.equivalent_offset_deg(), rel=tc.EST_TOL)
     if honest:
         assert rep["gain"]["mae_psi_relative_reduction"] >= tc.MIN_GAIN, rep["gain"]
+
+
+#: the process disturbance of the Mariner runs below: a yaw moment worth 0.5 deg of rudder (std), with
+#: a 30 s correlation time (full scale), drawn afresh in every run (truths.mariner.simulate_zigzag).
+#: Sized to matter: at this level the baseline's held-out error is 2-7 deg (seeds 700-6000), tens of
+#: times the 0.05 deg sensor noise, as large as what the hull constants' 1.108 deg offset causes (4.4 deg
+#: without the disturbance); at 1 deg the linear Mariner's heading moves by 1.7 deg on average, 4.7
+#: deg at most, in a 10/10 zigzag (measured 2026-11-24).
+MR_DISTURBANCE_DEG = 0.5
+#: offset-form seeds named wrongly under the disturbance (strict xfails, measured 2026-11-24, both folds):
+#: the judge is the held-out free run over the whole 600 s run (13 ship time scales), where the
+#: integrated disturbance outweighs what tells an offset from a rudder asymmetry on a ship whose slow
+#: yaw pole is 118 s; on short horizons the truth wins (test_mariner_disturbance_short_horizons_tell).
+MR_DIST_KNOWN_WRONG = {
+    3000: "rudder_asymmetry (8.8 %) named for the 1.108 deg offset, +49 % held-out; the offset alone "
+          "(1.05 deg, right) gains -33 % / +52 % over the whole runs and fails; restarted from the "
+          "measured state every ship time scale the offset's held-out error is 0.51 / 1.34 deg against the "
+          "asymmetry's 1.56 / 1.58",
+    5000: "rudder_asymmetry (9.6 %) named for the offset; over 1 ship time scale offset 1.39 / 0.32 deg, "
+          "asymmetry 1.68 / 1.60",
+    6000: "rudder_asymmetry (8.8 %) named for the offset (offset alone -49 % / +67 % over the whole runs); "
+          "over 1 ship time scale offset 0.31 / 1.36 deg, asymmetry 1.46 / 1.54",
+}
+
+
+def _dist_param(form, seed):
+    wrong = form == "offset" and seed in MR_DIST_KNOWN_WRONG
+    marks = [pytest.mark.xfail(strict=True, reason="measured 2026-11-24: " + MR_DIST_KNOWN_WRONG[seed])] \
+        if wrong else []
+    return pytest.param(form, seed, id=f"{form}-seed{seed}", marks=marks)
+
+
+@pytest.mark.parametrize("form,seed", [_dist_param(f, s) for f in ("linear", "offset")
+                                       for s in (MR_SEED, *(MR_SEEDS if FULL else ()))])
+@pytest.mark.parametrize("fold", [1, 2])
+def test_mariner_process_disturbance_is_not_an_effect(mr_root, form, fold, seed):
+    """Issue 11 (clean data gets effects named that are not there), with an error no candidate
+    describes and that is not repeatable: a random external yaw moment in every run (wind gusts at
+    sea, a tank's residual circulation), on top of the linear Mariner (truth "none") and of the
+    linear Mariner with its hull constants (truth: the 1.108 deg offset).  Whatever the disturbance
+    does to one run, it does something else to the next, so nothing fitted to it may pass on runs it
+    was not fitted on: linear -> none, offset -> rudder_offset alone within 25 %.
+
+    Measured 2026-11-24: linear none in all 14 folds of the 7 seeds, at 0.5 and at 1 deg (seed 1350 at
+    1 deg: baseline held-out 2.34 / 3.70 deg; the nearest, an asymmetry and an offset at +12 % / +11 %,
+    fail the block t-test, t 1.22 and 1.66 against 1.70, and their floors, 0.5 % and 0.06 deg).  Offset:
+    seed 1350 rudder_offset alone, 1.13 / 1.12 deg at 0.5 deg (1.20 / 1.16 at 1 deg); 4 of 7 seeds
+    right at 0.5 deg, 3 of 7 at 1 deg (MR_DIST_KNOWN_WRONG).  Not tested, measured: the published
+    (full) Mariner at 0.5 deg names offset + cross terms + saturation + an asymmetry (seed 1350; the
+    truth's own structure, fitted, is no better held-out: 77 % both) or sway damping + saturation
+    without the offset (seed 700; the truth's structure, fitted, is worse held-out: 26 % against
+    51 %)."""
+    rep = mariner_fold(mr_root, form, fold, seed=seed, disturbance_deg=MR_DISTURBANCE_DEG)
+    if form == "linear":
+        assert rep["cause"] == "none" and rep["extended"]["effects"] == [], (rep["cause"], rep["extended"])
+        # and the error is there to be explained: the disturbance, not a noise-level misfit
+        assert rep["baseline"]["validation"]["mae_psi_deg"] > 10 * rep["settings"]["heading_noise_deg"]
+        return
+    assert rep["extended"]["effects"] == ["rudder_offset"], rep["extended"]["effects"]
+    f = next(x for x in rep["findings"] if x["effect"] == "rudder_offset")
+    assert f["estimate"]["offset_deg"] == pytest.approx(mr.equivalent_offset_deg(), rel=tc.EST_TOL)
+
+
+def _horizon_mae(search, k: int, structure, horizon_T: float) -> float:
+    """Held-out MAE psi (deg) of fold k's fit of ``structure``, every run cut into pieces of
+    ``horizon_T`` ship time scales, each piece a free run from the measured (v, r, psi) at its start."""
+    from pipeline.diagnose.core import _u_ratio
+    from pipeline.diagnose.extended import predict_segments
+
+    fit = search.fit(k, structure)
+    errs = []
+    for s in search.folds[k].val:
+        n = int(round(horizon_T * search.ctx.t_ship / s.h))
+        starts = np.arange(0, s.t.size - n, n)
+        seg = predict_segments(fit.theta, fit.terms, np.column_stack([s.v, s.r, s.psi]), s.t, s.delta,
+                               starts, n, _u_ratio(s, fit.u_ref))
+        errs += [np.abs(seg[j, :, 2] - s.psi[k0:k0 + n]) for j, k0 in enumerate(starts)]
+    return float(np.mean(np.concatenate(errs)))
+
+
+@pytest.mark.skipif(not FULL, reason="make generalise only (TANKTEST_GENERALISE=full): seed 3000's mechanism")
+def test_mariner_disturbance_short_horizons_tell(mr_root, monkeypatch):
+    """The mechanism behind MR_DIST_KNOWN_WRONG, on seed 3000, with the diagnosis's own fits (its forms
+    and starts): over the whole held-out runs the asymmetry is not worse than the (true) offset in
+    every fold, so the diagnosis names it; restarted from the measured state every ship time scale,
+    the offset beats it in both folds.  Measured 2026-11-24: whole runs 2.75 / 1.90 deg (asymmetry)
+    against 6.92 / 1.83 (offset); one ship time scale 1.56 / 1.58 against 0.51 / 1.34."""
+    import pipeline.diagnose.core as core
+    from pipeline.diagnose.fit import structure_of
+
+    seen, select = [], core.select
+
+    def keep(search, *a, **kw):     # the diagnosis's own Search (its fits), kept for the comparison
+        seen.append(search)
+        return select(search, *a, **kw)
+
+    monkeypatch.setattr(core, "select", keep)
+    files = write_mariner(mr_root / "horizon3000", "offset", 3000, MR_DISTURBANCE_DEG)
+    st, po = ([load(files[(a, side)], scale=MR_SCALE) for a in (20, 10)] for side in ("starboard", "port"))
+    rep = diagnose_report(st, po, cfg=DiagnoseConfig(nested_gain=False))
+    assert rep["extended"]["effects"] == ["rudder_asymmetry"], rep["extended"]["effects"]
+    search = seen[0]
+    off, asym = structure_of("rudder_offset"), structure_of("rudder_asymmetry")
+    whole = [[search.eval(k, x)[0]["mae_psi_deg"] for x in (off, asym)] for k in (0, 1)]
+    short = [[_horizon_mae(search, k, x, 1.0) for x in (off, asym)] for k in (0, 1)]
+    assert any(o > a for o, a in whole), whole
+    assert all(o < a for o, a in short), short

@@ -114,12 +114,16 @@ def _masses():
     return m11, m22, m23, m32, m33
 
 
-def derivatives(s: Mariner, du_m: float, v: float, r: float, d: float) -> tuple[float, float, float]:
+def derivatives(
+    s: Mariner, du_m: float, v: float, r: float, d: float, n_ext: float = 0.0
+) -> tuple[float, float, float]:
     """(du/dt m/s^2, dv/dt m/s^2, dr/dt rad/s^2) at surge perturbation du_m m/s, sway v m/s, yaw rate
-    r rad/s, published rudder d rad."""
+    r rad/s, published rudder d rad; ``n_ext`` an external yaw moment N' (prime system, the
+    published tables' units) added to the hull's."""
     U = s.U0 if s.form != "full" else math.hypot(s.U0 + du_m, v)
     up = du_m / U if s.form == "full" else 0.0
     X, Y, N = forces(s, up, v / U, r * s.L / U, d)
+    N += n_ext
     m11, m22, m23, m32, m33 = _masses()
     det = m22 * m33 - m23 * m32
     du = X * U * U / s.L / m11 if s.form == "full" else 0.0
@@ -172,21 +176,40 @@ def simulate_zigzag(
     noise: bool = True,
     t_execute: float = 10.0,
     scale: float = 40.0,
+    disturbance_deg: float = 0.0,
+    disturbance_tau: float = 30.0,
 ) -> pd.DataFrame:
     """A full-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg (SPEC
     signs; the *measured* rudder), logged every ``dt_log`` s.  RK4 at ``h`` s.  Counter-rudder at a
     logging instant when the measured heading passes +-heading_deg.  White sensor noise,
     Froude-scaled from model-scale figures at 1:``scale`` (psi 0.05 deg, r 0.05 deg/s, u, v
     0.005 m/s, delta 0.05 deg).  The ship starts straight at U0 with zero rudder; the first 10 s
-    (before the execute) show any drift the hull has of its own."""
+    (before the execute) show any drift the hull has of its own.
+
+    Process disturbance (``disturbance_deg`` > 0): an external yaw moment that no candidate effect
+    describes, as wind gusts in a sea trial or a tank's residual circulation give: a stationary
+    Ornstein-Uhlenbeck process with correlation time ``disturbance_tau`` s and a standard deviation
+    of the yaw moment ``disturbance_deg`` of rudder gives (|N_d| x angle), drawn afresh in every run
+    (its own random stream, so the sensor noise is the same with and without it), exact at the
+    logging step and held over the RK4 sub-steps.  Its run mean is random, so no constant effect (an
+    offset) explains it on runs it was not fitted on."""
     sub = int(round(dt_log / h))
     n = int(round(duration / dt_log)) + 1
     sign = 1.0 if first_side == "starboard" else -1.0
     rate, dmax = s.rudder_rate * RAD, s.rudder_max * RAD
 
-    def rhs(x, cmd_pub):
+    dist = np.zeros(n)
+    if disturbance_deg > 0.0:
+        g = np.random.default_rng([seed, 1]).normal(0.0, 1.0, n)
+        a = math.exp(-dt_log / disturbance_tau)
+        dist[0] = g[0]
+        for i in range(1, n):
+            dist[i] = a * dist[i - 1] + math.sqrt(1.0 - a * a) * g[i]
+        dist *= abs(_coef(N_, "d")) * disturbance_deg * RAD
+
+    def rhs(x, cmd_pub, n_ext=0.0):
         du_m, v, r, psi, _, _, d = x
-        du, dv, dr = derivatives(s, du_m, v, r, d)
+        du, dv, dr = derivatives(s, du_m, v, r, d, n_ext)
         c = max(-dmax, min(dmax, cmd_pub))
         dd = (c - d) / s.servo_tau
         dd = max(-rate, min(rate, dd))
@@ -214,11 +237,12 @@ def simulate_zigzag(
                 cmd = rudder_deg * RAD
         if i == n - 1:
             break
+        ne = float(dist[i])
         for _ in range(sub):
-            k1 = rhs(x, -cmd)
-            k2 = rhs([a + 0.5 * h * b for a, b in zip(x, k1, strict=True)], -cmd)
-            k3 = rhs([a + 0.5 * h * b for a, b in zip(x, k2, strict=True)], -cmd)
-            k4 = rhs([a + h * b for a, b in zip(x, k3, strict=True)], -cmd)
+            k1 = rhs(x, -cmd, ne)
+            k2 = rhs([a + 0.5 * h * b for a, b in zip(x, k1, strict=True)], -cmd, ne)
+            k3 = rhs([a + 0.5 * h * b for a, b in zip(x, k2, strict=True)], -cmd, ne)
+            k4 = rhs([a + h * b for a, b in zip(x, k3, strict=True)], -cmd, ne)
             x = [a + h / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4)
                  for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4, strict=True)]
     f = pd.DataFrame(out, columns=["time", "x0", "y0", "psi", "u", "v", "r", "delta"])
