@@ -313,6 +313,13 @@ def test_diagnosis_words_and_verdicts():
     assert dt.failed_tests(doc["findings"][5], doc["settings"]) == ("immaterial", "failed a fold",
                                                                      "not significant")
     assert dt.failed_tests(doc["findings"][0], doc["settings"]) == ("named",)
+    # a named effect the held-out runs could not tell from another says so (select's rivals)
+    f = dict(doc["findings"][0], rivals=[{"effect": "rudder_asymmetry", "validation_gain": 0.25}])
+    v, why = dt.verdict(f, doc["settings"])
+    assert v == "named" and why.endswith(
+        "hardly told it from rudder asymmetry (port/starboard) (+25 %), within one standard error")
+    assert dt.verdict(doc["findings"][0], doc["settings"])[1] == \
+        "passes every test: gain, every fold, above noise and floor, significant"
     # a gain below the threshold is immaterial even with everything else passing
     f = dict(doc["findings"][4], validation_gain=0.05, validation_gain_folds=[0.04, 0.06], block_t=3.0)
     assert dt.verdict(f, doc["settings"]) == ("immaterial", "held-out gain +5 % below the 10 % threshold")

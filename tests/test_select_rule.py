@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import sys
 
+import pytest
+
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose import select as sel
 from pipeline.diagnose.effects import Context
@@ -184,3 +186,47 @@ def test_no_triples_without_room(monkeypatch):
     out = sel.select(search, [0], noise_deg=0.05)
     assert out.structure == () and out.cause == "none"
     assert max(len(a) for _, a in search.steps) == 2
+
+
+class _TieSearch(FakeSearch):
+    """A round where an offset (30 % held-out) and a rudder asymmetry (28 %) both pass on their own,
+    and together gain nothing more (they explain the same error); ``se`` is the standard error of
+    every step's per-block cut (deg)."""
+
+    ERR = {(): 10.0, ("rudder_offset",): 7.0, ("rudder_asymmetry",): 7.2,
+           ("rudder_offset", "rudder_asymmetry"): 6.9}
+
+    def __init__(self, se: float):
+        super().__init__()
+        self.se = se
+
+    def _err(self, structure) -> float:
+        names = {e for e, _ in structure}
+        return self.ERR.get(tuple(x for x in ("rudder_offset", "rudder_asymmetry") if x in names), 10.0)
+
+    def fit(self, k, structure, start=None):
+        f = _Fit(self._err(structure))
+        self._fits[(k, structure_of(*structure))] = f
+        return f
+
+    def step(self, ks, before, after, effect, noise_deg):
+        b, a = self._err(before), self._err(after)
+        gain = (b - a) / b
+        why = [] if gain >= MIN_GAIN else [f"held-out gain {gain:.0%} below {MIN_GAIN:.0%}"]
+        return sel.Step(passes=not why, gain=gain, gains=[gain], abs_gain_deg=b - a, t=10.0, t_crit=1.7,
+                        blocks=20, material=True, floor="", why=why, structure=structure_of(*after),
+                        mean_diff=b - a, se=self.se)
+
+
+def test_rivals_within_one_standard_error_are_reported():
+    """The offset is taken (the larger cut, one parameter as the asymmetry); the asymmetry's cut, 2.8
+    against 3.0 deg, is within one standard error (0.5 deg) of it, so it is the offset's rival, and
+    the asymmetry is not added on top (1.4 %).  With a standard error of 0.1 deg the data tell them
+    apart: no rival."""
+    out = sel.select(_TieSearch(se=0.5), [0], noise_deg=0.05)
+    assert _names(out.structure) == {"rudder_offset"}
+    own, rivals = out.rivals["rudder_offset"]
+    assert own.gain == pytest.approx(0.30) and [x for x, _ in rivals] == ["rudder_asymmetry"]
+    assert rivals[0][1].gain == pytest.approx(0.28)
+    out = sel.select(_TieSearch(se=0.1), [0], noise_deg=0.05)
+    assert _names(out.structure) == {"rudder_offset"} and out.rivals == {}

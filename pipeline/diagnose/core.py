@@ -617,6 +617,13 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
             f"block t = {step.t:.1f} "
             f"> {step.t_crit:.2f} with {step.blocks - 1} dof): {physical}."
         )
+        if effect in sel.rivals:
+            own, rv = sel.rivals[effect]
+            evidence += (
+                f" When it was added ({own.gain:+.0%} held-out) the runs hardly told it from "
+                + ", ".join(f"{x} ({xs.gain:+.0%})" for x, xs in rv)
+                + ", within one standard error of its per-block cut: runs that separate them would decide."
+            )
     else:
         evidence = (
             f"Not named: {'; '.join(step.why) or 'another effect explained the same error'} "
@@ -646,6 +653,11 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
         "blocks": step.blocks,
         "judged": ctxt,
         "folds": fold_rows,
+        # candidates the held-out runs could not tell from this one when it was added (chosen only)
+        "rivals": [
+            {"effect": x, "validation_gain": xs.gain}
+            for x, xs in (sel.rivals[effect][1] if chosen and effect in sel.rivals else [])
+        ],
         "evidence": evidence,
     }
 

@@ -353,6 +353,10 @@ class Selection:
     worth: dict  # chosen effect -> drop-one Step
     cause: str
     untried: dict  # effect -> reason
+    #: chosen effect -> (the Step that added it, [(rival effect, its Step)]): the other candidates of
+    #: that forward round within one standard error of the best (:func:`_ties`), none of them in the
+    #: final structure; only effects that have rivals
+    rivals: dict = field(default_factory=dict)
 
 
 def _n_params(effect: str, structure) -> int:
@@ -362,15 +366,26 @@ def _n_params(effect: str, structure) -> int:
 def _one_se(ranked):
     """Among the passing candidates, the one-standard-error rule (Breiman et al. 1984; Hastie,
     Tibshirani & Friedman): every candidate whose mean per-block held-out cut is within one standard
-    error of the best one's is as good as the data can tell, and the one with the FEWEST parameters
-    is taken (then the larger gain).  Without it a four-parameter cross-term set that mimics a
-    one-parameter cubic damping (v r^2 ~ r^3 when drift follows turn) is preferred for fitting noise."""
+    error of the best one's is as good as the data can tell (:func:`_ties`), and the one with the
+    FEWEST parameters is taken (then the larger gain).  Without it a four-parameter cross-term set that
+    mimics a one-parameter cubic damping (v r^2 ~ r^3 when drift follows turn) is preferred for fitting
+    noise."""
+    tie = _ties(ranked)
+    if not tie:
+        return None
+    return min(tie, key=lambda x: (_n_params(x[0], x[1]), -x[2].gain))
+
+
+def _ties(ranked) -> list:
+    """The passing candidates of ``ranked`` [(effect, (structure, step))] whose mean per-block held-out
+    cut is within one standard error of the best one's: [(effect, structure, step)], empty when none
+    passes.  Besides the one :func:`_one_se` takes, these are its rivals: effects the held-out runs
+    cannot tell from it (an offset and a rudder asymmetry both make port and starboard differ)."""
     ok = [(e, st, s) for e, (st, s) in ranked if s.passes]
     if not ok:
-        return None
+        return []
     best = max(ok, key=lambda x: x[2].mean_diff)
-    tie = [x for x in ok if x[2].mean_diff >= best[2].mean_diff - best[2].se]
-    return min(tie, key=lambda x: (_n_params(x[0], x[1]), -x[2].gain))
+    return [x for x in ok if x[2].mean_diff >= best[2].mean_diff - best[2].se]
 
 
 def _pair_pool(search: Search, ks, cur, ranked, n: int) -> list:
@@ -454,11 +469,13 @@ def _best_swap(cur, round_):
     return _one_se(ranked)
 
 
-def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone, last):
+def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone, last, rivals=None):
     """One forward pass (add the best passing effect or group while one passes) from ``cur``, then one
     backward pass (drop the least worth member while its drop-one step fails).  Returns (structure,
     the base of the last forward round, that round's steps, the round-1 steps, ladder, whether the
-    backward pass removed anything)."""
+    backward pass removed anything).  ``rivals`` (a dict, filled in place): each effect taken alone ->
+    the other candidates of its round within one standard error (:func:`_ties`)."""
+    rivals = {} if rivals is None else rivals
     cfg = search.cfg
     last_base = None
     rejudged = 0
@@ -479,6 +496,8 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
         if pick is None:
             break
         e, st, s = pick
+        if len(st) == len(cur) + 1:
+            rivals[e] = (s, [(x, xs) for x, _, xs in _ties(ranked) if x != e])
         # the step must not be an optimisation artefact: refit the current structure from the chosen
         # one's fit; when that finds a better optimum of the current structure, judge the round again
         # against it (cached candidate fits, new baseline).  Bounded: each re-judgement follows a
@@ -517,6 +536,7 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
     ladder = [(cur, None)]
     alone: dict = {}
     last: dict = {}
+    rivals: dict = {}
 
     def round_(base, against=None):
         """Every effect not in ``against`` (default ``base``) added to ``base``, judged as the step
@@ -538,7 +558,7 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
     seen: set = set()
     for _cycle in range(_MAX_CYCLES):
         cur, last_base, last, alone, ladder, removed = _forward_backward(
-            search, ks, cur, round_, noise_deg, ladder, alone, last
+            search, ks, cur, round_, noise_deg, ladder, alone, last, rivals
         )
         key = structure_of(*cur)
         if key in seen:
@@ -562,6 +582,10 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
     last = {e: s for e, s in last.items() if e not in dict(cur)}
     last.update(worth)
     cause = max(worth, key=lambda e: worth[e].gain) if worth else "none"
+    chosen = dict(cur)
+    rivals = {e: (own, [(x, xs) for x, xs in r if x not in chosen]) for e, (own, r) in rivals.items()
+              if e in chosen}
     return Selection(
-        structure=cur, ladder=ladder, alone=alone, last=last, worth=worth, cause=cause, untried=untried
+        structure=cur, ladder=ladder, alone=alone, last=last, worth=worth, cause=cause, untried=untried,
+        rivals={e: v for e, v in rivals.items() if v[1]},
     )

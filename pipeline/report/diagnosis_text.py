@@ -147,7 +147,14 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     s = settings or {}
     ev = str(f.get("evidence") or "")
     if f.get("significant"):
-        return "named", "passes every test: gain, every fold, above noise and floor, significant"
+        why = "passes every test: gain, every fold, above noise and floor, significant"
+        rivals = [r for r in f.get("rivals") or [] if r.get("effect")]
+        if rivals:
+            why += ("; but when it was added the held-out runs hardly told it from "
+                    + ", ".join(f"{effect_label(r['effect'])} ({gain_text(r.get('validation_gain'))})"
+                                for r in rivals)
+                    + ", within one standard error")
+        return "named", why
     if f.get("validation_gain") is None:
         if ev.lower().startswith("not tried"):
             return "not tried", ev[len("not tried"):].lstrip(": ").rstrip(".") or "not applicable"
