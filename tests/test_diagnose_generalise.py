@@ -566,7 +566,6 @@ def _horizon_mae(search, k: int, structure, horizon_T: float) -> float:
     return float(np.mean(np.concatenate(errs)))
 
 
-@pytest.mark.skipif(not FULL, reason="make generalise only (TANKTEST_GENERALISE=full): seed 3000's mechanism")
 def test_mariner_disturbance_short_horizons_tell(mr_root, monkeypatch):
     """The mechanism behind MR_DIST_KNOWN_WRONG, on seed 3000, with the diagnosis's own fits (its forms
     and starts): over the whole held-out runs the asymmetry is not worse than the (true) offset in
