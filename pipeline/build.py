@@ -129,8 +129,13 @@ class Stage:
 
 
 def _ingest_argv(ds: Dataset, root: Path) -> list[list[str]]:
+    """The ingest call of a dataset: its files, and the raw root its dataset.toml is found under (the
+    folder itself for 'local', else its parent; without it a ``run --raw DIR`` read the description
+    under data/raw, so a full-scale folder's scale was not applied and ingest refused its files)."""
     files = [str(p) for p in raw_files(ds)]
-    return [["ingest", *files, "--out", str(root / ds.name / "runs"), "--dataset", ds.name]]
+    raw_root = ds.raw if ds.name == LOCAL else ds.raw.parent
+    return [["ingest", *files, "--out", str(root / ds.name / "runs"), "--dataset", ds.name,
+             "--raw", str(raw_root)]]
 
 
 def _dataset_args(ds: Dataset, root: Path) -> list[str]:

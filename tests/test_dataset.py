@@ -117,6 +117,21 @@ def test_full_scale_folder_scaled_by_its_toml(tmp_path, capsys):
     assert rc == 2 and "contradicts" in capsys.readouterr().err
 
 
+def test_run_with_another_raw_root_applies_the_folders_toml(tmp_path, capsys):
+    """`pipeline run --dataset NAME --raw DIR` (a raw root other than data/raw): the stage's ingest reads
+    DIR/NAME/dataset.toml.  Before, it read data/raw/NAME/dataset.toml, so a full-scale folder's scale
+    was not applied and ingest refused the files as "full scale" (found 2026-11-24)."""
+    raw = tmp_path / "elsewhere"
+    (raw / "marin").mkdir(parents=True)
+    shutil.copy(MARIN, raw / "marin" / "zz_20_s.dat")
+    (raw / "marin" / "dataset.toml").write_text(EXAMPLE)
+    rc = main(["run", "--dataset", "marin", "--raw", str(raw), "--root", str(tmp_path / "proc"),
+               "--until", "ingest"])
+    assert rc == 0, capsys.readouterr().err
+    index = json.loads((tmp_path / "proc" / "marin" / "runs" / "index.json").read_text())
+    assert index["ship"]["scale"] == 45.7 and index["runs"][0]["scale_factor"] == 45.7
+
+
 def test_per_run_override_of_rudder_sign(tmp_path, capsys):
     raw = tmp_path / "raw"
     (raw / "d").mkdir(parents=True)
