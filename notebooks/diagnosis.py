@@ -232,6 +232,18 @@ for e in named:
                  f"{nb.esc(dt.num(f.get('block_t'), 3))} against {nb.esc(dt.num(f.get('block_t_crit'), 3))}. "
                  f"<b>Physical floor:</b> {nb.esc(dt.floor_reason(f.get('floor')) or 'n/a')}; measured: "
                  f"{nb.esc(dt.floor_measured(f.get('floor')))}.</p>")
+    rivals = [r for r in f.get("rivals") or [] if r.get("effect")]
+    if rivals:
+        told = ", ".join(f"{dt.effect_label(r['effect'])} ({dt.gain_text(r.get('validation_gain'))})"
+                         for r in rivals)
+        pair = {e, *(r["effect"] for r in rivals)} >= {"rudder_offset", "rudder_asymmetry"}
+        words.append("<p><b>Not told apart from:</b> " + nb.esc(told)
+                     + ". When this effect was added, " + ("that one" if len(rivals) == 1 else "those")
+                     + " passed too, with a per-block held-out cut within one standard error of its own: "
+                     "the runs support this effect no better. Runs that separate them would decide"
+                     + (" (an offset acts at zero rudder and the same at every angle, an asymmetry grows "
+                        "with the angle: a straight run at zero rudder, or zigzags at more rudder angles)"
+                        if pair else "") + ".</p>")
     display(HTML("".join(words)))
     frows = [{"fold": k + 1, "estimate": dt.estimate_text(x.get("estimate"), x.get("uncertainty")),
               "held-out gain": dt.gain_text(x.get("gain"))}

@@ -240,7 +240,8 @@ def rich_diagnosis_doc(id20: str, id10: str) -> dict:
          "uncertainty": {"n_rrr_s_per_deg2": 0.002}, "z": 10.0, "validation_gain": 0.16,
          "validation_gain_folds": [0.15, 0.17], "validation_gain_in_extended": 0.16, "abs_gain_deg": 0.3,
          "block_t": 3.0, "block_t_crit": 1.7, "blocks": 22, "judged": "in the final model (drop-one worth)",
-         "folds": [], "evidence": "Held-out heading error +16 % when removed."},
+         "folds": [], "rivals": [{"effect": "sway_yaw_coupling", "validation_gain": 0.14}],
+         "evidence": "Held-out heading error +16 % when removed."},
     ]
     rejected = [
         judged("rudder_asymmetry", 0.12, [0.1, 0.14], False, 2.5, "|asymmetry| 0.4% (floor 3%)",

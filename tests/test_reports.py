@@ -280,6 +280,9 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     assert "n_rrr (s/deg^2) = -0.02" in text
     assert "1.5 deg of rudder to port, a yaw acceleration of 0.075 deg/s^2" in text
     assert "offset (deg) = -1.5 +- 0.05" in text
+    # the named damping's rival (select's one-standard-error tie), without the offset/asymmetry hint
+    told = text[text.index("Not told apart from:"):][:400]
+    assert "(+14 %)" in told and "Runs that separate them would decide." in told, told
 
     # stability: fold 2's baseline is course-unstable and says so, with its pole
     stab = v.table("Course stability of the fitted models")
