@@ -93,13 +93,14 @@ def run_case(case: tc.Case, folder: Path) -> tuple[dict, float]:
     return rep, time.process_time() - t0
 
 
-def write_kvlcc2(folder: Path, seed: int) -> dict[tuple[int, str], Path]:
+def write_kvlcc2(folder: Path, seed: int, disturbance_deg: float = 0.0) -> dict[tuple[int, str], Path]:
     """The four KVLCC2 zigzags as full-scale MARIN .dat files (and their model-scale twins)."""
     folder.mkdir(parents=True, exist_ok=True)
     ship = kv.KVLCC2()
     out = {}
     for j, (a, side) in enumerate(KV_LEGS):
-        f = kv.simulate_zigzag(ship, a, a, side, duration=KV_DURATION, seed=seed + j)
+        f = kv.simulate_zigzag(ship, a, a, side, duration=KV_DURATION, seed=seed + j,
+                               disturbance_deg=disturbance_deg)
         name = f"kvlcc2_zz{a}_{side[0].upper()}"
         out[(a, side)] = write_marin(f, folder / f"{name}.dat", marin_test_name("KVLCC2", a, a))
         out[(a, side, "model")] = write_marin(froude_to_model(f, SCALE), folder / f"{name}_model.dat",
@@ -326,6 +327,43 @@ def test_kvlcc2_marin_side_swap(kv_files, fold):
     assert 1.0 - ext / base >= KV_MIN_GAIN, (rep["cause"], base, ext, rep["extended"]["effects"])
     gain = rep["gain"]["mae_psi_relative_reduction"]
     assert gain is not None and gain >= KV_MIN_GAIN, rep["gain"]
+
+
+#: the KVLCC2 folds with the Mariner tests' process disturbance (MR_DISTURBANCE_DEG's reasoning), the
+#: noise seeds of make test's folds; make generalise adds three more
+KV_DIST_SEEDS = (SEED * 100, *((700, 2000, 3000) if FULL else ()))
+#: (seed, fold) below the 50 % bar with the disturbance (strict xfails, measured 2026-11-24)
+KV_DIST_KNOWN_WRONG = {
+    (3000, 1): "offset + cross terms cut the held-out error by 49 % (10.94 -> 5.57 deg), just under the "
+               "50 % bar; fold 2 62 %",
+}
+
+
+def _kv_dist_param(seed, fold):
+    why = KV_DIST_KNOWN_WRONG.get((seed, fold))
+    marks = [pytest.mark.xfail(strict=True, reason="measured 2026-11-24: " + why)] if why else []
+    return pytest.param(seed, fold, id=f"seed{seed}-fold{fold}", marks=marks)
+
+
+@pytest.mark.parametrize("seed,fold", [_kv_dist_param(s, f) for s in KV_DIST_SEEDS for f in (1, 2)])
+def test_kvlcc2_marin_side_swap_with_a_process_disturbance(tmp_path, seed, fold):
+    """Issue #11 item 7 on runs that carry what measured runs carry and no model has: a random external
+    yaw moment in every run (0.5 deg of rudder, 30 s; truths.kvlcc2.simulate_zigzag).  Each side-swap
+    fold must still name a cause and cut the held-out heading MAE by at least half.
+
+    Measured 2026-11-24 (selection only): seed 1300 offset + yaw damping, 11.70 -> 2.98 and 7.20 -> 2.32
+    deg (75 % / 68 %; without the disturbance yaw damping + asymmetry, 89 % / 64 %; at 1 deg, 63 % / 54 %);
+    seed 700 cross terms + asymmetry, 79 % / 71 %; seed 2000 yaw damping + asymmetry, 89 % / 53 %; seed
+    3000 offset + cross terms, 49 % / 62 % (KV_DIST_KNOWN_WRONG).  The verdict moves between the hull's
+    nonlinearity (yaw damping, cross terms) and its propeller's side dependence (offset, asymmetry), both
+    of which the truth has."""
+    files = write_kvlcc2(tmp_path, seed=seed, disturbance_deg=MR_DISTURBANCE_DEG)
+    rep = kvlcc2_fold(files, fold, nested_gain=False)
+    base = rep["baseline"]["validation"]["mae_psi_deg"]
+    ext = rep["extended"]["validation"]["mae_psi_deg"]
+    assert rep["cause"] != "none", (rep["cause"], base, ext)
+    assert 1.0 - ext / base >= KV_MIN_GAIN, (rep["cause"], base, ext, rep["extended"]["effects"])
+    assert not set(rep["extended"]["effects"]) & {"rudder_delay", "rudder_lag"}, rep["extended"]["effects"]
 
 
 def test_kvlcc2_same_cause_model_scale_file(kv_files):

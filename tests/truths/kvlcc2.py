@@ -174,12 +174,19 @@ def simulate_zigzag(
     seed: int = 0,
     noise: bool = True,
     t_execute: float = 10.0,
+    disturbance_deg: float = 0.0,
+    disturbance_tau: float = 30.0,
 ) -> pd.DataFrame:
     """A full-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg
     (SPEC signs), rpm 1/min, all full scale, logged every ``dt_log`` s.  RK4 at ``h`` s
     (0.05 s full scale = 0.0074 s at 1:45.7).  Counter-rudder at a logging instant when the
     measured heading passes +-heading_deg.  White sensor noise, Froude-scaled from model-scale
-    figures (psi 0.05 deg, r 0.05 deg/s, u, v 0.005 m/s, delta 0.05 deg at 1:45.7)."""
+    figures (psi 0.05 deg, r 0.05 deg/s, u, v 0.005 m/s, delta 0.05 deg at 1:45.7).
+
+    Process disturbance (``disturbance_deg`` > 0), as in :func:`truths.mariner.simulate_zigzag`: an
+    external yaw moment, stationary Ornstein-Uhlenbeck with correlation time ``disturbance_tau`` s,
+    its std the rudder's moment at ``disturbance_deg`` (straight ahead at the approach speed), drawn
+    afresh in every run from its own stream, exact at the logging step, held over the RK4 sub-steps."""
     m, mx, my, Jz, IzG = _mass(s)
     xG = s.xG
     n_p = trim_rps(s)
@@ -192,9 +199,20 @@ def simulate_zigzag(
     rate = s.rudder_rate * RAD
     ks = s.servo_gain
 
-    def rhs(x, cmd):
+    dist = np.zeros(n)
+    if disturbance_deg > 0.0:
+        g = np.random.default_rng([seed, 1]).normal(0.0, 1.0, n)
+        a = math.exp(-dt_log / disturbance_tau)
+        dist[0] = g[0]
+        for i in range(1, n):
+            dist[i] = a * dist[i - 1] + math.sqrt(1.0 - a * a) * g[i]
+        per_deg = abs(forces(s, s.u0, 0.0, 0.0, RAD, n_p)[2] - forces(s, s.u0, 0.0, 0.0, 0.0, n_p)[2])
+        dist *= per_deg * disturbance_deg
+
+    def rhs(x, cmd, n_ext=0.0):
         u, vm, r, psi, X0, Y0, dl = x
         X, Y, N = forces(s, u, vm, r, dl, n_p)
+        N += n_ext
         du = (X + (m + my) * vm * r + xG * m * r * r) / (m + mx)
         bY = Y - (m + mx) * u * r
         bN = N - xG * m * u * r
@@ -226,11 +244,12 @@ def simulate_zigzag(
                 cmd = rudder_deg * RAD
         if i == n - 1:
             break
+        ne = float(dist[i])
         for _ in range(sub):
-            k1 = rhs(x, cmd)
-            k2 = rhs([a + 0.5 * h * b for a, b in zip(x, k1, strict=True)], cmd)
-            k3 = rhs([a + 0.5 * h * b for a, b in zip(x, k2, strict=True)], cmd)
-            k4 = rhs([a + h * b for a, b in zip(x, k3, strict=True)], cmd)
+            k1 = rhs(x, cmd, ne)
+            k2 = rhs([a + 0.5 * h * b for a, b in zip(x, k1, strict=True)], cmd, ne)
+            k3 = rhs([a + 0.5 * h * b for a, b in zip(x, k2, strict=True)], cmd, ne)
+            k4 = rhs([a + h * b for a, b in zip(x, k3, strict=True)], cmd, ne)
             x = [a + h / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4)
                  for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4, strict=True)]
     f = pd.DataFrame(out, columns=["time", "x0", "y0", "psi", "u", "v", "r", "delta", "rpm"])
