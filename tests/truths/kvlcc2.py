@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from truths.disturbance import ornstein_uhlenbeck
+
 RAD = math.pi / 180.0
 KNOT = 1852.0 / 3600.0
 
@@ -201,11 +203,7 @@ def simulate_zigzag(
 
     dist = np.zeros(n)
     if disturbance_deg > 0.0:
-        g = np.random.default_rng([seed, 1]).normal(0.0, 1.0, n)
-        a = math.exp(-dt_log / disturbance_tau)
-        dist[0] = g[0]
-        for i in range(1, n):
-            dist[i] = a * dist[i - 1] + math.sqrt(1.0 - a * a) * g[i]
+        dist = ornstein_uhlenbeck(n, dt_log, disturbance_tau, seed)
         per_deg = abs(forces(s, s.u0, 0.0, 0.0, RAD, n_p)[2] - forces(s, s.u0, 0.0, 0.0, 0.0, n_p)[2])
         dist *= per_deg * disturbance_deg
 

@@ -46,6 +46,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from truths.disturbance import ornstein_uhlenbeck
+
 RAD = math.pi / 180.0
 
 # Published non-dimensional derivatives (prime system, x 1e-5 as tabulated).  Keys as in the tables:
@@ -200,11 +202,7 @@ def simulate_zigzag(
 
     dist = np.zeros(n)
     if disturbance_deg > 0.0:
-        g = np.random.default_rng([seed, 1]).normal(0.0, 1.0, n)
-        a = math.exp(-dt_log / disturbance_tau)
-        dist[0] = g[0]
-        for i in range(1, n):
-            dist[i] = a * dist[i - 1] + math.sqrt(1.0 - a * a) * g[i]
+        dist = ornstein_uhlenbeck(n, dt_log, disturbance_tau, seed)
         dist *= abs(_coef(N_, "d")) * disturbance_deg * RAD
 
     def rhs(x, cmd_pub, n_ext=0.0):
