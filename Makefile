@@ -86,7 +86,8 @@ study: $(STAMP)
 fuzz: $(STAMP)
 	TANKTEST_HYPOTHESIS=fuzz $(PY) -m pytest -n 2 tests/test_fuzzy.py tests/test_ingest_bad.py
 
-# make generalise                 all 32 truth cases + KVLCC2 + the Mariner at 7 noise seeds
+# make generalise                 all 32 truth cases + KVLCC2 + the Mariner at 7 noise seeds, with and
+#                                 without a process disturbance
 #                                 (tests/test_diagnose_generalise.py)
 #                                 (make test runs a CI-sized cut of 8 cases)
 .PHONY: generalise
