@@ -426,6 +426,12 @@ if named and has_gain:
     f0 = by_eff.get(cause, {})
     if f0.get("physical"):
         points.append(f"Read physically: {dt.plain(f0['physical'], (f0.get('estimate') or {}).keys())}.")
+    told = [r for r in f0.get("rivals") or [] if r.get("effect")]
+    if told:
+        points.append("But the validation runs hardly told it from "
+                      + ", ".join(f"{dt.effect_label(r['effect'])} ({dt.gain_text(r.get('validation_gain'))})"
+                                  for r in told)
+                      + ": the cause is one of these, and runs that separate them would say which.")
     if base.get("course_stable") and ext.get("course_stable") is False:
         points.append("The extended model's linear part is course-unstable where the baseline's is stable: "
                       "the named effect holds the model only at large yaw rates, which is how it can fail on "

@@ -232,6 +232,7 @@ def rich_diagnosis_doc(id20: str, id10: str) -> dict:
          "block_t": 6.0, "block_t_crit": 1.7, "blocks": 22, "judged": "in the final model (drop-one worth)",
          "folds": [{"estimate": {"offset_deg": -1.5}, "uncertainty": {"offset_deg": 0.05}, "gain": 0.57},
                    {"estimate": {"offset_deg": -1.4}, "uncertainty": {"offset_deg": 0.06}, "gain": 0.53}],
+         "rivals": [{"effect": "rudder_asymmetry", "validation_gain": 0.52}],
          "evidence": "Held-out heading error +55 % when removed."},
         {"effect": "nonlinear_yaw_damping", "form": "cubic", "significant": True, "material": True,
          "floor": "changes the peak yaw rate of the largest manoeuvre by 12% (floor 5%) [ITTC precision]",

@@ -281,8 +281,12 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     assert "1.5 deg of rudder to port, a yaw acceleration of 0.075 deg/s^2" in text
     assert "offset (deg) = -1.5 +- 0.05" in text
     # the named damping's rival (select's one-standard-error tie), without the offset/asymmetry hint
-    told = text[text.index("Not told apart from:"):][:400]
-    assert "(+14 %)" in told and "Runs that separate them would decide." in told, told
+    told = [text[i:i + 500] for i in range(len(text)) if text.startswith("Not told apart from:", i)]
+    assert len(told) == 2, told
+    # the offset's rival: an asymmetry, with what separates the two; the damping's: without that hint
+    assert "rudder asymmetry (port/starboard) (+52 %)" in told[0], told[0]
+    assert "a straight run at zero rudder" in told[0], told[0]
+    assert "(+14 %)" in told[1] and "Runs that separate them would decide." in told[1], told[1]
 
     # stability: fold 2's baseline is course-unstable and says so, with its pole
     stab = v.table("Course stability of the fitted models")
@@ -299,6 +303,8 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
         assert not re.search(rf"(?<![\w_]){re.escape(bad)}(?![\w_])", text), bad
     (concl,) = re.findall(r"class=.conclusion.[^>]*>(.*?)</div>", page, flags=re.S)
     assert "61 %" in concl and test_run in concl
+    # the cause's rival is in the conclusion too
+    assert "hardly told it from rudder asymmetry (port/starboard) (+52 %)" in concl, concl
 
 
 def test_diagnosis_words_and_verdicts():
@@ -321,7 +327,7 @@ def test_diagnosis_words_and_verdicts():
     v, why = dt.verdict(f, doc["settings"])
     assert v == "named" and why.endswith(
         "hardly told it from rudder asymmetry (port/starboard) (+25 %), within one standard error")
-    assert dt.verdict(doc["findings"][0], doc["settings"])[1] == \
+    assert dt.verdict(dict(doc["findings"][0], rivals=[]), doc["settings"])[1] == \
         "passes every test: gain, every fold, above noise and floor, significant"
     # a gain below the threshold is immaterial even with everything else passing
     f = dict(doc["findings"][4], validation_gain=0.05, validation_gain_folds=[0.04, 0.06], block_t=3.0)
