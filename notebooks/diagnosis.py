@@ -232,13 +232,12 @@ for e in named:
                  f"{nb.esc(dt.num(f.get('block_t'), 3))} against {nb.esc(dt.num(f.get('block_t_crit'), 3))}. "
                  f"<b>Physical floor:</b> {nb.esc(dt.floor_reason(f.get('floor')) or 'n/a')}; measured: "
                  f"{nb.esc(dt.floor_measured(f.get('floor')))}.</p>")
-    rivals = [r for r in f.get("rivals") or [] if r.get("effect")]
-    if rivals:
-        told = ", ".join(f"{dt.effect_label(r['effect'])} ({dt.gain_text(r.get('validation_gain'))})"
-                         for r in rivals)
-        pair = {e, *(r["effect"] for r in rivals)} >= {"rudder_offset", "rudder_asymmetry"}
+    told = dt.rivals_text(f)
+    if told:
+        others = {r["effect"] for r in f["rivals"]}
+        pair = {e, *others} >= {"rudder_offset", "rudder_asymmetry"}
         words.append("<p><b>Not told apart from:</b> " + nb.esc(told)
-                     + ". When this effect was added, " + ("that one" if len(rivals) == 1 else "those")
+                     + ". When this effect was added, " + ("that one" if len(others) == 1 else "those")
                      + " passed too, with a per-block held-out cut within one standard error of its own: "
                      "the runs support this effect no better. Runs that separate them would decide"
                      + (" (an offset acts at zero rudder and the same at every angle, an asymmetry grows "
@@ -426,12 +425,9 @@ if named and has_gain:
     f0 = by_eff.get(cause, {})
     if f0.get("physical"):
         points.append(f"Read physically: {dt.plain(f0['physical'], (f0.get('estimate') or {}).keys())}.")
-    told = [r for r in f0.get("rivals") or [] if r.get("effect")]
-    if told:
-        points.append("But the validation runs hardly told it from "
-                      + ", ".join(f"{dt.effect_label(r['effect'])} ({dt.gain_text(r.get('validation_gain'))})"
-                                  for r in told)
-                      + ": the cause is one of these, and runs that separate them would say which.")
+    if dt.rivals_text(f0):
+        points.append(f"But the validation runs hardly told it from {dt.rivals_text(f0)}: the cause is one "
+                      "of these, and runs that separate them would say which.")
     if base.get("course_stable") and ext.get("course_stable") is False:
         points.append("The extended model's linear part is course-unstable where the baseline's is stable: "
                       "the named effect holds the model only at large yaw rates, which is how it can fail on "

@@ -469,13 +469,13 @@ def _best_swap(cur, round_):
     return _one_se(ranked)
 
 
-def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone, last, rivals=None):
+def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone, last, rivals):
     """One forward pass (add the best passing effect or group while one passes) from ``cur``, then one
     backward pass (drop the least worth member while its drop-one step fails).  Returns (structure,
     the base of the last forward round, that round's steps, the round-1 steps, ladder, whether the
     backward pass removed anything).  ``rivals`` (a dict, filled in place): each effect taken alone ->
-    the other candidates of its round within one standard error (:func:`_ties`)."""
-    rivals = {} if rivals is None else rivals
+    (its step, [(rival, its step)]): the other candidates of its round within one standard error
+    (:func:`_ties`)."""
     cfg = search.cfg
     last_base = None
     rejudged = 0
@@ -583,9 +583,9 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
     last.update(worth)
     cause = max(worth, key=lambda e: worth[e].gain) if worth else "none"
     chosen = dict(cur)
-    rivals = {e: (own, [(x, xs) for x, xs in r if x not in chosen]) for e, (own, r) in rivals.items()
-              if e in chosen}
+    kept = {e: (own, [(x, xs) for x, xs in r if x not in chosen])
+            for e, (own, r) in rivals.items() if e in chosen}
     return Selection(
         structure=cur, ladder=ladder, alone=alone, last=last, worth=worth, cause=cause, untried=untried,
-        rivals={e: v for e, v in rivals.items() if v[1]},
+        rivals={e: v for e, v in kept.items() if v[1]},
     )

@@ -134,6 +134,13 @@ VERDICTS = ("named", "immaterial", "failed a fold", "harms a held-out run", "not
             "fit failed")
 
 
+def rivals_text(f: dict) -> str:
+    """A named finding's rivals (diagnosis.json ``findings[].rivals``: the candidates its selection
+    step could not tell from it) in words, "rudder offset (+25 %), ..."; "" when it has none."""
+    return ", ".join(f"{effect_label(r['effect'])} ({gain_text(r.get('validation_gain'))})"
+                     for r in f.get("rivals") or [] if r.get("effect"))
+
+
 def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> tuple[str, ...]:
     """(verdict, reason in words) of one finding of diagnosis.json.
 
@@ -148,12 +155,10 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     ev = str(f.get("evidence") or "")
     if f.get("significant"):
         why = "passes every test: gain, every fold, above noise and floor, significant"
-        rivals = [r for r in f.get("rivals") or [] if r.get("effect")]
-        if rivals:
-            why += ("; but when it was added the held-out runs hardly told it from "
-                    + ", ".join(f"{effect_label(r['effect'])} ({gain_text(r.get('validation_gain'))})"
-                                for r in rivals)
-                    + ", within one standard error")
+        told = rivals_text(f)
+        if told:
+            why += f"; but when it was added the held-out runs hardly told it from {told}, within one " \
+                   "standard error"
         return "named", why
     if f.get("validation_gain") is None:
         if ev.lower().startswith("not tried"):
