@@ -95,6 +95,12 @@ if bp:
     nb.table(ptab.set_index("parameter"),
              "Linear parameters of the baseline (with one standard error) and of the extended model, in "
              "the order of SPEC section 5 (v in m/s, r in deg/s, delta in deg, time in s).")
+    held = base.get("at_sign_bound") or []
+    if held:
+        nb.note(f"Held at a physical sign bound by the baseline fit: {', '.join(held)}. The fit keeps the "
+                "signs every displacement ship has (damping a11, a22 <= 0; coupling a12, a21 <= 0, so the "
+                "poles are real); a parameter pressed to 0 means the runs ask the linear model for what no "
+                "ship does, a sign that something outside it is at work.")
 
 # %% [markdown]
 # ## The model ladder

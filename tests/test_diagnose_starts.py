@@ -2,9 +2,10 @@
 
 Truth: tests/truths/swayyaw (continuous time, RK4 at 0.01 s, not the method's model), the fast ship
 with a rudder 16 % less effective to starboard than to port (truth case 25 of
-tests/test_diagnose_generalise.py).  Warm-started from the linear baseline, the asymmetry lands in a
-poor optimum of the output-error cost (training cost ~100x the cold fit's); the search must keep the
-fit that predicts the validation runs better, and that fit must recover the asymmetry.
+tests/test_diagnose_generalise.py).  Warm-started from a linear baseline fitted without the coupling
+sign bounds, the asymmetry lands in a poor optimum of the output-error cost (training cost ~100x the
+cold fit's); the search must keep the fit that predicts the validation runs better, and that fit must
+recover the asymmetry.
 """
 
 from __future__ import annotations
@@ -42,7 +43,28 @@ def _asym(search, k):
         search.eval(k, ())[0]["mae_psi_deg"]
 
 
-def test_cold_start_recovers_asymmetry_where_warm_start_is_stuck(folds):
+def _without_coupling_bounds(monkeypatch):
+    """The fit as it was before 2026-11-24: only the damping a11, a22 <= 0 bounded."""
+    from pipeline.diagnose import fit as fit_mod
+
+    orig = fit_mod.Layout.bounds
+
+    def bounds(self):
+        lo, hi = orig(self)
+        hi[1] = hi[2] = float("inf")
+        return lo, hi
+
+    monkeypatch.setattr(fit_mod.Layout, "bounds", bounds)
+
+
+@pytest.mark.parametrize("coupling_bounded", [True, False])
+def test_cold_start_recovers_asymmetry_where_warm_start_is_stuck(folds, monkeypatch, coupling_bounded):
+    """Without the coupling sign bounds (a12, a21 <= 0, fit.Layout.bounds) the warm start is stuck in
+    the poor optimum on at least one fold and the cold start rescues it; with them the poor optimum
+    (a21 > 0, complex poles) is out of reach and the warm start alone recovers the asymmetry (measured
+    2026-11-24).  Either way the rule keeps the better fit and it recovers the truth."""
+    if not coupling_bounded:
+        _without_coupling_bounds(monkeypatch)
     fl, ctx = folds
     true = CASE.effects["asym"]
     cfg = DiagnoseConfig()
@@ -57,8 +79,8 @@ def test_cold_start_recovers_asymmetry_where_warm_start_is_stuck(folds):
         assert mb < 0.2 * base, (k, base, mb)
         assert fb.values["rudder_asymmetry"]["asymmetry"] == pytest.approx(true, rel=0.25), fb.values
         stuck += mw > 2.0 * mb
-    # the failure the rule exists for really occurs on these data (else this test proves nothing)
-    assert stuck >= 1
+    # the failure the rule exists for occurs without the coupling bounds and not with them
+    assert (stuck == 0) == coupling_bounded, stuck
 
 
 def _train_series(cid, tmp):
@@ -80,8 +102,9 @@ def _train_series(cid, tmp):
 def test_time_parameter_profile_holds_the_truth(tmp_path, cid, effect, key, identified):
     """The profile interval of a time parameter (pipeline.diagnose.fit.profile_time_params) contains
     the value the truth was simulated with; it is narrow for a dead time, and for the servo lag it spans
-    a factor of more than two (the free fit's 0.26 s optimum and the truth's 0.93 s fit the training
-    runs equally well): the lag's estimate must be reported as not identified, not as 0.26 +- std."""
+    about a factor of two (0.60-1.18 s around the fit's 0.93 s, measured 2026-11-24; before the coupling
+    sign bound the fit took 0.26 s, as good on the training runs): the lag's estimate must be reported
+    as not identified apart from the hull, not as a point value +- std."""
     from pipeline.diagnose.effects.rudder_delay import time_floor
     from pipeline.diagnose.fit import fit_structure, profile_time_params
 

@@ -746,6 +746,8 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
         away = [e for e, s_ in sel.alone.items() if any("runs away" in w for w in s_.why)]
         if away:
             summary += f" Refused for running away on a held-out manoeuvre: {', '.join(away)}."
+        if base.at_bound:
+            summary += " " + _at_bound_text(base.at_bound)
     else:
         summary = next(r["evidence"] for r in rows if r["effect"] == cause)
     fold_reports = []
@@ -789,6 +791,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             "parameters": base.params(),
             "uncertainty": {n: base.std[n] for n in PARAM_NAMES},
             "course_stable": is_stable(base.theta),
+            "at_sign_bound": list(base.at_bound),
             "validation": base_val,
             "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in base_per],
             "residuals": structure,
@@ -800,6 +803,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             "uncertainty": {n: ext.std[n] for n in PARAM_NAMES},
             "effect_estimates": joint,
             "course_stable": is_stable(ext.theta),
+            "at_sign_bound": list(ext.at_bound),
             "validation": ext_val,
             "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in ext_per],
             "residuals": after,
@@ -860,6 +864,16 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             d["u"] = s.u
         frames.append(pd.DataFrame(d))
     return report, base, ext, pd.concat(frames, ignore_index=True)
+
+
+def _at_bound_text(names) -> str:
+    """One sentence on linear parameters held at their physical sign bound (fit.Layout.bounds)."""
+    held = ", ".join(f"{n} = 0" for n in names)
+    return (
+        f"The linear model's best free-run fit presses against a physical sign bound ({held}): the "
+        f"runs ask for a sway-yaw coupling or damping of the sign no displacement ship has, so something "
+        f"the linear model lacks is at work that no effect of the catalogue explained here."
+    )
 
 
 def _gain_flag(honest: dict, chosen: list[str]) -> str | None:
