@@ -90,12 +90,20 @@ nb.table(pd.DataFrame(stab_rows).set_index("model"),
          "fitted state matrix (a pole with a positive real part = course-unstable).")
 bp, bu = base.get("parameters") or {}, base.get("uncertainty") or {}
 if bp:
-    ptab = pd.DataFrame([{"parameter": k, "baseline": v, "+- 1 sigma": bu.get(k),
-                          "extended model": (ext.get("parameters") or {}).get(k)} for k, v in bp.items()])
+    held, ext_held = base.get("at_sign_bound") or [], ext.get("at_sign_bound") or []
+    ep = ext.get("parameters") or {}
+    # a parameter pressed against its bound sits within the solver's margin of 0 (1e-16): shown as 0
+    ptab = pd.DataFrame([{"parameter": k, "baseline": 0.0 if k in held else v, "+- 1 sigma": bu.get(k),
+                          "extended model": 0.0 if k in ext_held else ep.get(k),
+                          "at its sign bound in": ", ".join(m for m, h in (("baseline", held),
+                                                                           ("extended", ext_held))
+                                                            if k in h)}
+                         for k, v in bp.items()])
     nb.table(ptab.set_index("parameter"),
              "Linear parameters of the baseline (with one standard error) and of the extended model, in "
-             "the order of SPEC section 5 (v in m/s, r in deg/s, delta in deg, time in s).")
-    held = base.get("at_sign_bound") or []
+             "the order of SPEC section 5 (v in m/s, r in deg/s, delta in deg, time in s); the last "
+             "column names the fits that hold the parameter at its ship-sign bound 0 (there the standard "
+             "error describes the unconstrained curvature, not a two-sided interval).")
     if held:
         nb.note(f"Held at a physical sign bound by the baseline fit: {', '.join(held)}. The fit keeps the "
                 "signs every displacement ship has (damping a11, a22 <= 0; coupling a12, a21 <= 0, so the "
