@@ -1,6 +1,8 @@
 """Fitting the (extended) sway-yaw model to runs, and its free-run evaluation.
 
-Fit (:func:`fit_structure`), for any ship, stable or not (nothing forces stability):
+Fit (:func:`fit_structure`), for any ship, stable or not (nothing forces stability; the linear part
+keeps the signs of a displacement ship, a11, a12, a21, a22 <= 0, :meth:`Layout.bounds`, which leave
+course instability free):
 
 1. Starting values by equation-error least squares: Savitzky-Golay derivatives of v and r regressed
    on v, r, the rudder and every feature term of the structure (all linear in the parameters).
