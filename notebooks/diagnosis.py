@@ -20,6 +20,7 @@ from IPython.display import HTML, display
 from pipeline.report import nb
 from pipeline.report import diagnosis_text as dt
 from pipeline.report import particulars
+from pipeline.diagnose.fit import sign_bound_text
 nb.setup()
 data = nb.Data(root, dataset)
 
@@ -93,22 +94,20 @@ if bp:
     held, ext_held = base.get("at_sign_bound") or [], ext.get("at_sign_bound") or []
     ep = ext.get("parameters") or {}
     # a parameter pressed against its bound sits within the solver's margin of 0 (1e-16): shown as 0
-    ptab = pd.DataFrame([{"parameter": k, "baseline": 0.0 if k in held else v, "+- 1 sigma": bu.get(k),
-                          "extended model": 0.0 if k in ext_held else ep.get(k),
-                          "at its sign bound in": ", ".join(m for m, h in (("baseline", held),
-                                                                           ("extended", ext_held))
-                                                            if k in h)}
-                         for k, v in bp.items()])
+    rows = []
+    for k, v in bp.items():
+        where = [m for m, h in (("baseline", held), ("extended", ext_held)) if k in h]
+        rows.append({"parameter": k, "baseline": 0.0 if k in held else v, "+- 1 sigma": bu.get(k),
+                     "extended model": 0.0 if k in ext_held else ep.get(k),
+                     "at its sign bound in": ", ".join(where)})
+    ptab = pd.DataFrame(rows)
     nb.table(ptab.set_index("parameter"),
              "Linear parameters of the baseline (with one standard error) and of the extended model, in "
              "the order of SPEC section 5 (v in m/s, r in deg/s, delta in deg, time in s); the last "
              "column names the fits that hold the parameter at its ship-sign bound 0 (there the standard "
              "error describes the unconstrained curvature, not a two-sided interval).")
     if held:
-        nb.note(f"Held at a physical sign bound by the baseline fit: {', '.join(held)}. The fit keeps the "
-                "signs every displacement ship has (damping a11, a22 <= 0; coupling a12, a21 <= 0, so the "
-                "poles are real); a parameter pressed to 0 means the runs ask the linear model for what no "
-                "ship does, a sign that something outside it is at work.")
+        nb.note(sign_bound_text(held))
 
 # %% [markdown]
 # ## The model ladder

@@ -209,15 +209,16 @@ def test_hsva_measured_kvlcc2(hsva_design):
 @pytest.mark.slow
 @pytest.mark.xfail(
     strict=True,
-    reason="measured 2026-11-24: folds agree 1 of 2. The selection on all runs names nothing (held-out "
-    "5.66 deg; the linear baseline presses a21 against its ship-sign bound 0 and the report says so); the "
-    "fold that trains on 10/1 names nonlinear_sway_damping (+37 % on its validation runs), which runs away "
-    "on 10/1 where 10/1 is held out (the selection on all runs: 5.25 -> 27.3 deg, swing 7.1 deg). Without the coupling bound the "
-    "baseline took a21 = +0.56 (complex poles; equation error gives -3) and that fold named "
-    "nonlinear_yaw_damping. The physical (course-unstable) linear basin predicts one ship time scale "
-    "ahead twice as well (cost 0.17 against 0.34) but drifts in a free run of the measured rudder: "
-    "free-run output error is ill-posed on this hull's small closed-loop zigzags. Issue 11's 'same "
-    "cause in every fold' is not met",
+    reason="measured 2026-11-24: folds agree 1 of 2. The selection on all runs names nothing "
+    "(held-out 5.66 deg; the linear baseline presses a21 against its ship-sign bound 0 and the report "
+    "says so); the fold that trains on 10/1 names nonlinear_sway_damping (+37 % on its validation "
+    "runs), which runs away on 10/1 where 10/1 is held out (the selection on all runs: 5.25 -> 27.3 "
+    "deg, swing 7.1 deg). Without the coupling bound the baseline took a21 = +0.56 (complex poles; "
+    "equation error gives -3) and that fold named nonlinear_yaw_damping. The physical "
+    "(course-unstable) linear basin predicts one ship time scale ahead twice as well (cost 0.17 "
+    "against 0.34) but drifts in a free run of the measured rudder: free-run output error is "
+    "ill-posed on this hull's small closed-loop zigzags. Issue 11's 'same cause in every fold' is "
+    "not met",
 )
 def test_hsva_same_cause_in_every_fold(hsva_design):
     """Issue 11: HSVA gives the same cause in every fold of the chosen design."""

@@ -583,11 +583,11 @@ def test_mariner_process_disturbance_is_not_an_effect(mr_root, form, fold, seed)
     the 7 seeds, offset right in all 14 (MR_DIST_KNOWN_WRONG); without the bound linear none in all 14
     and offset right in 8.  Before the bound, at 1 deg (not re-measured): linear none in all 14 (seed
     1350: baseline held-out 2.34 / 3.70 deg; the nearest, an asymmetry and an offset at +12 % / +11 %,
-    failed the block t-test and their floors); offset 3 of 7 seeds right.  Not tested, measured before the bound: the published
-    (full) Mariner at 0.5 deg names offset + cross terms + saturation + an asymmetry (seed 1350; the
-    truth's own structure, fitted, is no better held-out: 77 % both) or sway damping + saturation
-    without the offset (seed 700; the truth's structure, fitted, is worse held-out: 26 % against
-    51 %)."""
+    failed the block t-test and their floors); offset 3 of 7 seeds right.  Not tested, measured before
+    the bound: the published (full) Mariner at 0.5 deg names offset + cross terms + saturation + an
+    asymmetry (seed 1350; the truth's own structure, fitted, is no better held-out: 77 % both) or sway
+    damping + saturation without the offset (seed 700; the truth's structure, fitted, is worse
+    held-out: 26 % against 51 %)."""
     rep = mariner_fold(mr_root, form, fold, seed=seed, disturbance_deg=MR_DISTURBANCE_DEG)
     if form == "linear":
         assert rep["cause"] == "none" and rep["extended"]["effects"] == [], (rep["cause"], rep["extended"])

@@ -26,11 +26,13 @@ LEGS = [(20, "starboard"), (10, "port"), (20, "port"), (10, "starboard")]
 
 
 def _runs(cfg: TruthConfig, duration: float = 80.0):
-    return [zigzag_truth(a, a, side, duration, dc.replace(cfg, seed=cfg.seed + j)) for j, (a, side) in enumerate(LEGS)]
+    return [zigzag_truth(a, a, side, duration, dc.replace(cfg, seed=cfg.seed + j))
+            for j, (a, side) in enumerate(LEGS)]
 
 
 def test_bounds_are_the_ship_signs_and_nothing_else():
-    lo, hi = Layout(structure_of(), _context([series_from_run(r) for r in _runs(TruthConfig(seed=1))[:1]])).bounds()
+    ctx = _context([series_from_run(r) for r in _runs(TruthConfig(seed=1))[:1]])
+    lo, hi = Layout(structure_of(), ctx).bounds()
     assert np.all(hi[:4] == 0.0) and np.all(np.isinf(lo[:4]))
     assert np.all(np.isinf(lo[4:6])) and np.all(np.isinf(hi[4:6]))  # the rudder terms' signs are free
 

@@ -53,6 +53,7 @@ from pipeline.diagnose.fit import (
     series_from_run,
     set_initial_states,
     ship_time_scale,
+    sign_bound_text,
     structure_of,
 )
 from pipeline.diagnose.select import Fold, Search, Selection, _gain, heading_noise_deg, select
@@ -747,7 +748,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
         if away:
             summary += f" Refused for running away on a held-out manoeuvre: {', '.join(away)}."
         if base.at_bound:
-            summary += " " + _at_bound_text(base.at_bound)
+            summary += " " + sign_bound_text(base.at_bound)
     else:
         summary = next(r["evidence"] for r in rows if r["effect"] == cause)
     fold_reports = []
@@ -864,16 +865,6 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             d["u"] = s.u
         frames.append(pd.DataFrame(d))
     return report, base, ext, pd.concat(frames, ignore_index=True)
-
-
-def _at_bound_text(names) -> str:
-    """One sentence on linear parameters held at their physical sign bound (fit.Layout.bounds)."""
-    held = ", ".join(f"{n} = 0" for n in names)
-    return (
-        f"The linear model's best free-run fit presses against a physical sign bound ({held}): the "
-        f"runs ask for a sway-yaw coupling or damping of the sign no displacement ship has, so something "
-        f"the linear model lacks is at work that no effect of the catalogue explained here."
-    )
 
 
 def _gain_flag(honest: dict, chosen: list[str]) -> str | None:

@@ -374,6 +374,17 @@ class Layout:
         return theta, terms, values
 
 
+def sign_bound_text(names) -> str:
+    """One sentence on linear parameters held at their ship-sign bound by a fit (Layout.bounds)."""
+    held = ", ".join(f"{n} = 0" for n in names)
+    return (
+        f"The linear model's best free-run fit presses against a physical sign bound ({held}): every "
+        f"displacement ship has a11, a12, a21, a22 <= 0 (damping, and a coupling that keeps the poles "
+        f"real), so the runs ask the linear model for what no ship does: something it lacks is at work "
+        f"that no named effect explained here."
+    )
+
+
 @dataclass
 class FitResult:
     structure: Structure
@@ -937,16 +948,16 @@ def profile_time_params(fit: FitResult, series: list[Series], ctx, floor_s: floa
                         max_nfev: int = 40) -> dict:
     """Profile of each time parameter (s) of ``fit``'s structure on its training ``series``.
 
-    A dead time or a servo lag trades against the hull's own time constants: on a fast ship a 0.9 s
-    servo lag and a 0.26 s one with a different linear part fitted the same runs equally well while
-    the coupling a21 was free in sign (truth case 12 of tests/test_diagnose_generalise.py: training
-    cost 0.000574 against 0.000575); with a21 <= 0 the fit finds 0.93 s, and the profile still spans
-    0.60-1.18 s (measured 2026-11-24), so the sandwich standard error at one optimum says too little.  The profile
+    A dead time or a servo lag trades against the hull's own time constants: on a fast ship a 0.9 s servo
+    lag and a 0.26 s one with a different linear part fitted the same runs equally well while the coupling
+    a21 was free in sign (truth case 12 of tests/test_diagnose_generalise.py: training cost 0.000574
+    against 0.000575); with a21 <= 0 the fit finds 0.93 s, and the profile still spans 0.60-1.18 s
+    (measured 2026-11-24), so the sandwich standard error at one optimum says too little. The profile
     fixes the parameter at ``PROFILE_POINTS`` values from ``floor_s`` to its upper bound, refits every
     other parameter from the fit (output error, ``max_nfev`` evaluations), and keeps the values whose
-    training cost J satisfies G ln(J / J_min) <= chi2_1(0.95), G the number of ``block_T`` blocks of
-    the training runs (the likelihood ratio with the blocks as the independent units, as the
-    significance tests count them; approximate, since J sums correlated residuals).
+    training cost J satisfies G ln(J / J_min) <= chi2_1(0.95), G the number of ``block_T`` blocks of the
+    training runs (the likelihood ratio with the blocks as the independent units, as the significance
+    tests count them; approximate, since J sums correlated residuals).
 
     Returns {param: {"grid_s", "cost_ratio", "within_95": [[lo, hi], ...] (ranges of grid values
     inside the interval, s), "separate_ranges": int}}.  A parameter with two or more separate ranges
