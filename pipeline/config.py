@@ -188,6 +188,14 @@ class DiagnoseConfig:
     # block length in ship time scales T_ship: blocks of 2 T are close to independent (the yaw
     # response forgets its state in ~T) and a zigzag half-period holds about one
     block_T: float = 2.0
+    # ship time scales of the short-horizon judge (pipeline.diagnose.select.Search.step, "no harm from
+    # the measured state"): every held-out run cut into pieces of this length, each a prediction from
+    # the measured (v, r, psi) at its start.  One T: the response has forgotten its start by 63 % and
+    # taken its shape from the model's dynamics, and the drift that a random disturbance puts into a
+    # free run of a course-unstable hull has not yet grown (measured 2026-11-24: a disturbed linear
+    # Mariner's nonlinear sway damping cut the whole-run error 3.64 -> 2.09 deg and raised this one
+    # 0.83 -> 0.96 deg; the true servo lag of truth case 12 cut both, 0.46 -> 0.04 and 0.38 -> 0.06)
+    short_horizon_T: float = 1.0
     # pairs are tried (when no single effect passes), then triples (when no pair passes), among this
     # many single candidates, those that cut the training cost most (pipeline.diagnose.select.
     # _pair_pool): 4 gives 6 pairs and 4 triples, about the cost of one more round

@@ -298,10 +298,12 @@ _KV: dict = {}
 
 def _kv_report(files, fold: int) -> dict:
     """The diagnosis of one side-swap fold, made once per process and fold (a module fixture of both
-    folds was made again by each xdist worker that ran one of its tests: 100 s each)."""
+    folds was made again by each xdist worker that ran one of its tests: 100 s each).  The honest
+    gain in fold 1 only: the nested leave-one-run-out holds out each of the same 4 runs in either
+    fold (measured 2026-11-24: 0.695 [0.55, 0.79] in both), and it is 60 of a fold's 90 s."""
     key = (str(files[(20, "starboard")]), fold)
     if key not in _KV:
-        _KV[key] = kvlcc2_fold(files, fold)
+        _KV[key] = kvlcc2_fold(files, fold, nested_gain=fold == 1)
     return _KV[key]
 
 
@@ -311,7 +313,8 @@ def test_kvlcc2_marin_side_swap(kv_files, fold):
     heading MAE of that fold (the runs of the other side, never trained on) by at least half.
 
     And the honest gain (item 4: nested leave-one-run-out, each of the 4 runs held out, the effects
-    chosen again on the other 3, every one of them validated once) cuts it by at least half too.
+    chosen again on the other 3, every one of them validated once; fold 1, whose 4 runs are fold 2's)
+    cuts it by at least half too.
     Measured 2026-11-24 with the coupling sign bound: 0.695 [0.55, 0.79] in both folds, held-out
     13.98 -> 2.30 and 7.23 -> 1.52 deg (sway damping + asymmetry); the inner causes differ by held-out
     run (asymmetry 0.27 and 0.91, sway damping 0.64, offset 0.77).  Before the bound 0.626; it was
@@ -321,8 +324,9 @@ def test_kvlcc2_marin_side_swap(kv_files, fold):
     ext = rep["extended"]["validation"]["mae_psi_deg"]
     assert rep["cause"] != "none", (rep["cause"], rep["baseline"]["validation"], rep["extended"])
     assert 1.0 - ext / base >= KV_MIN_GAIN, (rep["cause"], base, ext, rep["extended"]["effects"])
-    gain = rep["gain"]["mae_psi_relative_reduction"]
-    assert gain is not None and gain >= KV_MIN_GAIN, rep["gain"]
+    if fold == 1:
+        gain = rep["gain"]["mae_psi_relative_reduction"]
+        assert gain is not None and gain >= KV_MIN_GAIN, rep["gain"]
 
 
 #: the KVLCC2 folds with the Mariner tests' process disturbance (MR_DISTURBANCE_DEG's reasoning), the
@@ -546,19 +550,22 @@ MR_DISTURBANCE_DEG = 0.5
 #: The linear Mariner is course-unstable (D = a11 a22 - a12 a21 < 0); a free run of the measured rudder
 #: from a model that unstable drifts with the disturbance, so the output-error fit settles at the stable
 #: corner of the ship-sign bounds (a21 = 0, fit.Layout.bounds), and a hull nonlinearity then takes up
-#: the drift on the held-out side too.  Without the coupling bound these two gave none and the offset
+#: the drift on the held-out side too.  Without the coupling bound seeds 700 and 3000 gave none and the offset
 #: form's seeds 3000, 5000 and 6000 named a rudder asymmetry for the offset (the fit's a21 > 0 let the
 #: asymmetry stand in; test_mariner_disturbance_short_horizons_tell): with the bound those three are
 #: right.  Tried and not adopted: refusing any step whose linear part still presses a bound (it also
 #: refused the KVLCC2 and published-Mariner hull nonlinearities, 15 failures of make generalise);
 #: bounding the coupling only in the extended models (the baseline free): these two none, but the
 #: offset missed on seed 700 and the KVLCC2 fold 1 honest gain 0.47 (make generalise, 7 failures).
+#: Seed 3000 (sway_yaw_coupling + nonlinear_sway_damping, both folds) is right since the short-horizon
+#: judge (pipeline.diagnose.select, "no harm from the measured state", 2026-11-24); seed 700 then named
+#: the coupling instead of the sway damping, which predicts the pieces worse (0.83 -> 0.96 deg).
 MR_DIST_KNOWN_WRONG = {
-    ("linear", 700): "nonlinear_sway_damping named on the disturbed linear Mariner in both folds, held-out "
-                     "+24 % (per fold +43 % / +4 %, block t 2.2 against 1.71), baseline at a21 = 0 with "
-                     "both poles stable (-0.13, -0.13 1/s) where the truth is course-unstable",
-    ("linear", 3000): "sway_yaw_coupling + nonlinear_sway_damping named in both folds (drop-one worth +44 % "
-                      "and +23 %), baseline at a21 = 0, held-out 5.38 -> 2.70 / 2.77 -> 1.72 deg",
+    ("linear", 700): "sway_yaw_coupling named on the disturbed linear Mariner in both folds, held-out +21 % "
+                     "(per fold +36 % / +3 %, block t 1.9 against 1.71), baseline at a21 = 0 (both poles "
+                     "stable where the truth is course-unstable); the cross terms also predict one ship "
+                     "time scale ahead better (0.83 -> 0.72, 0.92 -> 0.73 deg), so the short-horizon judge "
+                     "does not refuse them: the biased baseline, not the effect, is what they correct",
 }
 
 
@@ -579,8 +586,9 @@ def test_mariner_process_disturbance_is_not_an_effect(mr_root, form, fold, seed)
     does to one run, it does something else to the next, so nothing fitted to it may pass on runs it
     was not fitted on: linear -> none, offset -> rudder_offset alone within 25 %.
 
-    Measured 2026-11-24 at 0.5 deg with the coupling sign bound: linear none in 10 of the 14 folds of
-    the 7 seeds, offset right in all 14 (MR_DIST_KNOWN_WRONG); without the bound linear none in all 14
+    Measured 2026-11-24 at 0.5 deg with the coupling sign bound and the short-horizon judge: linear
+    none in 12 of the 14 folds of the 7 seeds (10 before the judge), offset right in all 14
+    (MR_DIST_KNOWN_WRONG); without the bound linear none in all 14
     and offset right in 8.  Before the bound, at 1 deg (not re-measured): linear none in all 14 (seed
     1350: baseline held-out 2.34 / 3.70 deg; the nearest, an asymmetry and an offset at +12 % / +11 %,
     failed the block t-test and their floors); offset 3 of 7 seeds right.  Not tested, measured before

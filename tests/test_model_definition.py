@@ -163,3 +163,23 @@ def test_diagnosis_batch_kernel_is_the_free_run_residual_bit_for_bit(which):
             th, terms, _ = layout.unpack(p)
             want = _oe_residuals(series, sc, th, terms, u_ref)
             assert np.array_equal(row, want), (st, np.max(np.abs(row - want)))
+
+
+@pytest.mark.parametrize("lag_s", [0.0, 0.9, 0.02])
+def test_diagnosis_segments_restart_the_free_run_exactly(lag_s):
+    """predict_segments from a free run's own states at any sample reproduces that free run bit for bit,
+    servo lag included: the lag state at a restart is the servo's own (it depends on the logged rudder
+    alone), not the logged rudder.  With the rudder there, a 0.9 s lag's restarts are a rudder swing
+    off (the check fails by degrees)."""
+    from pipeline.diagnose.effects.base import Terms
+    from pipeline.diagnose.extended import predict_segments, simulate_terms
+
+    th = [-0.5, -0.3, -2.0, -1.0, 0.02, -0.4]
+    t = np.arange(0.0, 60.0, 0.08)
+    d = 10.0 * np.sign(np.sin(t / 5.0))
+    terms = Terms(lag_s=lag_s, delay_s=0.3)
+    x = simulate_terms(th, terms, [0.0, 0.0, 0.0], t, d)
+    starts = np.arange(0, t.size - 50, 37)
+    seg = predict_segments(th, terms, x, t, d, starts, 50)
+    for i, k in enumerate(starts):
+        assert np.array_equal(seg[i], x[k:k + 50]), (lag_s, k)

@@ -49,6 +49,7 @@ class FakeSearch:
                            u_min_ratio=0.8)
         self._fits: dict = {}
         self._evals: dict = {}
+        self._short: dict = {}
         self.steps: list = []
 
     def fit(self, k, structure, start=None):

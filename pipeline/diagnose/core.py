@@ -652,6 +652,10 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
         "block_t": step.t,
         "block_t_crit": step.t_crit,
         "blocks": step.blocks,
+        # the same step judged from the measured state over short_horizon_T ship time scales (select's
+        # "no harm from the measured state"): pooled relative cut and its one-sided block t
+        "short_horizon_gain": step.short_gain,
+        "short_horizon_block_t": step.short_t,
         "judged": ctxt,
         "folds": fold_rows,
         # candidates the held-out runs could not tell from this one when it was added (chosen only)
