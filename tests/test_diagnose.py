@@ -547,6 +547,9 @@ def test_step_refuses_an_effect_that_runs_away_or_harms_one_held_out_manoeuvre()
         def response_change(self, k, structure, effect):
             return 0.5  # material: the floor is not what is tested here
 
+        def short(self, k, structure):
+            return [(1.0, [1.0], [0]) for _ in (big, small)]  # the short-horizon judge: no change
+
         def eval(self, k, structure):
             per = []
             for j, s in enumerate((big, small)):
