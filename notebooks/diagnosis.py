@@ -396,7 +396,8 @@ for f in findings:
 if rows:
     tab = pd.DataFrame(rows).sort_values("_o").drop(columns="_o").set_index("effect")
     nb.table(tab, "Every effect of the catalogue, named effects first, then by verdict (immaterial, failed a "
-             "fold, harms a held-out run, not significant, not tried, fit failed) and within a verdict by "
+             "fold, harms a held-out run, worse from the measured state, not significant, not tried, fit "
+             "failed) and within a verdict by "
              "held-out gain, "
              "largest first. Held-out gain: the relative cut of the validation runs' free-run MAE of psi "
              "when the effect is added to the model it was judged against (for a named effect: when it is "

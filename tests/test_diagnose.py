@@ -595,6 +595,26 @@ def test_report_verdict_of_an_effect_that_harms_a_held_out_run():
     assert dt.failed_tests(f, settings) == ("harms a held-out run",)
 
 
+def test_report_verdict_of_an_effect_that_predicts_worse_from_the_measured_state():
+    """A finding refused by the short-horizon judge (measured HSVA evidence text of the dead time) reads
+    'worse from the measured state' with its numbers beside the gain threshold it also failed."""
+    from pipeline.report import diagnosis_text as dt
+
+    f = {"effect": "rudder_delay", "significant": False, "material": True, "validation_gain": 0.03,
+         "validation_gain_folds": [0.03, 0.03], "abs_gain_deg": 0.19, "block_t": 1.9, "block_t_crit": 1.67,
+         "blocks": 76,
+         "evidence": "Not named: held-out gain 3% below 10%; predicts worse from the measured state over 1 "
+         "ship time scale(s): held-out short-horizon MAE psi +14% (block t = -7.13 below -1.67); it fits the "
+         "runs' drift, not the ship's response (added to the linear baseline: held-out +3%, per fold +3%, "
+         "+3%); fitted: the rudder acts 0.84 s after it is logged."}
+    settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
+    v, why = dt.verdict(f, settings)
+    assert v == "immaterial" and "+14% (block t = -7.13 below -1.67)" in why and "added to" not in why
+    assert dt.failed_tests(f, settings) == ("immaterial", "worse from the measured state")
+    f["validation_gain"], f["validation_gain_folds"] = 0.12, [0.11, 0.13]
+    assert dt.verdict(f, settings)[0] == "worse from the measured state"
+
+
 @pytest.mark.slow
 def test_nested_workers_give_the_same_report_bytes():
     """The nested leave-one-run-out in 2 worker processes (forked while the parent makes the main

@@ -130,8 +130,8 @@ def estimate_text(estimate: dict | None, uncertainty: dict | None) -> str:
 
 
 # ------------------------------------------------------------------------------- verdicts
-VERDICTS = ("named", "immaterial", "failed a fold", "harms a held-out run", "not significant", "not tried",
-            "fit failed")
+VERDICTS = ("named", "immaterial", "failed a fold", "harms a held-out run", "worse from the measured state",
+            "not significant", "not tried", "fit failed")
 
 
 def rivals_text(f: dict) -> str:
@@ -147,7 +147,9 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     The verdict is the first that applies, in this order: named (significant); not tried (the data
     cannot carry it); fit failed; immaterial (below its physical floor, a heading cut below the noise
     level, or a relative gain below the threshold); failed a fold (not better in every fold); harms
-    a held-out run (significantly worse on one, or runs away on it); not significant (block t-test).
+    a held-out run (significantly worse on one, or runs away on it); worse from the measured state
+    (the held-out runs' pieces of a ship time scale, each from the measured state, predicted
+    significantly worse: select.py's short-horizon judge); not significant (block t-test).
     The reason lists every test it failed, with its numbers.
     ``all_tests``: return every verdict it earns instead (see :func:`failed_tests`).
     """
@@ -186,6 +188,10 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
         if key in ev:
             part = ev[ev.index(key):].split(" (added to")[0].split(" (in the final")[0]
             reasons.append(("harms a held-out run", part.split("; runs away")[0]))
+    key = "predicts worse from the measured state"
+    if key in ev:
+        part = ev[ev.index(key):].split(" (added to")[0].split(" (in the final")[0]
+        reasons.append(("worse from the measured state", part.split("; it fits")[0].split("; runs away")[0]))
     t, tc = f.get("block_t"), f.get("block_t_crit")
     if isinstance(t, (int, float)) and isinstance(tc, (int, float)) and not t >= tc:
         dof = (f.get("blocks") or 0) - 1
