@@ -45,6 +45,7 @@ from pipeline.diagnose.fit import (
     _derivs,
     _u_ratio,
     is_stable,
+    latent_sway_a12,
     memoised,
     plain_active,
     plain_fits,
@@ -120,6 +121,7 @@ def _context(series: list[Series]) -> Context:
         u_ref=u_ref,
         u_min_ratio=umin,
         lpp_m=lpp,
+        v_measured=any(s.v is not None for s in series),
     )
 
 
@@ -755,6 +757,12 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             summary += " " + sign_bound_text(base.at_bound)
     else:
         summary = next(r["evidence"] for r in rows if r["effect"] == cause)
+    if latent_sway_a12(ctx) is not None:
+        summary += (
+            " The runs have no sway velocity: v is a latent state, its scale held by a12 = "
+            f"{latent_sway_a12(ctx):.4g} (m/s^2)/(deg/s) (the centripetal term -U r), so the sway "
+            "parameters are in that convention's units and terms in v were not tried."
+        )
     fold_reports = []
     for k, fold in enumerate(folds):
         b = search.fit(k, ())
@@ -797,6 +805,9 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             "uncertainty": {n: base.std[n] for n in PARAM_NAMES},
             "course_stable": is_stable(base.theta),
             "at_sign_bound": list(base.at_bound),
+            # a12 held where no training run measures v (fit.latent_sway_a12): the sway parameters are
+            # then in that convention's units; None where v is measured
+            "latent_sway_a12": latent_sway_a12(ctx),
             "validation": base_val,
             "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in base_per],
             "residuals": structure,

@@ -121,6 +121,9 @@ class Context:
     u_ref: float | None = None
     u_min_ratio: float | None = None
     lpp_m: float | None = None
+    #: False when no training run measures the sway velocity v: v is then a latent state of the model
+    #: (its scale held by a convention, fit.Layout.bounds) and terms in v are not tried
+    v_measured: bool = True
 
 
 class Effect:
@@ -133,6 +136,7 @@ class Effect:
     signature: str = ""  # what it leaves in the residuals of a model without it
     floor_reason: str = ""  # the physical reason of the materiality floor
     needs_u: bool = False
+    needs_v: bool = False  # a term in the sway velocity v: tried only where v is measured
 
     def form(self, name: str | None = None) -> Form:
         if name is None:
@@ -143,6 +147,9 @@ class Effect:
         """None when the effect can be tried on these data, else the reason it cannot."""
         if self.needs_u and ctx.u_ref is None:
             return "the runs have no surge speed u"
+        if self.needs_v and not ctx.v_measured:
+            return ("the runs have no sway velocity v: without it v is a latent state of unknown scale, "
+                    "so a term in v has no physical reading")
         return None
 
     def apply(self, form: Form, values: dict, terms: Terms) -> None:

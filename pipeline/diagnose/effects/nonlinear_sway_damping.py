@@ -18,6 +18,7 @@ class NonlinearSwayDamping(Effect):
             ),
         ),
     )
+    needs_v = True
     words = "nonlinear sway damping"
     term = "dv/dt gains y_vv v|v|, dr/dt gains n_vv v|v| (Abkowitz/MMG cross-flow drag)"
     signature = "sway and yaw acceleration errors even-odd in v (v|v|): drift angle over-predicted at large v"

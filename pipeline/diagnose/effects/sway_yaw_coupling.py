@@ -20,6 +20,7 @@ class SwayYawCoupling(Effect):
             ),
         ),
     )
+    needs_v = True
     words = "nonlinear sway-yaw coupling"
     term = "dv/dt and dr/dt each gain c_vvr v^2 r + c_vrr v r^2 (Abkowitz cross terms)"
     signature = "errors that grow with the product of drift and turn: large manoeuvres mis-shaped in v and r"
