@@ -233,6 +233,36 @@ def test_case(case, tmp_path):
     assert ok, f"{case.truth}: " + "; ".join(why) + f" | got {fig}"
 
 
+#: A fresh draw of the 32 cases (new magnitudes, noise seeds) that no choice of the method has seen:
+#: the data that reports, not the data that chose (make generalise only).  Seeds 1013, 2026 and 4242
+#: gave 32 of 32 on 2026-11-24; seed 777 gave 29 and is the one kept here.  Its case 31 (offset -1.26
+#: deg + r^3 on the slow ship) then lost the offset in the backward pass (without it 469.5 deg held-out
+#: against 0.23, block t 1.02 by the divergence itself): the backward pass no longer removes an effect
+#: without which the model runs away (pipeline.diagnose.select), and the case is right.
+FRESH_SEED = 777
+FRESH_KNOWN_WRONG = {
+    "15": "r|r| share 0.42 on the slow ship gives none: the fitted cubic changes the peak yaw rate of the "
+          "largest manoeuvre by 4.7 %, under the 5 % floor (held-out +80 %, per fold +71 % / +88 %); the "
+          "truth's own r|r| changes it by 8.5 %, the fit's linear yaw damping taking up the rest",
+    "17": "r^3 share 0.41 on the slow ship gives none: under the 5 % peak-yaw-rate floor as case 15 (the "
+          "truth's own term changes the peak yaw rate by 5.9 %)",
+}
+
+
+def _fresh_param(c):
+    why = FRESH_KNOWN_WRONG.get(c.cid)
+    marks = [pytest.mark.xfail(strict=True, reason="measured 2026-11-24: " + why)] if why else []
+    return pytest.param(c, id=f"fresh{FRESH_SEED}-{c.cid}-{c.ship}-{c.expected}", marks=marks)
+
+
+@pytest.mark.parametrize("case", [_fresh_param(c) for c in (tc.draw_cases(FRESH_SEED) if FULL else ())])
+def test_case_fresh_draw(case, tmp_path):
+    """The truth table's rules on a draw no choice has seen (FRESH_SEED)."""
+    rep, _ = run_case(case, tmp_path)
+    ok, why, fig = tc.judge(case, rep, tc.noise_mae_psi(case))
+    assert ok, f"{case.truth}: " + "; ".join(why) + f" | got {fig}"
+
+
 def _fake_report(base_deg, cause="none", effects=(), noise_deg=0.02, gain=0.0):
     return {"cause": cause, "extended": {"effects": list(effects)}, "findings": [],
             "gain": {"mae_psi_relative_reduction": gain},

@@ -617,8 +617,11 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
         evidence = (
             f"Held-out heading error {step.gain:+.0%} when removed from the final model ({ctxt}; per fold "
             f"{', '.join(f'{g:+.0%}' for g in step.gains)}; cut {step.abs_gain_deg:.2f} deg; "
-            f"block t = {step.t:.1f} "
-            f"> {step.t_crit:.2f} with {step.blocks - 1} dof): {physical}."
+            + (f"block t = {step.t:.1f} > {step.t_crit:.2f} with {step.blocks - 1} dof"
+               if step.t >= step.t_crit or not step.removal_runs_away else
+               f"kept although block t = {step.t:.1f} is below {step.t_crit:.2f}: without it the model runs "
+               f"away on {'; '.join(step.removal_runs_away)}, a divergence too heavy-tailed for t")
+            + f"): {physical}."
         )
         if effect in sel.rivals:
             own, rv = sel.rivals[effect]
