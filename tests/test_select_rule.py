@@ -231,3 +231,42 @@ def test_rivals_within_one_standard_error_are_reported():
     assert rivals[0][1].gain == pytest.approx(0.28)
     out = sel.select(_TieSearch(se=0.1), [0], noise_deg=0.05)
     assert _names(out.structure) == {"rudder_offset"} and out.rivals == {}
+
+
+#: a fourth table: the offset then sway damping (O, C) pass forward; without the offset the model runs
+#: away (1000 deg), and that drop-one step fails its t-test by the divergence's heavy tail
+TABLE4 = {
+    (): 10.0, (A,): 9.9, (C,): 1000.0, (D,): 9.9, (O,): 4.0,
+    (A, C): 1000.0, (A, D): 9.9, (A, O): 3.9, (C, D): 1000.0, (C, O): 1.0, (D, O): 3.9,
+    (A, C, D): 1000.0, (A, C, O): 0.99, (A, D, O): 3.9, (C, D, O): 0.99, (A, C, D, O): 0.98,
+}
+
+
+class RunAwaySearch(FakeSearch):
+    """The drop-one step from a model that runs away (error above 100 deg) fails significance, as the
+    block t-test did on the fresh truth draw's case 31 (block t 1.02), and says it runs away."""
+
+    def step(self, ks, before, after, effect, noise_deg):
+        st = super().step(ks, before, after, effect, noise_deg)
+        if _error(before) > 100.0 >= _error(after):
+            st.passes, st.why = False, ["block t = 1.02 below t(0.95, 7) = 1.89"]
+            st.removal_runs_away = [f"run 1 {_error(after):.2f} -> {_error(before):.2f} deg"]
+        return st
+
+
+def test_backward_never_removes_an_effect_without_which_the_model_runs_away(monkeypatch):
+    """Forward takes the offset (60 %) and sway damping (75 %); dropping the offset leaves a model that
+    runs away, whose drop-one step fails its t-test.  The offset stays; a search that ignored the
+    run-away (the rule before 2026-11-24) drops it and ends on a model that runs away."""
+    monkeypatch.setattr(sys.modules[__name__], "TABLE", TABLE4)
+    out = sel.select(RunAwaySearch(), [0], noise_deg=0.05)
+    assert _names(out.structure) == {O, C}, out.structure
+    assert out.worth[O].removal_runs_away and not out.worth[O].passes
+
+    class Old(RunAwaySearch):
+        def step(self, *a, **kw):
+            st = super().step(*a, **kw)
+            st.removal_runs_away = []
+            return st
+
+    assert _names(sel.select(Old(), [0], noise_deg=0.05).structure) == {C}
