@@ -234,11 +234,12 @@ def test_case(case, tmp_path):
 
 
 #: A fresh draw of the 32 cases (new magnitudes, noise seeds) that no choice of the method has seen:
-#: the data that reports, not the data that chose (make generalise only).  Seeds 1013, 2026 and 4242
-#: gave 32 of 32 on 2026-11-24; seed 777 gave 29 and is the one kept here.  Its case 31 (offset -1.26
-#: deg + r^3 on the slow ship) then lost the offset in the backward pass (without it 469.5 deg held-out
-#: against 0.23, block t 1.02 by the divergence itself): the backward pass no longer removes an effect
-#: without which the model runs away (pipeline.diagnose.select), and the case is right.
+#: the data that reports, not the data that chose (make generalise; make test runs its case 31).
+#: Seeds 1013, 2026 and 4242 gave 32 of 32 on 2026-11-24; seed 777 gave 29 and is the one kept
+#: here.  Its case 31 (offset -1.26 deg + r^3 on the slow ship) then lost the offset in the backward
+#: pass (without it 469.5 deg held-out against 0.23, block t 1.02 by the divergence itself): the
+#: backward pass no longer removes an effect without which the model runs away
+#: (pipeline.diagnose.select), and the case is right.
 FRESH_SEED = 777
 FRESH_KNOWN_WRONG = {
     "15": "r|r| share 0.42 on the slow ship gives none: the fitted cubic changes the peak yaw rate of the "
@@ -255,7 +256,9 @@ def _fresh_param(c):
     return pytest.param(c, id=f"fresh{FRESH_SEED}-{c.cid}-{c.ship}-{c.expected}", marks=marks)
 
 
-@pytest.mark.parametrize("case", [_fresh_param(c) for c in (tc.draw_cases(FRESH_SEED) if FULL else ())])
+#: make test runs the fresh draw's case 31 only (what the backward pass's run-away rule mended)
+@pytest.mark.parametrize("case", [_fresh_param(c) for c in tc.draw_cases(FRESH_SEED)
+                                  if FULL or c.cid == "31"])
 def test_case_fresh_draw(case, tmp_path):
     """The truth table's rules on a draw no choice has seen (FRESH_SEED)."""
     rep, _ = run_case(case, tmp_path)
