@@ -763,8 +763,9 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
     if latent_sway_a12(ctx) is not None:
         summary += (
             " The runs have no sway velocity: v is a latent state, its scale held by a12 = "
-            f"{latent_sway_a12(ctx):.4g} (m/s^2)/(deg/s) (the centripetal term -U r), so the sway "
-            "parameters are in that convention's units and terms in v were not tried."
+            f"{latent_sway_a12(ctx):.4g} (m/s^2)/(deg/s) (the centripetal term -U r"
+            + (", at a conventional U = 1 m/s: the runs have no surge speed either" if not ctx.u_ref else "")
+            + "), so the sway parameters are in that convention's units and terms in v were not tried."
         )
     fold_reports = []
     for k, fold in enumerate(folds):
