@@ -760,10 +760,11 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             summary += " " + sign_bound_text(base.at_bound)
     else:
         summary = next(r["evidence"] for r in rows if r["effect"] == cause)
-    if latent_sway_a12(ctx) is not None:
+    a12_held = latent_sway_a12(ctx)
+    if a12_held is not None:
         summary += (
             " The runs have no sway velocity: v is a latent state, its scale held by a12 = "
-            f"{latent_sway_a12(ctx):.4g} (m/s^2)/(deg/s) (the centripetal term -U r"
+            f"{a12_held:.4g} (m/s^2)/(deg/s) (the centripetal term -U r"
             + (", at a conventional U = 1 m/s: the runs have no surge speed either" if not ctx.u_ref else "")
             + "), so the sway parameters are in that convention's units and terms in v were not tried."
         )
@@ -811,7 +812,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             "at_sign_bound": list(base.at_bound),
             # a12 held where no training run measures v (fit.latent_sway_a12): the sway parameters are
             # then in that convention's units; None where v is measured
-            "latent_sway_a12": latent_sway_a12(ctx),
+            "latent_sway_a12": a12_held,
             "validation": base_val,
             "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in base_per],
             "residuals": structure,

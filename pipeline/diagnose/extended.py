@@ -71,6 +71,16 @@ def _deriv(v, r, e, a_in, s, th, codes, eqs, coefs, lag, offset, asym, cubic):  
     return dv, dr, r, de
 
 
+@njit(cache=True, inline="always")
+def _stage_inputs(x_half, i0, j, m):  # pragma: no cover
+    """An input on the half-step grid at RK4 sub-step j of m of the step from index i0 = 2k: its values
+    at the sub-step's start, middle and end, by linear interpolation (the logged midpoint when m = 1)."""
+    x0 = x_half[i0] + (j / m) * (x_half[i0 + 2] - x_half[i0])
+    x1 = x_half[i0 + 1] if m == 1 else x_half[i0] + ((j + 0.5) / m) * (x_half[i0 + 2] - x_half[i0])
+    x2 = x_half[i0] + ((j + 1.0) / m) * (x_half[i0 + 2] - x_half[i0])
+    return x0, x1, x2
+
+
 @njit(cache=True)
 def _run(
     out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic
@@ -87,21 +97,8 @@ def _run(
         if k == k1 - 1:
             break
         for j in range(m):
-            # inputs at sub-step start, middle, end by linear interpolation on the half grid
-            fa = j / m
-            fb = (j + 0.5) / m
-            fc = (j + 1.0) / m
-            i0 = 2 * k
-            a0 = a_half[i0] + fa * (a_half[i0 + 2] - a_half[i0])
-            s0 = s_half[i0] + fa * (s_half[i0 + 2] - s_half[i0])
-            if m == 1:
-                a1 = a_half[i0 + 1]
-                s1 = s_half[i0 + 1]
-            else:
-                a1 = a_half[i0] + fb * (a_half[i0 + 2] - a_half[i0])
-                s1 = s_half[i0] + fb * (s_half[i0 + 2] - s_half[i0])
-            a2 = a_half[i0] + fc * (a_half[i0 + 2] - a_half[i0])
-            s2 = s_half[i0] + fc * (s_half[i0 + 2] - s_half[i0])
+            a0, a1, a2 = _stage_inputs(a_half, 2 * k, j, m)
+            s0, s1, s2 = _stage_inputs(s_half, 2 * k, j, m)
             k1v, k1r, k1p, k1e = _deriv(v, r, e, a0, s0, th, codes, eqs, coefs, lag, offset, asym, cubic)
             k2v, k2r, k2p, k2e = _deriv(
                 v + 0.5 * hs * k1v,
@@ -178,11 +175,8 @@ def _lag_history(a_half, h, m, lag):  # pragma: no cover
         e_out[k] = e if lag > 0.0 else a_half[2 * k]
         if k == n - 1 or lag <= 0.0:
             continue
-        i0 = 2 * k
         for j in range(m):
-            a0 = a_half[i0] + (j / m) * (a_half[i0 + 2] - a_half[i0])
-            a1 = a_half[i0 + 1] if m == 1 else a_half[i0] + ((j + 0.5) / m) * (a_half[i0 + 2] - a_half[i0])
-            a2 = a_half[i0] + ((j + 1.0) / m) * (a_half[i0 + 2] - a_half[i0])
+            a0, a1, a2 = _stage_inputs(a_half, 2 * k, j, m)
             k1 = (a0 - e) / lag
             k2 = (a1 - (e + 0.5 * hs * k1)) / lag
             k3 = (a1 - (e + 0.5 * hs * k2)) / lag

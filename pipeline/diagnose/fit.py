@@ -920,8 +920,8 @@ def _fit_structure(series, structure, ctx, start, max_nfev, block_T) -> FitResul
         raise ModelError("the diagnosis fit produced no finite result")
     msg.append("output-error polish" + ("" if res.success else f" (stopped: {res.message})"))
     th, tm, values = layout.unpack(res.x)
-    held = latent_sway_a12(ctx) is not None
-    keep = [i for i in range(len(names)) if not (held and i == 1)]   # a held a12 has no variance
+    held = {1} if latent_sway_a12(ctx) is not None else set()    # a12 held: it has no variance
+    keep = [i for i in range(len(names)) if i not in held]
     cov = np.zeros((len(names), len(names)))
     cov[np.ix_(keep, keep)] = sandwich_cov(res.jac[:, keep], res.fun, _clusters(series, block_T * ctx.t_ship))
     std = {n: float(np.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(names)}
@@ -938,7 +938,7 @@ def _fit_structure(series, structure, ctx, start, max_nfev, block_T) -> FitResul
         message="; ".join(msg),
         training_runs=[s.name for s in series],
         at_bound=tuple(n for i, (n, a) in enumerate(zip(names[:4], res.active_mask[:4], strict=True))
-                       if a != 0 and not (held and i == 1)),
+                       if a != 0 and i not in held),
     )
 
 

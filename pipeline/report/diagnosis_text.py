@@ -183,15 +183,15 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     if folds and min(folds) <= 0:
         reasons.append(("failed a fold", "worse in a fold (per fold " + ", ".join(gain_text(x) for x in folds)
                         + ")"))
-    # the stage's no-harm and no-run-away tests (select.py) are stated only in the evidence text
-    for key in ("significantly worse on a held-out manoeuvre", "runs away on a held-out manoeuvre"):
+    # the stage's no-harm, no-run-away and short-horizon tests (select.py) are stated only in the
+    # evidence text: (its words there, the verdict, where its own reason ends)
+    harm, short = "harms a held-out run", "worse from the measured state"
+    for key, v, end in (("significantly worse on a held-out manoeuvre", harm, "; runs away"),
+                        ("runs away on a held-out manoeuvre", harm, "; runs away"),
+                        ("predicts worse from the measured state", short, "; it fits")):
         if key in ev:
             part = ev[ev.index(key):].split(" (added to")[0].split(" (in the final")[0]
-            reasons.append(("harms a held-out run", part.split("; runs away")[0]))
-    key = "predicts worse from the measured state"
-    if key in ev:
-        part = ev[ev.index(key):].split(" (added to")[0].split(" (in the final")[0]
-        reasons.append(("worse from the measured state", part.split("; it fits")[0].split("; runs away")[0]))
+            reasons.append((v, part.split(end)[0]))
     t, tc = f.get("block_t"), f.get("block_t_crit")
     if isinstance(t, (int, float)) and isinstance(tc, (int, float)) and not t >= tc:
         dof = (f.get("blocks") or 0) - 1
