@@ -21,6 +21,13 @@ The truths (tests/truths/, no import of pipeline.model or pipeline.diagnose):
   the measured rudder logged; MARIN .dat read with ``--scale 40``; the same side-swap folds.  Its
   linear form must give "none", its linear form with Y_0, N_0 the offset within 25 %, the published
   model a cause and a >= 50 % held-out cut with the offset among the effects.
+- :mod:`truths.tanker`: a fourth ship and model family, added after the method and run as found: the
+  Van Berlekom & Goddard (1972) 190 000 dwt tanker at full scale (|v| v and |v| r hull terms, the
+  rudder force on the propeller slipstream with a rudder-drift interaction, the propeller's
+  constant side force and moment, a surge equation), course-unstable when linear; MARIN .dat read
+  with ``--scale 50``; the same side-swap folds.  Linear -> none (and the baseline recovers its
+  parameters within 10 %), linear with the propeller's constants -> the offset alone within 25 %,
+  the published model a cause and a >= 50 % held-out cut with the offset among the effects.
 - Scale invariance: the same KVLCC2 runs (a) Froude-scaled to model scale and read without
   ``--scale``, (b) read at full scale without ``--scale`` (a 320 m "model"; logged step scaled by
   sqrt(45.7) so that the runs have the same number of samples): the cause must be the one found
@@ -46,6 +53,7 @@ from truths import cases as tc
 from truths import kvlcc2 as kv
 from truths import mariner as mr
 from truths import swayyaw as sy
+from truths import tanker as tk
 from truths.files import froude_to_model, marin_test_name, write_marin
 
 from pipeline.config import DiagnoseConfig, IngestConfig
@@ -241,13 +249,12 @@ def test_case(case, tmp_path):
 #: backward pass no longer removes an effect without which the model runs away
 #: (pipeline.diagnose.select), and the case is right.
 FRESH_SEED = 777
-FRESH_KNOWN_WRONG = {
-    "15": "r|r| share 0.42 on the slow ship gives none: the fitted cubic changes the peak yaw rate of the "
-          "largest manoeuvre by 4.7 %, under the 5 % floor (held-out +80 %, per fold +71 % / +88 %); the "
-          "truth's own r|r| changes it by 8.5 %, the fit's linear yaw damping taking up the rest",
-    "17": "r^3 share 0.41 on the slow ship gives none: under the 5 % peak-yaw-rate floor as case 15 (the "
-          "truth's own term changes the peak yaw rate by 5.9 %)",
-}
+#: Cases 15 and 17 (r|r| / r^3 shares 0.42 / 0.41, slow ship) were strict xfails until the output-
+#: error polish fitted each training run's start (pipeline.diagnose.fit._fit_from, 2026-11-24): the
+#: fitted linear yaw damping had taken up part of the nonlinearity, whose term then changed the peak
+#: yaw rate by 4.7 %, under the 5 % floor.  Now right, estimates -0.002628 against -0.002623 (r|r|)
+#: and -0.000657 against -0.000633 (r^3).
+FRESH_KNOWN_WRONG: dict = {}
 
 
 def _fresh_param(c):
@@ -348,7 +355,9 @@ def test_kvlcc2_marin_side_swap(kv_files, fold):
     And the honest gain (item 4: nested leave-one-run-out, each of the 4 runs held out, the effects
     chosen again on the other 3, every one of them validated once; fold 1, whose 4 runs are fold 2's)
     cuts it by at least half too.
-    Measured 2026-11-24 with the coupling sign bound: 0.695 [0.55, 0.79] in both folds, held-out
+    Measured 2026-11-24 with each training run's start fitted (pipeline.diagnose.fit._fit_from):
+    0.571 [0.39, 0.69], held-out 14.06 -> 2.18 deg in fold 1 (sway damping + asymmetry); before it,
+    with the coupling sign bound: 0.695 [0.55, 0.79] in both folds, held-out
     13.98 -> 2.30 and 7.23 -> 1.52 deg (sway damping + asymmetry); the inner causes differ by held-out
     run (asymmetry 0.27 and 0.91, sway damping 0.64, offset 0.77).  Before the bound 0.626; it was
     0.41 (a strict xfail) while the inner selections validated on one run (core._inner_folds)."""
@@ -594,11 +603,13 @@ MR_DISTURBANCE_DEG = 0.5
 #: judge (pipeline.diagnose.select, "no harm from the measured state", 2026-11-24); seed 700 then named
 #: the coupling instead of the sway damping, which predicts the pieces worse (0.83 -> 0.96 deg).
 MR_DIST_KNOWN_WRONG = {
-    ("linear", 700): "sway_yaw_coupling named on the disturbed linear Mariner in both folds, held-out +21 % "
-                     "(per fold +36 % / +3 %, block t 1.9 against 1.71), baseline at a21 = 0 (both poles "
-                     "stable where the truth is course-unstable); the cross terms also predict one ship "
-                     "time scale ahead better (0.83 -> 0.72, 0.92 -> 0.73 deg), so the short-horizon judge "
-                     "does not refuse them: the biased baseline, not the effect, is what they correct",
+    ("linear", 700): "sway_yaw_coupling named on the disturbed linear Mariner in both folds, held-out +17 % "
+                     "(per fold +30 % / +4 %, block t 2.1 against 1.71), baseline at a21 = 0 (both poles "
+                     "stable where the truth is course-unstable; so too with each training run's start "
+                     "fitted, which mended the tanker's and the fresh draw's biased baselines); the cross "
+                     "terms also predict one ship time scale ahead better (0.83 -> 0.72, 0.92 -> 0.73 deg, "
+                     "measured before the fitted starts), so the short-horizon judge does not refuse them: "
+                     "the biased baseline, not the effect, is what they correct",
 }
 
 
@@ -672,3 +683,149 @@ def test_mariner_disturbance_short_horizons_tell(mr_root, monkeypatch):
     whole = [[search.eval(k, x)[0]["mae_psi_deg"] for x in (off, asym)] for k in (0, 1)]
     short = [[_horizon_mae(search, k, x) for x in (off, asym)] for k in (0, 1)]
     assert all(o < a for o, a in short), (short, whole)
+
+
+# ------------------------------------------ a fourth ship and model family: the Van Berlekom tanker
+TK_SCALE = 50.0           # a 6.1 m tank model of the 304.8 m tanker
+TK_DURATION = 900.0       # s full scale (127 s at 1:50): 2-3 periods of the 20/20 zigzag
+TK_SEED = SEED * 100      # the noise seed of make test's tanker runs (1300)
+#: other noise seeds, run by make generalise: the same ship, the same design
+TK_SEEDS = (700, 2000, 3000)
+#: not in the truth: the measured rudder is logged (the servo is no hidden effect), and the published
+#: model is port/starboard symmetric but for the propeller's constant Y_T, N_T, which is an offset
+TK_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry")
+#: (form, seed) named wrongly (strict xfails, measured 2026-11-24, both folds)
+TK_KNOWN_WRONG: dict = {}
+
+
+def write_tanker(folder: Path, form: str, seed: int) -> dict[tuple[int, str], Path]:
+    """The four tanker zigzags of one form as full-scale MARIN .dat files."""
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for j, (a, side) in enumerate(KV_LEGS):
+        f = tk.simulate_zigzag(tk.Tanker(form=form), a, a, side, duration=TK_DURATION, seed=seed + j,
+                               scale=TK_SCALE)
+        out[(a, side)] = write_marin(f, folder / f"tanker_{form}_zz{a}_{side[0].upper()}.dat",
+                                     marin_test_name("Tanker", a, a))
+    return out
+
+
+_TK: dict = {}
+
+
+def tanker_fold(tmp_root: Path, form: str, fold: int, seed: int = TK_SEED) -> dict:
+    """Side-swap fold 1 (train starboard 20/20 + 10/10, validate port) or 2 (the reverse) of one tanker
+    form and noise seed, made once per process (selection only: DiagnoseConfig.nested_gain off)."""
+    key = (form, seed, fold)
+    if key not in _TK:
+        files = _TK.get((form, seed))
+        if files is None:
+            files = _TK[(form, seed)] = write_tanker(tmp_root / f"{form}{seed}", form, seed)
+        sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
+        runs = [[load(files[(a, side)], scale=TK_SCALE) for a in (20, 10)] for side in sides]
+        _TK[key] = diagnose_report(runs[0], runs[1], cfg=DiagnoseConfig(nested_gain=False))
+    return _TK[key]
+
+
+@pytest.fixture(scope="module")
+def tk_root(tmp_path_factory):
+    return tmp_path_factory.mktemp("tanker")
+
+
+def test_tanker_truth_is_what_it_says():
+    """SPEC signs in every form; the linearised tanker is course-unstable (one pole > 0, time constant
+    380 s, 10 L/U) with a fast stable one; the published model loses speed in a 20/20 zigzag and
+    overshoots less than its linear part (its |v| v, |v| r terms stabilise it); the propeller's
+    constants act as a rudder offset to port (SPEC negative) that grows as the ship slows."""
+    for form in ("linear", "offset", "full"):
+        s = tk.check_signs(tk.Tanker(form=form))
+        assert s["r_deg_s"] > 0 and s["v_m_s"] < 0, (form, s)
+    assert tk.approach_speed() == pytest.approx(8.18, abs=0.01)      # 16 kn at 80 rpm, deep water
+    slow, fast = tk.linear_poles()[::-1]
+    assert 300.0 < 1.0 / slow < 500.0 and -1.0 / fast < 30.0, (slow, fast)
+    full = kv.zigzag_metrics(tk.simulate_zigzag(tk.Tanker(), 20, 20, noise=False), 20)
+    lin = kv.zigzag_metrics(tk.simulate_zigzag(tk.Tanker(form="linear"), 20, 20, noise=False), 20)
+    assert full["lowest_speed_ratio"] < 0.7 and lin["lowest_speed_ratio"] == 1.0
+    assert max(full["overshoots_deg"]) < 0.5 * max(lin["overshoots_deg"]), (full, lin)
+    u0 = tk.approach_speed()
+    off = [tk.equivalent_offset_deg(u=k * u0) for k in (1.0, 0.8, 0.6)]
+    assert -0.6 < off[0] < -0.4 and off[0] > off[1] > off[2], off
+
+
+def _tk_param(form, seed):
+    why = TK_KNOWN_WRONG.get((form, seed))
+    marks = [pytest.mark.xfail(strict=True, reason="measured 2026-11-24: " + why)] if why else []
+    return pytest.param(form, seed, id=f"{form}-seed{seed}", marks=marks)
+
+
+@pytest.mark.parametrize("form,seed", [_tk_param(f, s) for f in ("linear", "offset", "full")
+                                       for s in (TK_SEED, *(TK_SEEDS if FULL else ()))])
+@pytest.mark.parametrize("fold", [1, 2])
+def test_tanker_side_swap(tk_root, form, fold, seed):
+    """A ship, a tank layout and a model family no part of the method was tuned on (added after the
+    method, run as found): the Van Berlekom & Goddard tanker, course-unstable when linear, full-scale
+    MARIN .dat read with ``--scale 50``, the side-swap folds of issue #11 item 7.
+
+    - linear (the baseline's own family, course-unstable): none;
+    - offset (linear + the propeller's constants): rudder_offset alone, within 25 % of its equivalent;
+    - full (the published model): a cause, a held-out cut of at least half, only effects the truth
+      has (hull nonlinearity of |v| v and |v| r forms, speed, the offset, the rudder-drift
+      interaction), and the offset among them, between its equivalents at the approach speed and at
+      the lowest speed of the runs, each widened by 25 %.
+
+    Measured 2026-11-24, seed 1300: linear none (baseline 0.09 / 0.08 deg; 1.35 / 0.48 before each
+    training run's start was fitted, pipeline.diagnose.fit._fit_from); offset -0.513 / -0.509 deg
+    against -0.502, 8.91 -> 0.12 and 10.43 -> 0.12 deg (99 %); full offset + cross terms in both folds,
+    12.11 -> 1.09 and 6.01 -> 1.17 deg (91 % / 80 %), offset -0.61 / -0.53 deg (equivalents -0.50 at
+    8.2 m/s, -0.73 at the 20/20's lowest 4.3 m/s).  Seeds 700, 2000, 3000 (make generalise): all
+    right.  Before the fitted starts the linear form's seed 2000 named two damping terms (1.72 ->
+    0.59 deg: the extension corrected a biased baseline).
+    """
+    rep = tanker_fold(tk_root, form, fold, seed)
+    effects = rep["extended"]["effects"]
+    if form == "linear":
+        assert rep["cause"] == "none" and effects == [], (rep["cause"], rep["extended"])
+        return
+    est = next((f["estimate"]["offset_deg"] for f in rep["findings"] if f["effect"] == "rudder_offset"), None)
+    if form == "offset":
+        assert effects == ["rudder_offset"], rep["extended"]
+        assert est == pytest.approx(tk.equivalent_offset_deg(tk.Tanker(form="offset")), rel=tc.EST_TOL)
+        return
+    base = rep["baseline"]["validation"]["mae_psi_deg"]
+    ext = rep["extended"]["validation"]["mae_psi_deg"]
+    assert rep["cause"] != "none" and 1.0 - ext / base >= KV_MIN_GAIN, (rep["cause"], base, ext)
+    assert not set(effects) & set(TK_WRONG), effects
+    assert "rudder_offset" in effects, effects
+    u0 = tk.approach_speed()
+    lo, hi = tk.equivalent_offset_deg(u=0.5 * u0), tk.equivalent_offset_deg(u=u0)
+    assert (1 + tc.EST_TOL) * lo <= est <= (1 - tc.EST_TOL) * hi, (est, lo, hi)
+
+
+def test_tanker_linear_baseline_recovers_the_course_unstable_truth(tk_root):
+    """The baseline fit on the baseline's own family, course-unstable (item 2: "course-unstable ships
+    are real: fit them"): the linear tanker's 20/20 + 10/10 to starboard, full-scale MARIN files at
+    1:50, the diagnosis's own series, context and starts.  Every linear parameter within 10 % of the
+    truth's (its Jacobian Froude-scaled to the model, r in deg/s), the unstable pole's sign kept.
+
+    Measured 2026-11-24, seed 2000: a11 -0.116 against -0.111, a22 -0.363 against -0.362, a21 -6.89
+    against -6.86 (max 4 % off).  Before the refits from each run's own start
+    (pipeline.diagnose.fit._fit_from): a11 -0.26, a22 -0.20 (training MAE psi 1.72 deg against the
+    truth's 0.07), and the diagnosis named two damping terms on this linear hull."""
+    from pipeline.diagnose.core import _context
+    from pipeline.diagnose.fit import fit_structure, is_stable, series_from_run, set_initial_states
+
+    files = write_tanker(tk_root / "recover2000", "linear", 2000)
+    runs = [load(files[(a, "starboard")], scale=TK_SCALE) for a in (20, 10)]
+    series = [series_from_run(r) for r in runs]
+    ctx = _context(series)
+    cfg = DiagnoseConfig()
+    set_initial_states(series, cfg.x0_window_T * ctx.t_ship, None, cfg.x0_box_sigma)
+    fit = fit_structure(series, (), ctx)
+    J, b, _ = tk._linear(tk.Tanker(form="linear"))
+    q, rad = math.sqrt(TK_SCALE), math.pi / 180.0
+    # model scale: rates x sqrt(lambda); r in deg/s; the published rudder is minus the SPEC's
+    truth = [J[0, 0] * q, J[0, 1] * rad / q, J[1, 0] / rad * TK_SCALE * q, J[1, 1] * q, -b[0] * rad,
+             -b[1] * TK_SCALE]
+    for name, got, want in zip(("a11", "a12", "a21", "a22", "b11", "b21"), fit.theta, truth, strict=True):
+        assert got == pytest.approx(want, rel=0.10), (name, list(fit.theta), truth)
+    assert not is_stable(fit.theta) and not is_stable(truth)

@@ -860,8 +860,9 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             "u_ref_m_s": ctx.u_ref,
             # held-out free runs start within this many standard deviations of the approach's estimate
             "x0_box_sigma": cfg.x0_box_sigma,
-            "fit": "prediction-error over one ship time scale, then output-error on free-run psi, r (and v); "
-            "RK4 of the continuous-time model, rudder interpolated; stability not forced",
+            "fit": "prediction-error over one ship time scale, then output-error on free-run psi, r (and v), "
+            "each training run's start fitted within the box of its estimate; RK4 of the continuous-time "
+            "model, rudder interpolated; stability not forced",
             "significance": "one-sided t-test of per-block held-out MAE psi differences, t with G-1 dof",
         },
     }

@@ -432,8 +432,9 @@ def _oe_batch(
     """Output-error residuals of every parameter vector (row c of ``res``) on every run k, in the
     layout of :func:`pipeline.diagnose.fit._oe_residuals`: per run w (psi_sim - psi)/sc_psi,
     w (r_sim - r)/sc_r and, when sway is measured, w (v_sim - v)/sc_v (same operations, same order,
-    so the same bits).  Row c's rudder and speed factor on the half grid of run k start at
-    a_buf[a_off[c, k]] and s_buf[s_off[c, k]]; its lag and RK4 sub-steps are lags[c, k], ms[c, k]."""
+    so the same bits).  Row c starts run k from x0s[c, k].  Row c's rudder and speed factor on the
+    half grid of run k start at a_buf[a_off[c, k]] and s_buf[s_off[c, k]]; its lag and RK4 sub-steps
+    are lags[c, k], ms[c, k]."""
     for c in range(thetas.shape[0]):
         for k in range(ns.shape[0]):
             n = ns[k]
@@ -445,7 +446,7 @@ def _oe_batch(
                 sim,
                 0,
                 n,
-                x0s[k],
+                x0s[c, k],
                 a_half[0],
                 a_half,
                 s_half,
@@ -528,10 +529,14 @@ class OEBatch:
             self._seen[key] = hit
         return hit
 
-    def __call__(self, P) -> np.ndarray:
-        """Residuals (len(P), n_res) of the parameter vectors ``P`` (rows)."""
+    def __call__(self, P, X0=None) -> np.ndarray:
+        """Residuals (len(P), n_res) of the parameter vectors ``P`` (rows); ``X0`` (len(P), runs, 3):
+        each row's initial states of the runs (v m/s, r deg/s, psi deg), default the runs' own."""
         P = np.atleast_2d(np.asarray(P, dtype=float))
         nc, nk = P.shape[0], len(self.t)
+        if X0 is None:
+            X0 = np.broadcast_to(self.x0s, (nc, nk, 3))
+        X0 = np.ascontiguousarray(X0, dtype=float)
         cols = [self.unpack(p)[:2] for p in P]
         codes, eqs, _ = _arrays(cols[0][1])
         thetas = np.empty((nc, 6))
@@ -577,7 +582,7 @@ class OEBatch:
             a_off,
             np.concatenate(s_parts),
             s_off,
-            self.x0s,
+            X0,
             self.hs,
             self.ns,
             self.m_off,

@@ -11,6 +11,9 @@ importing ``pipeline.model`` or ``pipeline.diagnose``:
   full form);
 - :mod:`truths.kvlcc2`: a 3-DOF MMG model of the KVLCC2 (Yasukawa & Yoshimura 2015) at full scale,
   written as MARIN SIMMAN ``.dat`` files (the stand-in for measured data of another ship and tank);
+- :mod:`truths.mariner`: the Mariner's Abkowitz model (Chislett & Stroem-Tejsen 1965), full scale;
+- :mod:`truths.tanker`: the Van Berlekom & Goddard (1972) large tanker, full scale, course-unstable
+  when linear;
 - :mod:`truths.files`: writers of raw files in SPEC section 3 formats (canonical CSV, MARIN .dat);
 - :mod:`truths.cases`: the seeded cases of tests/test_diagnose_generalise.py and how they are judged;
 - ``run_cases.py``: runs every case and prints a table for the lead.
