@@ -554,7 +554,7 @@ def test_mariner_side_swap(mr_root, fold, seed):
     has (hull nonlinearity, speed dependence, the constants as an offset, the cubic rudder terms),
     and the hull's offset is among them, within 25 % of its equivalent.  Fold 1 also measures the
     honest gain (nested leave-one-run-out over the 4 runs; the same runs in fold 2), which must reach
-    the truth cases' bar, 30 % (tc.MIN_GAIN).
+    the truth cases' bar, 30 % (tc.MIN_GAIN); make generalise only (100 s of make test's time).
 
     Measured 2026-11-24 (seed 1350): offset + speed loss + cross terms in both folds, offset 1.15 /
     1.16 deg against 1.11, held-out 3.15 -> 0.35 and 5.44 -> 0.27 deg (89 % / 95 %), honest gain 0.90.
@@ -568,7 +568,7 @@ def test_mariner_side_swap(mr_root, fold, seed):
     offset and the cross terms hurt held-out alone and the pair fallback's pool held neither; seed 700
     named speed loss + sway damping, 61 % / 57 %, and left out the offset though it passed on top.
     """
-    honest = fold == 1 and seed == MR_SEED
+    honest = fold == 1 and seed == MR_SEED and FULL    # make test: the KVLCC2 honest gain only
     rep = mariner_fold(mr_root, "full", fold, nested_gain=honest, seed=seed)
     base = rep["baseline"]["validation"]["mae_psi_deg"]
     ext = rep["extended"]["validation"]["mae_psi_deg"]
@@ -759,7 +759,8 @@ def _tk_param(form, seed):
 
 
 @pytest.mark.parametrize("form,seed", [_tk_param(f, s) for f in ("linear", "offset", "full")
-                                       for s in (TK_SEED, *(TK_SEEDS if FULL else ()))])
+                                       for s in (TK_SEED, *(TK_SEEDS if FULL else ()))
+                                       if FULL or f != "offset"])    # make test: CI time
 @pytest.mark.parametrize("fold", [1, 2])
 def test_tanker_side_swap(tk_root, form, fold, seed):
     """A ship, a tank layout and a model family no part of the method was tuned on (added after the

@@ -40,6 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from truths.disturbance import ornstein_uhlenbeck
+
 RAD = math.pi / 180.0
 
 
@@ -92,14 +94,14 @@ def _c(table: tuple, key: str) -> float:
 
 def derivatives(s: Tanker, u: float, v: float, r: float, d: float, n_ext: float = 0.0) -> tuple:
     """(du/dt, dv/dt m/s^2, dr/dt rad/s^2) at surge u, sway v m/s, yaw rate r rad/s and the published
-    rudder d rad (positive turning to PORT); ``n_ext`` an external yaw moment on L^2 times the mass
-    (m^2/s^2, the bis units of the published N), added to the hull's.  The ``linear`` and ``offset``
+    rudder d rad (positive turning to PORT); ``n_ext`` an external yaw acceleration (rad/s^2) added
+    to the hull's.  The ``linear`` and ``offset``
     forms: the published model linearised at the approach speed, speed held (du/dt = 0), the
     ``offset`` form with the propeller's constant force and moment there."""
     if s.form != "full":
         J, b, f0 = _linear(s)
         dv, dr = J @ np.array([v, r]) + b * d + (f0 if s.form == "offset" else 0.0)
-        return 0.0, float(dv), float(dr + n_ext / (s.L * s.L * s.m33))
+        return 0.0, float(dv), float(dr + n_ext)
     return _full(s, u, v, r, d, n_ext)
 
 
@@ -120,11 +122,11 @@ def _full(s: Tanker, u: float, v: float, r: float, d: float, n_ext: float = 0.0)
           + Y("vvz") * abs(v) * v * z + Y("ccbbdz") * cc * bb * z) / L
     gN = (N("uv") * u * v + L * N("vr") * abs(v) * r + N("ccd") * cc * d + L * s.d33 * u * r
           + N("ccbbd") * cc * bb + L * N("T") * gT + L * N("urz") * u * r * z + N("uvz") * u * v * z
-          + L * N("vrz") * abs(v) * r * z + N("ccbbdz") * cc * bb * z) + n_ext
+          + L * N("vrz") * abs(v) * r * z + N("ccbbdz") * cc * bb * z)
     m11 = s.m11 - X("udotz") * z
     m22 = s.m22 - Y("vdotz") * z
     m33 = s.m33 - N("rdotz") * z
-    return gX / m11, gY / m22, gN / (L * L * m33)
+    return gX / m11, gY / m22, gN / (L * L * m33) + n_ext
 
 
 def approach_speed(s: Tanker | None = None) -> float:
@@ -191,22 +193,33 @@ def simulate_zigzag(
     noise: bool = True,
     t_execute: float = 10.0,
     scale: float = 50.0,
+    disturbance_deg: float = 0.0,
+    disturbance_tau: float = 30.0,
 ) -> pd.DataFrame:
     """A full-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg (SPEC
     signs, the *measured* rudder), rpm 1/min, logged every ``dt_log`` s.  RK4 at ``h`` s.
     Counter-rudder at a logging instant when the measured heading passes +-heading_deg.  White
     sensor noise, Froude-scaled from model-scale figures at 1:``scale`` (psi 0.05 deg, r 0.05 deg/s,
     u, v 0.005 m/s, delta 0.05 deg).  The ship starts straight at its approach speed with zero
-    rudder; the first 10 s (before the execute) show the drift its propeller gives it."""
+    rudder; the first 10 s (before the execute) show the drift its propeller gives it.
+
+    Process disturbance (``disturbance_deg`` > 0), as in :func:`truths.mariner.simulate_zigzag`: an
+    external yaw acceleration, stationary Ornstein-Uhlenbeck with correlation time
+    ``disturbance_tau`` s, its std what the rudder gives at ``disturbance_deg`` (linearised at the
+    approach speed), drawn afresh in every run from its own stream, held over the RK4 sub-steps."""
     u0 = approach_speed(s)
     sub = int(round(dt_log / h))
     n = int(round(duration / dt_log)) + 1
     sign = 1.0 if first_side == "starboard" else -1.0
     rate, dmax = s.rudder_rate * RAD, s.rudder_max * RAD
+    dist = np.zeros(n)
+    if disturbance_deg > 0.0:
+        dist = ornstein_uhlenbeck(n, dt_log, disturbance_tau, seed)
+        dist *= abs(_linear(s)[1][1]) * disturbance_deg * RAD
 
-    def rhs(x, cmd_pub):
+    def rhs(x, cmd_pub, n_ext=0.0):
         u, v, r, psi, _, _, d = x
-        du, dv, dr = derivatives(s, u, v, r, d)
+        du, dv, dr = derivatives(s, u, v, r, d, n_ext)
         c = max(-dmax, min(dmax, cmd_pub))
         dd = max(-rate, min(rate, (c - d) / s.servo_tau))
         cp, sp = math.cos(psi), math.sin(psi)
@@ -232,11 +245,12 @@ def simulate_zigzag(
                 cmd = rudder_deg * RAD
         if i == n - 1:
             break
+        ne = float(dist[i])
         for _ in range(sub):
-            k1 = rhs(x, -cmd)
-            k2 = rhs([a + 0.5 * h * b for a, b in zip(x, k1, strict=True)], -cmd)
-            k3 = rhs([a + 0.5 * h * b for a, b in zip(x, k2, strict=True)], -cmd)
-            k4 = rhs([a + h * b for a, b in zip(x, k3, strict=True)], -cmd)
+            k1 = rhs(x, -cmd, ne)
+            k2 = rhs([a + 0.5 * h * b for a, b in zip(x, k1, strict=True)], -cmd, ne)
+            k3 = rhs([a + 0.5 * h * b for a, b in zip(x, k2, strict=True)], -cmd, ne)
+            k4 = rhs([a + h * b for a, b in zip(x, k3, strict=True)], -cmd, ne)
             x = [a + h / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4)
                  for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4, strict=True)]
     f = pd.DataFrame(out, columns=["time", "x0", "y0", "psi", "u", "v", "r", "delta", "rpm"])
