@@ -698,13 +698,15 @@ TK_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry")
 TK_KNOWN_WRONG: dict = {}
 
 
-def write_tanker(folder: Path, form: str, seed: int) -> dict[tuple[int, str], Path]:
-    """The four tanker zigzags of one form as full-scale MARIN .dat files."""
+def write_tanker(folder: Path, form: str, seed: int,
+                 disturbance_deg: float = 0.0) -> dict[tuple[int, str], Path]:
+    """The four tanker zigzags of one form as full-scale MARIN .dat files (``disturbance_deg``: the
+    process disturbance of :func:`truths.tanker.simulate_zigzag`, 0 for none)."""
     folder.mkdir(parents=True, exist_ok=True)
     out = {}
     for j, (a, side) in enumerate(KV_LEGS):
         f = tk.simulate_zigzag(tk.Tanker(form=form), a, a, side, duration=TK_DURATION, seed=seed + j,
-                               scale=TK_SCALE)
+                               scale=TK_SCALE, disturbance_deg=disturbance_deg)
         out[(a, side)] = write_marin(f, folder / f"tanker_{form}_zz{a}_{side[0].upper()}.dat",
                                      marin_test_name("Tanker", a, a))
     return out
@@ -713,14 +715,16 @@ def write_tanker(folder: Path, form: str, seed: int) -> dict[tuple[int, str], Pa
 _TK: dict = {}
 
 
-def tanker_fold(tmp_root: Path, form: str, fold: int, seed: int = TK_SEED) -> dict:
+def tanker_fold(tmp_root: Path, form: str, fold: int, seed: int = TK_SEED,
+                disturbance_deg: float = 0.0) -> dict:
     """Side-swap fold 1 (train starboard 20/20 + 10/10, validate port) or 2 (the reverse) of one tanker
     form and noise seed, made once per process (selection only: DiagnoseConfig.nested_gain off)."""
-    key = (form, seed, fold)
+    key = (form, seed, fold, disturbance_deg)
     if key not in _TK:
-        files = _TK.get((form, seed))
+        files = _TK.get((form, seed, disturbance_deg))
         if files is None:
-            files = _TK[(form, seed)] = write_tanker(tmp_root / f"{form}{seed}", form, seed)
+            files = _TK[(form, seed, disturbance_deg)] = write_tanker(
+                tmp_root / f"{form}{seed}d{disturbance_deg:g}", form, seed, disturbance_deg)
         sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
         runs = [[load(files[(a, side)], scale=TK_SCALE) for a in (20, 10)] for side in sides]
         _TK[key] = diagnose_report(runs[0], runs[1], cfg=DiagnoseConfig(nested_gain=False))
@@ -782,7 +786,11 @@ def test_tanker_side_swap(tk_root, form, fold, seed):
     right.  Before the fitted starts the linear form's seed 2000 named two damping terms (1.72 ->
     0.59 deg: the extension corrected a biased baseline).
     """
-    rep = tanker_fold(tk_root, form, fold, seed)
+    _check_tanker(tanker_fold(tk_root, form, fold, seed), form)
+
+
+def _check_tanker(rep: dict, form: str) -> None:
+    """test_tanker_side_swap's judgement of one fold's report (its docstring)."""
     effects = rep["extended"]["effects"]
     if form == "linear":
         assert rep["cause"] == "none" and effects == [], (rep["cause"], rep["extended"])
@@ -830,3 +838,36 @@ def test_tanker_linear_baseline_recovers_the_course_unstable_truth(tk_root):
     for name, got, want in zip(("a11", "a12", "a21", "a22", "b11", "b21"), fit.theta, truth, strict=True):
         assert got == pytest.approx(want, rel=0.10), (name, list(fit.theta), truth)
     assert not is_stable(fit.theta) and not is_stable(truth)
+
+
+#: (form, seed, fold) of the disturbed tanker below named wrongly (strict xfails, measured 2026-11-25)
+TK_DIST_KNOWN_WRONG = {
+    ("full", 700, 2): "offset + cross terms named (the right kinds), but the held-out cut is 24 % (6.41 -> "
+                      "4.88 deg), under the 50 % bar; fold 1 of the same seed 82 %",
+    ("full", 3000, 1): "yaw damping + speed loss + cross terms named, 80 % held-out, without the offset that "
+                       "the propeller's constants make (named in the undisturbed runs of this seed)",
+    ("full", 3000, 2): "yaw damping + speed loss + cross terms named, 60 % held-out, without the offset",
+}
+
+
+def _tk_dist_param(form, seed, fold):
+    why = TK_DIST_KNOWN_WRONG.get((form, seed, fold))
+    marks = [pytest.mark.xfail(strict=True, reason="measured 2026-11-25: " + why)] if why else []
+    return pytest.param(form, seed, fold, id=f"{form}-seed{seed}-fold{fold}", marks=marks)
+
+
+@pytest.mark.parametrize("form,seed,fold", [_tk_dist_param(f, s, k) for f in ("linear", "offset", "full")
+                                            for s in (TK_SEED, *TK_SEEDS) for k in (1, 2)
+                                            if FULL or (f, s, k) == ("linear", TK_SEED, 1)])
+def test_tanker_process_disturbance(tk_root, form, seed, fold):
+    """The tanker's side-swap folds with what measured runs carry and no model has: a random external
+    yaw moment in every run, worth 0.5 deg of rudder (std), 30 s correlation time (full scale), drawn
+    afresh per run (MR_DISTURBANCE_DEG's reasoning), on a course-unstable hull.  The same judgement as
+    test_tanker_side_swap: linear none, the offset form the offset alone within 25 %, the published
+    model a cause, a held-out cut of half and the offset among its effects.
+
+    Measured 2026-11-25 (seeds 1300, 700, 2000, 3000, two folds each): linear none 8 of 8 (baseline
+    0.31-1.74 deg); offset right 8 of 8 (-0.41 to -0.62 deg against -0.50, 85-95 %); full 5 of 8
+    (TK_DIST_KNOWN_WRONG), every one of its folds naming the cross terms as cause.  make test runs
+    the linear form's seed 1300 fold 1 only (CI time)."""
+    _check_tanker(tanker_fold(tk_root, form, fold, seed, disturbance_deg=MR_DISTURBANCE_DEG), form)
