@@ -10,8 +10,8 @@ course instability free):
    horizon from the measured state): a course-unstable trial model cannot run away over one T, so
    the optimisation cannot diverge.
 3. Output-error polishing: free run over the whole run (psi, r and, when measured, v; each channel
-   divided by its measured spread; every run weighs alike), each run's start (v0, r0) fitted
-   jointly within the box of its estimated initial state (:func:`initial_state_with_std`, set by
+   divided by its measured spread; every run weighs alike), each run's start r0 (JOINT_STATES)
+   fitted jointly within the box of its estimated initial state (:func:`initial_state_with_std`, set by
    :func:`set_initial_states`), the box the held-out evaluation gives every model
    (:func:`boxed_initial_state`); without a box, from the estimate (the first sample until set).
 Warm starts (a previous fit of a nested structure) go to step 3 directly; a dead time or servo lag

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from truths import zigzag
 from truths.disturbance import ornstein_uhlenbeck
 
 RAD = math.pi / 180.0
@@ -195,9 +196,7 @@ def simulate_zigzag(
     # [[m+my, xG m], [xG m, IzG + xG^2 m + Jz]] [v', r'] = [Y - (m+mx) u r, N - xG m u r]
     M11, M12, M22 = m + my, xG * m, IzG + xG * xG * m + Jz
     det = M11 * M22 - M12 * M12
-    sub = int(round(dt_log / h))
     n = int(round(duration / dt_log)) + 1
-    sign = 1.0 if first_side == "starboard" else -1.0
     rate = s.rudder_rate * RAD
     ks = s.servo_gain
 
@@ -226,30 +225,10 @@ def simulate_zigzag(
     sq = math.sqrt(lam)
     sig = {"psi": 0.05, "r": 0.05 / sq, "u": 0.005 * sq, "v": 0.005 * sq, "delta": 0.05}
     e = {k: (rng.normal(0.0, v, n) if noise else np.zeros(n)) for k, v in sig.items()}
-    x = [s.u0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-    out = np.zeros((n, 9))
-    cmd, executed = 0.0, False
-    for i in range(n):
-        t = i * dt_log
-        out[i] = (t, x[4], x[5], x[3] / RAD, x[0], x[1], x[2] / RAD, x[6] / RAD, n_p * 60.0)
-        psi_meas = x[3] / RAD + e["psi"][i]
-        if not executed and t >= t_execute - 1e-9:
-            cmd, executed = sign * rudder_deg * RAD, True
-        elif executed:
-            if cmd > 0 and psi_meas >= heading_deg:
-                cmd = -rudder_deg * RAD
-            elif cmd < 0 and psi_meas <= -heading_deg:
-                cmd = rudder_deg * RAD
-        if i == n - 1:
-            break
-        ne = float(dist[i])
-        for _ in range(sub):
-            k1 = rhs(x, cmd, ne)
-            k2 = rhs([a + 0.5 * h * b for a, b in zip(x, k1, strict=True)], cmd, ne)
-            k3 = rhs([a + 0.5 * h * b for a, b in zip(x, k2, strict=True)], cmd, ne)
-            k4 = rhs([a + h * b for a, b in zip(x, k3, strict=True)], cmd, ne)
-            x = [a + h / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4)
-                 for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4, strict=True)]
+    out = zigzag.run(
+        rhs, [s.u0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        lambda t, x: (t, x[4], x[5], x[3] / RAD, x[0], x[1], x[2] / RAD, x[6] / RAD, n_p * 60.0),
+        lambda x: x[3] / RAD, rudder_deg, heading_deg, first_side, n, dt_log, h, t_execute, e["psi"], dist)
     f = pd.DataFrame(out, columns=["time", "x0", "y0", "psi", "u", "v", "r", "delta", "rpm"])
     f.attrs["true"] = f.copy()
     for k in ("psi", "r", "u", "v", "delta"):

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from truths import zigzag
 from truths.disturbance import ornstein_uhlenbeck
 
 RAD = math.pi / 180.0
@@ -208,9 +209,7 @@ def simulate_zigzag(
     ``disturbance_tau`` s, its std what the rudder gives at ``disturbance_deg`` (linearised at the
     approach speed), drawn afresh in every run from its own stream, held over the RK4 sub-steps."""
     u0 = approach_speed(s)
-    sub = int(round(dt_log / h))
     n = int(round(duration / dt_log)) + 1
-    sign = 1.0 if first_side == "starboard" else -1.0
     rate, dmax = s.rudder_rate * RAD, s.rudder_max * RAD
     dist = np.zeros(n)
     if disturbance_deg > 0.0:
@@ -229,30 +228,11 @@ def simulate_zigzag(
     sq = math.sqrt(scale)
     sig = {"psi": 0.05, "r": 0.05 / sq, "u": 0.005 * sq, "v": 0.005 * sq, "delta": 0.05}
     e = {k: (rng.normal(0.0, v, n) if noise else np.zeros(n)) for k, v in sig.items()}
-    x = [u0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-    out = np.zeros((n, 9))
-    cmd, executed = 0.0, False          # SPEC-signed command, rad
-    for i in range(n):
-        t = i * dt_log
-        out[i] = (t, x[4], x[5], x[3] / RAD, x[0], x[1], x[2] / RAD, -x[6] / RAD, s.rpm)
-        psi_meas = x[3] / RAD + e["psi"][i]
-        if not executed and t >= t_execute - 1e-9:
-            cmd, executed = sign * rudder_deg * RAD, True
-        elif executed:
-            if cmd > 0 and psi_meas >= heading_deg:
-                cmd = -rudder_deg * RAD
-            elif cmd < 0 and psi_meas <= -heading_deg:
-                cmd = rudder_deg * RAD
-        if i == n - 1:
-            break
-        ne = float(dist[i])
-        for _ in range(sub):
-            k1 = rhs(x, -cmd, ne)
-            k2 = rhs([a + 0.5 * h * b for a, b in zip(x, k1, strict=True)], -cmd, ne)
-            k3 = rhs([a + 0.5 * h * b for a, b in zip(x, k2, strict=True)], -cmd, ne)
-            k4 = rhs([a + h * b for a, b in zip(x, k3, strict=True)], -cmd, ne)
-            x = [a + h / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4)
-                 for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4, strict=True)]
+    out = zigzag.run(
+        rhs, [u0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        lambda t, x: (t, x[4], x[5], x[3] / RAD, x[0], x[1], x[2] / RAD, -x[6] / RAD, s.rpm),
+        lambda x: x[3] / RAD, rudder_deg, heading_deg, first_side, n, dt_log, h, t_execute, e["psi"], dist,
+        command=lambda c: -c)     # the published rudder is minus the SPEC's
     f = pd.DataFrame(out, columns=["time", "x0", "y0", "psi", "u", "v", "r", "delta", "rpm"])
     f.attrs["true"] = f.copy()
     for k in ("psi", "r", "u", "v", "delta"):

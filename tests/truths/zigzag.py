@@ -1,0 +1,78 @@
+"""The zigzag test as a tank runs it, shared by the full-scale truths (kvlcc2, mariner, tanker).
+
+Each truth gives its own equations of motion (``rhs``) and what it logs (``row``); this module only
+drives them: the logging instants, the zigzag logic on the *measured* heading (execute at
+``t_execute``, counter-rudder at a logging instant when the measured heading passes
++-``heading_deg``) and classical RK4 at ``h`` s between logging instants, the rudder command and any
+external disturbance held over the sub-steps.  No pipeline code.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+RAD = math.pi / 180.0
+
+
+def rk4(rhs: Callable, x: list, h: float, *args) -> list:
+    """One classical Runge-Kutta step of x' = rhs(x, *args) over ``h``."""
+    k1 = rhs(x, *args)
+    k2 = rhs([a + 0.5 * h * b for a, b in zip(x, k1, strict=True)], *args)
+    k3 = rhs([a + 0.5 * h * b for a, b in zip(x, k2, strict=True)], *args)
+    k4 = rhs([a + h * b for a, b in zip(x, k3, strict=True)], *args)
+    return [a + h / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4)
+            for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4, strict=True)]
+
+
+def run(
+    rhs: Callable,
+    x0: Sequence[float],
+    row: Callable[[float, list], Sequence[float]],
+    psi_deg: Callable[[list], float],
+    rudder_deg: float,
+    heading_deg: float,
+    first_side: str,
+    n: int,
+    dt_log: float,
+    h: float,
+    t_execute: float,
+    psi_noise: np.ndarray,
+    dist: np.ndarray | None = None,
+    command: Callable[[float], float] = lambda c: c,
+) -> np.ndarray:
+    """The logged rows (``row(t, state)`` at each of ``n`` instants ``dt_log`` apart) of a zigzag.
+
+    ``rhs(x, command, n_ext)``: the truth's state derivative under the (truth-signed) rudder command
+    rad and an external disturbance (its units); ``command`` maps the SPEC-signed command (rad,
+    positive turning to starboard) to the truth's sign; ``psi_deg(x)``: the true heading, deg, to
+    which ``psi_noise[i]`` is added for the zigzag logic; ``dist[i]``: the disturbance held from
+    instant i to i + 1 (none: 0)."""
+    sub = int(round(dt_log / h))
+    sign = 1.0 if first_side == "starboard" else -1.0
+    x = list(x0)
+    out = None
+    cmd, executed = 0.0, False          # SPEC-signed command, rad
+    for i in range(n):
+        t = i * dt_log
+        r = row(t, x)
+        if out is None:
+            out = np.zeros((n, len(r)))
+        out[i] = r
+        psi_meas = psi_deg(x) + psi_noise[i]
+        if not executed and t >= t_execute - 1e-9:
+            cmd, executed = sign * rudder_deg * RAD, True
+        elif executed:
+            if cmd > 0 and psi_meas >= heading_deg:
+                cmd = -rudder_deg * RAD
+            elif cmd < 0 and psi_meas <= -heading_deg:
+                cmd = rudder_deg * RAD
+        if i == n - 1:
+            break
+        ne = 0.0 if dist is None else float(dist[i])
+        c = command(cmd)
+        for _ in range(sub):
+            x = rk4(rhs, x, h, c, ne)
+    return out
