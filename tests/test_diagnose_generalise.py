@@ -436,18 +436,34 @@ MR_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry")   # not in the tru
 #           symmetric but for the constant Y_0, N_0, which is an offset)
 
 
-def write_mariner(folder: Path, form: str, seed: int,
-                  disturbance_deg: float = 0.0) -> dict[tuple[int, str], Path]:
-    """The four Mariner zigzags of one form as full-scale MARIN .dat files (``disturbance_deg``: the
-    process disturbance of :func:`truths.mariner.simulate_zigzag`, 0 for none)."""
+def write_ship(folder: Path, simulate, ship, label: str, duration: float, scale: float, seed: int,
+               disturbance_deg: float = 0.0) -> dict[tuple[int, str], Path]:
+    """The four zigzags (KV_LEGS) of one full-scale truth ``ship`` (its ``simulate_zigzag`` and
+    ``form``) as full-scale MARIN .dat files named after ``label`` (``disturbance_deg``: the truth's
+    process disturbance, 0 for none)."""
     folder.mkdir(parents=True, exist_ok=True)
     out = {}
     for j, (a, side) in enumerate(KV_LEGS):
-        f = mr.simulate_zigzag(mr.Mariner(form=form), a, a, side, duration=MR_DURATION, seed=seed + j,
-                               scale=MR_SCALE, disturbance_deg=disturbance_deg)
-        out[(a, side)] = write_marin(f, folder / f"mariner_{form}_zz{a}_{side[0].upper()}.dat",
-                                     marin_test_name("Mariner", a, a))
+        f = simulate(ship, a, a, side, duration=duration, seed=seed + j, scale=scale,
+                     disturbance_deg=disturbance_deg)
+        out[(a, side)] = write_marin(f, folder / f"{label.lower()}_{ship.form}_zz{a}_{side[0].upper()}.dat",
+                                     marin_test_name(label, a, a))
     return out
+
+
+def side_swap_fold(files: dict, fold: int, scale: float, nested_gain: bool) -> dict:
+    """Side-swap fold 1 (train starboard 20/20 + 10/10, validate port) or 2 (the reverse) of
+    :func:`write_ship`'s files, read with ``--scale``."""
+    sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
+    runs = [[load(files[(a, side)], scale=scale) for a in (20, 10)] for side in sides]
+    return diagnose_report(runs[0], runs[1], cfg=DiagnoseConfig(nested_gain=nested_gain))
+
+
+def write_mariner(folder: Path, form: str, seed: int,
+                  disturbance_deg: float = 0.0) -> dict[tuple[int, str], Path]:
+    """The four Mariner zigzags of one form (:func:`write_ship`)."""
+    return write_ship(folder, mr.simulate_zigzag, mr.Mariner(form=form), "Mariner", MR_DURATION, MR_SCALE,
+                      seed, disturbance_deg)
 
 
 _MR: dict = {}
@@ -464,9 +480,7 @@ def mariner_fold(tmp_root: Path, form: str, fold: int, nested_gain: bool = False
             files = _MR[(form, seed, disturbance_deg)] = write_mariner(
                 tmp_root / f"{form}{seed}d{disturbance_deg:g}", form, seed=seed,
                 disturbance_deg=disturbance_deg)
-        sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
-        runs = [[load(files[(a, side)], scale=MR_SCALE) for a in (20, 10)] for side in sides]
-        _MR[key] = diagnose_report(runs[0], runs[1], cfg=DiagnoseConfig(nested_gain=nested_gain))
+        _MR[key] = side_swap_fold(files, fold, MR_SCALE, nested_gain)
     return _MR[key]
 
 
@@ -700,16 +714,9 @@ TK_KNOWN_WRONG: dict = {}
 
 def write_tanker(folder: Path, form: str, seed: int,
                  disturbance_deg: float = 0.0) -> dict[tuple[int, str], Path]:
-    """The four tanker zigzags of one form as full-scale MARIN .dat files (``disturbance_deg``: the
-    process disturbance of :func:`truths.tanker.simulate_zigzag`, 0 for none)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    out = {}
-    for j, (a, side) in enumerate(KV_LEGS):
-        f = tk.simulate_zigzag(tk.Tanker(form=form), a, a, side, duration=TK_DURATION, seed=seed + j,
-                               scale=TK_SCALE, disturbance_deg=disturbance_deg)
-        out[(a, side)] = write_marin(f, folder / f"tanker_{form}_zz{a}_{side[0].upper()}.dat",
-                                     marin_test_name("Tanker", a, a))
-    return out
+    """The four tanker zigzags of one form (:func:`write_ship`)."""
+    return write_ship(folder, tk.simulate_zigzag, tk.Tanker(form=form), "Tanker", TK_DURATION, TK_SCALE,
+                      seed, disturbance_deg)
 
 
 _TK: dict = {}
@@ -725,9 +732,7 @@ def tanker_fold(tmp_root: Path, form: str, fold: int, seed: int = TK_SEED,
         if files is None:
             files = _TK[(form, seed, disturbance_deg)] = write_tanker(
                 tmp_root / f"{form}{seed}d{disturbance_deg:g}", form, seed, disturbance_deg)
-        sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
-        runs = [[load(files[(a, side)], scale=TK_SCALE) for a in (20, 10)] for side in sides]
-        _TK[key] = diagnose_report(runs[0], runs[1], cfg=DiagnoseConfig(nested_gain=False))
+        _TK[key] = side_swap_fold(files, fold, TK_SCALE, nested_gain=False)
     return _TK[key]
 
 
