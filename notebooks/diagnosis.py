@@ -127,7 +127,7 @@ lad_raw = dg.get("ladder") or []
 if len(lrows) > 1:
     tv = [r["test MAE psi (deg)"] for r in lrows]
     has_test = any(isinstance(v, (int, float)) for v in tv)
-    fig, axes = plt.subplots(1, 2 if has_test else 1, figsize=(11 if has_test else 7, 0.9 + 0.5 * len(lrows)),
+    fig, axes = plt.subplots(1, 2 if has_test else 1, figsize=(11 if has_test else 9, 0.9 + 0.5 * len(lrows)),
                              sharey=True, squeeze=False)
     y = np.arange(len(lrows))[::-1]
     ax = axes[0, 0]
@@ -141,8 +141,13 @@ if len(lrows) > 1:
     ax.set_xlabel("free-run MAE of psi (deg)")
     ax.set_xlim(left=0)
     ax.set_ylim(-0.6, len(lrows) - 0.4)
+    # the legend below the axes (beside them it squeezed the axes behind the long step labels); one
+    # marker alone is said in the title
     if has_test:
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.35 - 0.05 * len(lrows)), frameon=False, ncol=1)
+    else:
+        ax.set_title("open circles: validation runs (they chose each step)", fontsize=9)
+    if has_test:
         ag = axes[0, 1]
         base_t = tv[0]
         for yi, rung, v in zip(y, lad_raw, tv, strict=True):
@@ -155,10 +160,8 @@ if len(lrows) > 1:
         ag.axvline(0, color="k", lw=0.8)
         ag.set_xlabel("test gain over the baseline (%), 95 % interval")
         ag.set_title("right of 0: better than the baseline", fontsize=9)
-    else:
-        nb.legend_outside(ax)
-    nb.show(fig, "The model ladder, top to bottom in the order it was climbed. Left: held-out heading "
-            "error of each step"
+    nb.show(fig, "The model ladder, top to bottom in the order it was climbed. "
+            + ("Left: held-out" if has_test else "Held-out") + " heading error of each step"
             + (" on the validation runs (open circles) and the test runs (red squares). Right: the "
                "relative gain of each step over the baseline on the test runs, with its 95 % bootstrap "
                "interval over blocks." if has_test else " on the validation runs (which chose it)."))
@@ -241,7 +244,7 @@ for e in named:
                  f"{nb.esc(dt.pct(f.get('validation_gain_in_extended', f.get('validation_gain'))))}"
                  + (", per fold " + nb.esc(", ".join(dt.pct(g, True) for g in f.get("validation_gain_folds")))
                     if f.get("validation_gain_folds") else "")
-                 + f"; cut {nb.esc(dt.num(f.get('abs_gain_deg'), 2, 'deg'))}; block t "
+                 + f"; {nb.esc(dt.cut_text(f.get('abs_gain_deg')))}; block t "
                  f"{nb.esc(dt.num(f.get('block_t'), 3))} against {nb.esc(dt.num(f.get('block_t_crit'), 3))}. "
                  f"<b>Physical floor:</b> {nb.esc(dt.floor_reason(f.get('floor')) or 'n/a')}; measured: "
                  f"{nb.esc(dt.floor_measured(f.get('floor')))}.</p>")

@@ -344,6 +344,9 @@ def test_diagnosis_words_and_verdicts():
     assert "0.2 deg/s (12 deg per minute) to starboard" in dt.offset_words({"offset_deg": 1.0}, diag)
     assert dt.gain_sentence(-1.48, [-2.19, -0.41]).startswith("makes the heading error WORSE by 148 %")
     assert dt.gain_text(-20.0) == "-2000 % (diverges)" and dt.gain_text(None) == "n/a"
+    # a removal's heading cut: a size up to half a turn, beyond it the divergence in words
+    assert dt.cut_text(2.345) == "cut 2.3 deg" and dt.cut_text(None) == "cut n/a"
+    assert dt.cut_text(1.2e4).startswith("without it the free run diverges (mean heading error 1.2e+04 deg")
     assert dt.param_label("y_vvr_s_per_m_deg") == "y_vvr (s/(m deg))"
     assert dt.param_label("asymmetry") == "asymmetry (-)"
     assert dt.plain("k n_rrr_s_per_deg2 = 1", ["n_rrr_s_per_deg2"]) == "k n_rrr (s/deg^2) = 1"

@@ -210,6 +210,21 @@ def failed_tests(f: dict, settings: dict | None = None) -> tuple[str, ...]:
     return out if isinstance(out, tuple) and all(x in VERDICTS for x in out) else (out[0],)
 
 
+#: deg: a removal that raises the mean free-run heading error by more than half a turn no longer
+#: mis-predicts the manoeuvre, the simulated ship has turned away from it (its free run diverged)
+DIVERGED_CUT_DEG = 180.0
+
+
+def cut_text(cut: Any) -> str:
+    """'cut 2.3 deg' (the held-out heading error a finding's removal adds), or, beyond
+    :data:`DIVERGED_CUT_DEG`, the divergence in words rather than as a size ('cut 1e+04 deg')."""
+    if isinstance(cut, (int, float)) and not isinstance(cut, bool) and math.isfinite(cut) \
+            and cut > DIVERGED_CUT_DEG:
+        return (f"without it the free run diverges (mean heading error {num(cut, 2)} deg larger, "
+                f"over half a turn)")
+    return f"cut {num(cut, 2, 'deg')}"
+
+
 def floor_measured(floor: Any) -> str:
     """The measured side of a finding's ``floor`` text ('|offset| 0.09 deg (floor 0.3 deg)'), one
     per distinct fold reading; the stated reason in brackets is left to :func:`floor_reason`."""
