@@ -437,17 +437,18 @@ MR_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry")   # not in the tru
 
 
 def write_ship(folder: Path, simulate, ship, label: str, duration: float, scale: float, seed: int,
-               disturbance_deg: float = 0.0) -> dict[tuple[int, str], Path]:
+               disturbance_deg: float = 0.0, misalignment_deg: float = 0.0) -> dict[tuple[int, str], Path]:
     """The four zigzags (KV_LEGS) of one full-scale truth ``ship`` (its ``simulate_zigzag`` and
     ``form``) as full-scale MARIN .dat files named after ``label`` (``disturbance_deg``: the truth's
-    process disturbance, 0 for none)."""
+    process disturbance, 0 for none; ``misalignment_deg``: the files' heading reference off the
+    centreline, truths.files.write_marin)."""
     folder.mkdir(parents=True, exist_ok=True)
     out = {}
     for j, (a, side) in enumerate(KV_LEGS):
         f = simulate(ship, a, a, side, duration=duration, seed=seed + j, scale=scale,
                      disturbance_deg=disturbance_deg)
         out[(a, side)] = write_marin(f, folder / f"{label.lower()}_{ship.form}_zz{a}_{side[0].upper()}.dat",
-                                     marin_test_name(label, a, a))
+                                     marin_test_name(label, a, a), heading_misalignment_deg=misalignment_deg)
     return out
 
 
@@ -876,3 +877,60 @@ def test_tanker_process_disturbance(tk_root, form, seed, fold):
     (TK_DIST_KNOWN_WRONG), every one of its folds naming the cross terms as cause.  make test runs
     the linear form's seed 1300 fold 1 only (CI time)."""
     _check_tanker(tanker_fold(tk_root, form, fold, seed, disturbance_deg=MR_DISTURBANCE_DEG), form)
+
+
+#: deg: a heading reference set off the model's centreline (the files' heading reads this much more
+#: than the ship's; the track is true), as a tank set-up nobody here has seen may leave it: 0.3 deg is
+#: three times the 0.1 deg an optical tracking system resolves heading to, 1 deg a careless set-up.
+#: A MARIN file gives earth-fixed velocities, so the reader's v = -dx0 sin(psi) + dy0 cos(psi) carries
+#: u sin(misalignment): 0.006 / 0.021 m/s at the tanker's 1.16 m/s model speed, against 0.19 m/s of
+#: largest sway
+TK_MISALIGN_DEG = (0.3, 1.0)
+#: (form, misalignment, fold) named wrongly (strict xfails, measured 2026-11-25, seed 1300)
+TK_MISALIGN_KNOWN_WRONG = {
+    ("offset", 1.0, 1): "offset -0.659 deg against -0.502 (31 % off, tolerance 25 %); held-out 6.45 -> "
+                        "2.12 deg where the aligned files give 0.12",
+    ("offset", 1.0, 2): "offset -0.641 deg against -0.502 (28 % off); held-out 9.11 -> 2.57 deg",
+    ("full", 0.3, 2): "offset + sway damping named, but the held-out cut is 23 % (6.00 -> 4.63 deg; 80 % "
+                      "with aligned files)",
+    ("full", 1.0, 1): "yaw + sway damping named without the offset (75 %)",
+    ("full", 1.0, 2): "yaw + sway damping named without the offset (59 %)",
+}
+_TK_MIS: dict = {}
+
+
+def _tk_mis_param(form, eps, fold):
+    why = TK_MISALIGN_KNOWN_WRONG.get((form, eps, fold))
+    marks = [pytest.mark.xfail(strict=True, reason="measured 2026-11-25: " + why)] if why else []
+    return pytest.param(form, eps, fold, id=f"{form}-{eps:g}deg-fold{fold}", marks=marks)
+
+
+@pytest.mark.parametrize("form,eps,fold", [_tk_mis_param(f, e, k) for f in ("linear", "offset", "full")
+                                          for e in TK_MISALIGN_DEG for k in (1, 2)
+                                          if FULL or (f, e, k) == ("offset", 0.3, 1)])
+def test_tanker_heading_misalignment(tk_root, form, eps, fold):
+    """A sensor artefact of measured files, not a ship effect: the heading reference misaligned with
+    the track, so the sway velocity read from a MARIN file is biased by u sin(misalignment).  The same
+    judgement as test_tanker_side_swap (noise seed 1300).
+
+    Measured 2026-11-25: linear none at both (baseline held-out 3.14 / 3.57 deg at 1 deg, 0.09 / 0.08
+    aligned: the biased v bends the fit, no effect takes it up); offset right at 0.3 deg (-0.534 /
+    -0.523, held-out 0.63 / 0.60 deg) and 0.5 deg (-0.557 / -0.534), 28-31 % off at 1 deg; the published
+    model right in fold 1 at 0.3 deg (83 %), 23 % in fold 2, and at 0.5 deg (not tested) cross terms
+    + saturation without the offset (83 % / 68 %).  The catalogue has no sensor effect.  Tried and not
+    adopted: a constant sway-velocity bias fitted with every model (a nuisance like the starts): the
+    1 deg files came right (offset -0.512 / -0.509, linear 0.09 deg, published model offset + speed +
+    cross terms 84 / 82 %), but on the aligned published model the bias took up the hull's sway misfit
+    (-0.068 m/s, a11 and a12 at their bounds, baseline held-out 6.01 -> 10.94 deg; with the cross terms
+    2.99 against 11.27): a false misalignment of 3 deg.  Reweighting the outputs by their residual
+    spread (maximum likelihood with unknown channel variances, two rounds): 0.3 deg gives cross terms
+    alone, 80 / 57 %, the offset missed.  make test runs the offset form's 0.3 deg fold 1 only."""
+    key = (form, eps, fold)
+    if key not in _TK_MIS:
+        files = _TK_MIS.get((form, eps))
+        if files is None:
+            files = _TK_MIS[(form, eps)] = write_ship(tk_root / f"mis{form}{eps:g}", tk.simulate_zigzag,
+                                                      tk.Tanker(form=form), "Tanker", TK_DURATION, TK_SCALE,
+                                                      TK_SEED, misalignment_deg=eps)
+        _TK_MIS[key] = side_swap_fold(files, fold, TK_SCALE, nested_gain=False)
+    _check_tanker(_TK_MIS[key], form)

@@ -59,10 +59,14 @@ def _e3(x: float) -> str:
 INSTITUTE = "MARIN-layout file written by tests/truths (a simulation, not measured)"
 
 
-def write_marin(frame: pd.DataFrame, path: str | Path, test_name: str, institute: str = INSTITUTE) -> Path:
+def write_marin(frame: pd.DataFrame, path: str | Path, test_name: str, institute: str = INSTITUTE,
+                heading_misalignment_deg: float = 0.0) -> Path:
     """MARIN SIMMAN free-running .dat of a canonical frame (values at the scale they are given).
 
     ``frame`` has time, x0, y0, psi, u, v, r, delta (canonical signs) and optionally rpm, phi, p.
+    ``heading_misalignment_deg``: the file's heading reads this much more than the ship's (a heading
+    reference set off the model's centreline); dx0, dy0 stay the true track velocities, so a reader
+    that forms v from them and the heading gets v + u sin(misalignment).
     """
     path = Path(path)
     psi = frame["psi"].to_numpy(dtype=float)
@@ -71,6 +75,7 @@ def write_marin(frame: pd.DataFrame, path: str | Path, test_name: str, institute
     p = np.deg2rad(psi)
     dx0 = u * np.cos(p) - v * np.sin(p)
     dy0 = u * np.sin(p) + v * np.cos(p)
+    psi = psi + heading_misalignment_deg
     n = len(frame)
     zeros = np.zeros(n)
     cols = [
