@@ -133,7 +133,8 @@ def test_saturation_and_asymmetry_act_on_the_rudder_force():
 
 
 def test_feature_effects_add_their_terms():
-    """Yaw damping cuts the yaw rate; sway damping and coupling change it; both forms of yaw damping work."""
+    """Yaw damping cuts the yaw rate; sway damping and coupling change it; both forms of yaw damping and of
+    the coupling work."""
     base = simulate_terms(THETA, Terms(), (0, 0, 0), T, DELTA)
     cubic = _sim("nonlinear_yaw_damping", n_rrr_s_per_deg2=-0.01)
     assert np.abs(cubic[:, 1]).max() < 0.9 * np.abs(base[:, 1]).max()
@@ -154,6 +155,15 @@ def test_feature_effects_add_their_terms():
         n_vrr_s_per_m_deg=-2.0,
     )
     assert np.max(np.abs(coup - base)[:, 1]) > 0.05
+    # the modulus form (SPEC section 7: v|r|, r|v|): |v| r and v |r| in both equations, in that order
+    e = BY_NAME["sway_yaw_coupling"]
+    terms = Terms()
+    e.apply(e.form("modulus"), {"y_avr_per_deg": 0.0, "y_var_per_deg": 0.0, "n_avr_per_m": -5.0,
+                                "n_var_per_m": 0.0}, terms)
+    assert terms.feat_code == [6, 5, 6, 5] and terms.feat_eq == [0, 0, 1, 1]
+    mod = simulate_terms(THETA, terms, (0, 0, 0), T, DELTA)
+    # n |v| r < 0 is yaw damping that grows with the drift: the yaw rate peaks lower
+    assert np.abs(mod[:, 1]).max() < 0.95 * np.abs(base[:, 1]).max()
 
 
 def test_speed_loss_scales_hull_and_rudder_terms():

@@ -176,8 +176,9 @@ def draw_cases(seed: int) -> list[Case]:
             accepted=HULL_NL, reason="v ~ -c r in a zigzag: v^2 r ~ r^3 (any hull nonlinearity)")
     sh = u(0.5, 0.9)
     add("fast", f"cross terms r|v|, v|r| share {sh:.2f}", nonlinear=(("cross_abs", sh),),
-        expected="sway_yaw_coupling",
-        accepted=HULL_NL, reason="v ~ -c r in a zigzag: r|v| ~ r|r| (any hull nonlinearity)")
+        expected="sway_yaw_coupling", estimate={"n_avr_per_m": "@n_rabsv", "y_var_per_deg": "@y_vabsr"},
+        accepted=HULL_NL, reason="v ~ -c r in a zigzag: r|v| ~ r|r| (any hull nonlinearity); where the "
+        "coupling's modulus form is named, its |v| r and v |r| terms are the truth's own")
     # --- rudder stall / saturation (tanh) ---
     for ship in ("fast", "slow"):
         st = u(20.0, 28.0)

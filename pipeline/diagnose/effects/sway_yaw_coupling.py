@@ -19,10 +19,22 @@ class SwayYawCoupling(Effect):
                 Param("n_vrr_s_per_m_deg", 0.0, -1e3, 1e3, 0.0, "s/(m deg)", feature=(4, R_EQ)),
             ),
         ),
+        # the modulus form of Norrbin-type models (e.g. Van Berlekom & Goddard's N_|v|r |v| r): the same
+        # odd symmetry (the term changes sign with v and r together), growing linearly in each
+        Form(
+            "modulus",
+            (
+                Param("y_avr_per_deg", 0.0, -10.0, 10.0, 0.0, "1/deg", feature=(6, V_EQ)),
+                Param("y_var_per_deg", 0.0, -10.0, 10.0, 0.0, "1/deg", feature=(5, V_EQ)),
+                Param("n_avr_per_m", 0.0, -1e3, 1e3, 0.0, "1/m", feature=(6, R_EQ)),
+                Param("n_var_per_m", 0.0, -1e3, 1e3, 0.0, "1/m", feature=(5, R_EQ)),
+            ),
+        ),
     )
     needs_v = True
     words = "nonlinear sway-yaw coupling"
-    term = "dv/dt and dr/dt each gain c_vvr v^2 r + c_vrr v r^2 (Abkowitz cross terms)"
+    term = ("dv/dt and dr/dt each gain c_vvr v^2 r + c_vrr v r^2 (Abkowitz cross terms) or c_avr |v| r + "
+            "c_var v |r| (modulus form)")
     signature = "errors that grow with the product of drift and turn: large manoeuvres mis-shaped in v and r"
     floor_reason = f"changes the peak yaw rate of the largest manoeuvre by >= {MIN_RESPONSE:.0%}"
 
@@ -31,7 +43,10 @@ class SwayYawCoupling(Effect):
 
     def physical(self, form, values, ctx):
         v, r = ctx.v_max, ctx.r_max
-        yaw = values["n_vvr_s_per_m2"] * v * v * r + values["n_vrr_s_per_m_deg"] * v * r * r
+        if form.name == "modulus":
+            yaw = values["n_avr_per_m"] * abs(v) * r + values["n_var_per_m"] * v * abs(r)
+        else:
+            yaw = values["n_vvr_s_per_m2"] * v * v * r + values["n_vrr_s_per_m_deg"] * v * r * r
         return (
             f"the hull's yaw moment depends on drift and turn together: at v = {v:.3f} m/s, "
             f"r = {r:.2f} deg/s the cross terms add {yaw:+.3g} deg/s^2 to the yaw acceleration, "
