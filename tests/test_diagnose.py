@@ -229,7 +229,11 @@ def test_hsva_measured_kvlcc2(hsva_design):
     "ill-posed on this hull's small closed-loop zigzags. Issue 11's 'same cause in every fold' is "
     "not met. Re-measured 2026-11-25 with each training run's start fitted: the same (all runs none, "
     "held-out 5.64 deg, a21 at its bound; the fold that trains on 10/1 names nonlinear_yaw_damping; "
-    "with it 10/1 goes 5.32 -> 31.0 deg where held out)",
+    "with it 10/1 goes 5.32 -> 31.0 deg where held out). With the cross terms' modulus form in the "
+    "catalogue (2026-11-25) that fold names sway_yaw_coupling instead (modulus form, 6.88 -> 3.99 deg "
+    "on its validation runs, its linear part at the bounds a11 = a21 = a22 = 0); where 10/1 is held "
+    "out the form runs away on it (5.32 -> 28.8 deg) and, fitted with n_|v|r = +2.1 (less damping "
+    "at drift), predicts the 30/5 and 20/10 pieces from the measured state 31-73 deg off: refused",
 )
 def test_hsva_same_cause_in_every_fold(hsva_design):
     """Issue 11: HSVA gives the same cause in every fold of the chosen design."""
