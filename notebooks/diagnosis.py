@@ -62,6 +62,11 @@ if has_gain and (named or cause != "none"):
 display(HTML(f"<div style='font-size:1.3em;margin:6px 0'>{head}</div>"))
 nb.note(f"Ship and scale: {ship}. Every number below is at {scale_words}, in the units of the logged "
         "data (deg, deg/s, m/s, s). Residuals are measured minus model.")
+# a check of the data's own set-up (pipeline.diagnose.datacheck): said before any result it may bend
+drift_warning = ((dg.get("data_checks") or {}).get("approach_drift") or {}).get("warning")
+if drift_warning:
+    display(HTML("<div style='border:2px solid #b8860b;padding:6px 10px;margin:8px 0'><b>"
+                 + nb.esc(drift_warning) + "</b></div>"))
 
 # %% [markdown]
 # ## The baseline: the linear model

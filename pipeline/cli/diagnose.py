@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import sys
 from pathlib import Path
 
 from pipeline.cli._common import add_dataset_args, catalog
@@ -257,6 +258,9 @@ def run(args: argparse.Namespace) -> int:
         f"(held-out gain {_pct(rep['gain']['mae_psi_relative_reduction'])} on "
         f"{', '.join(rep['gain']['measured_on']) or 'no unseen run'}); wrote {path}"
     )
+    warning = rep["data_checks"]["approach_drift"]["warning"]
+    if warning:
+        print(f"warning: {warning}", file=sys.stderr)
     return 0
 
 

@@ -37,6 +37,7 @@ from scipy.signal import savgol_filter
 from threadpoolctl import threadpool_limits
 
 from pipeline.config import DiagnoseConfig
+from pipeline.diagnose.datacheck import approach_drift
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
 from pipeline.diagnose.effects.rudder_delay import time_floor
 from pipeline.diagnose.fit import (
@@ -768,6 +769,9 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             + (", at a conventional U = 1 m/s: the runs have no surge speed either" if not ctx.u_ref else "")
             + "), so the sway parameters are in that convention's units and terms in v were not tried."
         )
+    drift = approach_drift(folds[0].train + folds[0].val + list(te))
+    if drift["warning"]:
+        summary += " " + drift["warning"]
     fold_reports = []
     for k, fold in enumerate(folds):
         b = search.fit(k, ())
@@ -841,6 +845,8 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
         "course_stable": [fr["course_stable"] for fr in fold_reports],
         "folds": fold_reports,
         "summary": summary,
+        # what the data's own set-up may do to every fit (pipeline.diagnose.datacheck)
+        "data_checks": {"approach_drift": drift},
         "training_runs": [s.name for s in folds[0].train],
         "validation_runs": [s.name for s in folds[0].val],
         "test_runs": [s.name for s in te],
