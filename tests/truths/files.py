@@ -60,13 +60,14 @@ INSTITUTE = "MARIN-layout file written by tests/truths (a simulation, not measur
 
 
 def write_marin(frame: pd.DataFrame, path: str | Path, test_name: str, institute: str = INSTITUTE,
-                heading_misalignment_deg: float = 0.0) -> Path:
+                heading_misalignment_deg: float = 0.0, rate_bias_deg_s: float = 0.0) -> Path:
     """MARIN SIMMAN free-running .dat of a canonical frame (values at the scale they are given).
 
     ``frame`` has time, x0, y0, psi, u, v, r, delta (canonical signs) and optionally rpm, phi, p.
     ``heading_misalignment_deg``: the file's heading reads this much more than the ship's (a heading
     reference set off the model's centreline); dx0, dy0 stay the true track velocities, so a reader
-    that forms v from them and the heading gets v + u sin(misalignment).
+    that forms v from them and the heading gets v + u sin(misalignment).  ``rate_bias_deg_s``: a
+    constant added to the file's yaw rate (a rate gyro's bias, in the file's scale).
     """
     path = Path(path)
     psi = frame["psi"].to_numpy(dtype=float)
@@ -75,7 +76,11 @@ def write_marin(frame: pd.DataFrame, path: str | Path, test_name: str, institute
     p = np.deg2rad(psi)
     dx0 = u * np.cos(p) - v * np.sin(p)
     dy0 = u * np.sin(p) + v * np.cos(p)
-    psi = psi + heading_misalignment_deg
+    if heading_misalignment_deg:       # (x + 0.0 would turn a -0.0 into 0.0: files stay byte-identical)
+        psi = psi + heading_misalignment_deg
+    r = frame["r"].to_numpy(dtype=float)
+    if rate_bias_deg_s:
+        r = r + rate_bias_deg_s
     n = len(frame)
     zeros = np.zeros(n)
     cols = [
@@ -87,7 +92,7 @@ def write_marin(frame: pd.DataFrame, path: str | Path, test_name: str, institute
         dx0,
         dy0,
         frame["p"].to_numpy(dtype=float) if "p" in frame else zeros,
-        frame["r"].to_numpy(dtype=float),
+        r,
         -frame["delta"].to_numpy(dtype=float),          # MARIN: positive rudder turns to port
         frame["rpm"].to_numpy(dtype=float) if "rpm" in frame else zeros,
     ]
