@@ -430,7 +430,7 @@ def _check_design(runs, train, val, test):
     for v in (min(r["heading_deg"] for r in sel), max(r["heading_deg"] for r in sel)):
         if (v in {by[x]["heading_deg"] for x in train}) != (v in {by[x]["heading_deg"] for x in val}):
             assert not any(a is not b and a["heading_deg"] == v and tw(a, b) for a in free for b in free), v
-    for rid in extrapolated(runs, train + val):
+    for rid in extrapolated(runs, train + val, test):
         r = next(x for x in runs if x["run_id"] == rid)
         assert not any(o is not r and tw(o, r) for o in free), rid
 
@@ -448,7 +448,7 @@ def test_catalog_rule_spans_hsva_amplitudes():
     assert short[0] == ["Z_35_05", "Z_20_10_P", "Z_15_01", "Z_10_10_S", "Z_10_05"]
     assert short[1] == ["Z_30_05", "Z_20_10_S", "Z_15_05", "Z_10_10_P", "Z_10_01"]
     assert short[2] == ["Z_05_01", "Z_20_05", "Z_25_05"]
-    assert extrapolated(runs, train + val) == ["HSVA_CPMC_KVLCC2_Z_05_01"]
+    assert extrapolated(runs, train + val, test) == ["HSVA_CPMC_KVLCC2_Z_05_01"]
     _check_design(runs, train, val, test)
     # each side has a starboard and a port run, a 1 deg and a 10 deg heading, 10 deg and >= 30 deg rudder
     by = {r["run_id"]: r for r in runs}
@@ -474,7 +474,7 @@ def test_catalog_rule_without_pairs():
     assert test == ["z15_10", "z20_20"]
     _check_design(runs, train, val, test)
     # 10 deg rudder has a twin (10/5 + 10/10): the smallest twinned amplitude must be selected
-    assert extrapolated(runs, train + val) == []
+    assert extrapolated(runs, train + val, test) == []
 
 
 def test_catalog_rule_without_twins():
@@ -486,6 +486,45 @@ def test_catalog_rule_without_twins():
     train, val, test = pick_catalog_runs(runs)
     assert train == ["z5", "z35"] and val == ["z10", "z20"] and test == ["z15", "z25"]
     assert pick_catalog_runs(runs[:2]) == (["z10"], ["z5"], [])
+
+
+def _circle(rid, a, side):
+    return {"run_id": rid, "kind": "turning", "rudder_deg": a, "heading_deg": None, "first_side": side}
+
+
+def test_catalog_rule_uses_turning_circles():
+    """Turning circles are runs a user gave (issue 11, item 5): twins of them join the selection,
+    crossed (starboard trains in the first twin, then alternately); one without a twin is a test run,
+    extrapolated unless the selection holds a turning circle; the zigzags' design is unchanged; an
+    index of turning circles alone still gets a design."""
+    from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
+
+    zz = [_entry("z20s", 20, 20), _entry("z20p", 20, 20, "port"), _entry("z10s", 10, 10),
+          _entry("z10p", 10, 10, "port")]
+    alone = pick_catalog_runs(zz)
+    # the virtual tank's six runs: both 35 deg circles in the selection, one on each side of the design
+    tc = [_circle("t35p", 35, "port"), _circle("t35s", 35, "starboard")]
+    train, val, test = pick_catalog_runs(zz + tc)
+    assert train == alone[0] + ["t35s"] and val == alone[1] + ["t35p"] and test == alone[2] == []
+    # two twins, largest rudder first, alternating sides; an odd 20 deg circle is a test run that the
+    # selection's circles (25 and 35 deg) do not span; a zigzag test run is judged against zigzags only
+    more = tc + [_circle("t25s", 25, "starboard"), _circle("t25p", 25, "port"),
+                 _circle("t20s", 20, "starboard")]
+    train, val, test = pick_catalog_runs(zz + more + [_entry("z15s", 15, 10)])
+    assert train[-2:] == ["t35s", "t25p"] and val[-2:] == ["t35p", "t25s"] and test == ["z15s", "t20s"]
+    assert extrapolated(zz + more + [_entry("z15s", 15, 10)], train + val, test) == ["t20s"]
+    # one circle: a test run, extrapolated (no selection run turns)
+    train, val, test = pick_catalog_runs(zz + tc[:1])
+    assert (train, val) == alone[:2] and test == ["t35p"]
+    assert extrapolated(zz + tc[:1], train + val, test) == ["t35p"]
+    # same-side twins (30 and 35 deg to starboard) are twins too; every run used once
+    same = [_circle("t35s", 35, "starboard"), _circle("t30s", 30, "starboard")]
+    train, val, test = pick_catalog_runs(zz + same)
+    assert train[-1] == "t35s" and val[-1] == "t30s"
+    assert sorted(train + val + test) == sorted(r["run_id"] for r in zz + same)
+    # circles only (no zigzag): they are the runs the design is made of
+    train, val, test = pick_catalog_runs(tc)
+    assert sorted(train + val) == ["t35p", "t35s"] and test == []
 
 
 def test_catalog_rule_promises_on_any_index():
@@ -690,10 +729,14 @@ def test_nested_workers_stay_in_a_daemon_process(monkeypatch):
 
 
 # ------------------------------------------------------------------ nested leave-one-run-out: inner folds
-def _runs(*names):
+def _runs(*names, rudder=None, turning=()):
+    """Stand-ins for Series: a name, a rudder (deg) held at ``rudder[name]`` (10 if not given) and a
+    heading that swings 10 deg, or turns through 360 deg for the names in ``turning``."""
     from types import SimpleNamespace
 
-    return [SimpleNamespace(name=n) for n in names]
+    t = np.linspace(0.0, 1.0, 50)
+    return [SimpleNamespace(name=n, delta=np.full(50, float((rudder or {}).get(n, 10.0))),
+                            psi=360.0 * t if n in turning else 10.0 * np.sin(6.0 * t)) for n in names]
 
 
 def _names(folds):
@@ -712,11 +755,14 @@ def test_inner_folds_validate_every_remaining_run_once_under_a_two_fold_design()
         (["C", "D"], ["B"]), (["B", "D"], ["C"]), (["B", "C"], ["D"])]
     assert _names(_inner_folds(folds, d, DiagnoseConfig())) == [
         (["B", "C"], ["A"]), (["A", "C"], ["B"]), (["A", "B"], ["C"])]
-    # six runs: five remain, dealt into three groups, each run validated exactly once
-    runs = _runs("A", "B", "C", "D", "E", "F")
+    # six runs, as the catalog design crosses the virtual tank's: A 20/20 S, B 10/10 P, C turning 35 S
+    # trained, D 20/20 P, E 10/10 S, F turning 35 P validated.  Holding out A, five remain, sorted by
+    # manoeuvre (B E, D, C F) and dealt into three groups: each run validated exactly once, and never
+    # with its twin (the two turning circles, the two 10 deg zigzags) in its own group
+    runs = _runs("A", "B", "C", "D", "E", "F", rudder={"A": 20, "C": 35, "D": 20, "F": 35}, turning="CF")
     folds = [Fold(runs[:3], runs[3:]), Fold(runs[3:], runs[:3])]
     inner = _inner_folds(folds, runs[0], DiagnoseConfig())
-    assert _names(inner) == [(["C", "D", "F"], ["B", "E"]), (["B", "D", "E"], ["C", "F"]),
+    assert _names(inner) == [(["D", "E", "F"], ["B", "C"]), (["B", "C", "D"], ["E", "F"]),
                              (["B", "C", "E", "F"], ["D"])]
     # a setting below 2 cannot leave a fold without training runs
     assert len(_inner_folds(folds, runs[0], DiagnoseConfig(inner_folds=1))) == 2

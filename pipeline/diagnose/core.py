@@ -357,9 +357,13 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
     The inner selection repeats the outer one's design on the remaining runs:
 
     - Outer design with the reverse fold (two exchangeable sides, so every run is validated once):
-      every remaining run is validated once too.  The remaining runs, in order, are dealt into
-      ``min(n, cfg.inner_folds)`` groups; each group is validated by a model trained on the others
-      (with three remaining runs, every leave-one-out fold).  Reason, measured: validated on ONE run
+      every remaining run is validated once too.  The remaining runs, sorted by manoeuvre
+      (:func:`_manoeuvre`: turning or not, then rudder amplitude, so twins lie next to each other), are
+      dealt into ``min(n, cfg.inner_folds)`` groups; each group is validated by a model trained on the
+      others (with three remaining runs, every leave-one-out fold).  Dealt in sorted order, a run's
+      twin lies in another group, so it is validated by a model trained on its manoeuvre, as in the
+      outer design; dealt in the design's order, the virtual tank's two turning circles fell into one
+      group, judged by a model trained on zigzags alone.  Reason, measured: validated on ONE run
       (the outer folds with ``held`` removed, the rule before), an inner selection chose models that
       fitted that run and diverged on the held-out one: on the bench case (offset + cubic damping,
       four 80 s zigzags) the held-out 20/20 port run went to 2120 deg MAE and the honest gain to
@@ -376,7 +380,8 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
     rest = [s for s in folds[0].train + folds[0].val if s is not held]
     if len(folds) > 1 and len(rest) >= 2:
         k = min(len(rest), max(2, cfg.inner_folds))
-        groups = [rest[i::k] for i in range(k)]
+        deal = sorted(rest, key=_manoeuvre)
+        groups = [deal[i::k] for i in range(k)]
         return [Fold([s for s in rest if all(s is not g for g in grp)], grp) for grp in groups]
     keep = [
         Fold(f.train, [s for s in f.val if s is not held])
@@ -391,6 +396,18 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
     if cfg.two_fold and len(tr_i) >= 2 and len(va_i) >= 2 and _exchangeable(tr_i, va_i):
         inner.append(Fold(va_i, tr_i))
     return inner
+
+
+#: deg: a run whose heading turns through this much is a turning circle, not a zigzag (the ingest
+#: stage's rule, pipeline.ingest.checks.infer_test_from_rudder: no zigzag's heading swings that far)
+TURNING_DEG = 90.0
+
+
+def _manoeuvre(s: Series) -> tuple[bool, float]:
+    """Sort key that puts the same manoeuvres next to each other: turning (the heading turns through
+    :data:`TURNING_DEG` or more, which no zigzag does) or not, then the rudder amplitude (99th
+    percentile of |delta|, deg)."""
+    return bool(np.ptp(s.psi) >= TURNING_DEG), float(np.percentile(np.abs(s.delta), 99))
 
 
 def _nested_one(folds, held, ctx, cfg, noise):
