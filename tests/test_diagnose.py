@@ -527,6 +527,32 @@ def test_catalog_rule_uses_turning_circles():
     assert sorted(train + val) == ["t35p", "t35s"] and test == []
 
 
+def test_catalog_design_keeps_to_one_approach_speed():
+    """A campaign at two speeds (issue 11, item 5): the diagnosis refuses runs more than 15 % apart in
+    approach speed (one linear model holds at one speed), so catalog mode designs on the largest set
+    that agrees and leaves the others out with the reason, instead of failing on the whole dataset."""
+    from pipeline.cli.diagnose import _other_speed, one_speed
+
+    def e(rid, u, kind="zigzag"):
+        return {"run_id": rid, "kind": kind, "approach_speed": u}
+
+    runs = [e("a", 2.00), e("b", 2.01), e("c", 1.98, "turning"), e("d", 1.50), e("f", 1.52), e("g", None)]
+    used, other = one_speed(runs, 0.15)
+    assert [x["run_id"] for x in used] == ["a", "b", "c", "g"] and [x["run_id"] for x in other] == ["d", "f"]
+    why = _other_speed(other[0], used, 0.15)
+    assert "1.500 m/s" in why and "1.980-2.010 m/s" in why and "15%" in why and "--train" in why
+    # within the tolerance every run is used; no speeds known: every run is used
+    assert one_speed(runs[:3], 0.15) == (runs[:3], [])
+    assert one_speed([e("x", None), e("y", None)], 0.15)[1] == []
+    # a tie in size: the set with more zigzags, then the faster one
+    tie = [e("s1", 1.5), e("s2", 1.5, "turning"), e("f1", 2.0), e("f2", 2.0)]
+    assert [x["run_id"] for x in one_speed(tie, 0.15)[0]] == ["f1", "f2"]
+    tie = [e("s1", 1.5), e("s2", 1.5), e("f1", 2.0), e("f2", 2.0)]
+    assert [x["run_id"] for x in one_speed(tie, 0.15)[0]] == ["f1", "f2"]
+    # the edge: 15 % apart exactly is one speed (check_runs refuses only beyond it)
+    assert one_speed([e("p", 2.0), e("q", 2.3)], 0.15)[1] == []
+
+
 def test_catalog_rule_promises_on_any_index():
     """The rule's promises (:func:`_check_design`) on seeded random run indexes: amplitudes from a
     tank's usual grid, sides at random, 2 to 14 runs, some with pairs, some without any twin."""

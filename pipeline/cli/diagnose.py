@@ -5,7 +5,9 @@ file of any SPEC section 3 format or a processed Parquet run.
            ``[--test RUN ...]``: the gain is reported on the test runs (else nested cross-validation).
 Catalog mode:   ``--dataset D`` uses every zigzag and turning circle of data/processed/D/runs/index.json
 by the rule of :func:`pick_catalog_runs` (selection runs in twins spanning the rudder and heading
-amplitudes, crossed by side; turning circles in twins crossed the same way; every other run a test run);
+amplitudes, crossed by side; turning circles in twins crossed the same way; every other run a test run;
+runs at another approach speed than the largest set that agrees within 15 % left out, with the reason,
+in ``runs_not_used`` of diagnosis.json: :func:`one_speed`);
 writes data/processed/D/diagnose/.
 """
 
@@ -241,6 +243,36 @@ def pick_zigzags(entries: list[dict]) -> tuple[list[str], list[str], list[str]]:
     return train, val, [r["id"] for r in test]
 
 
+def one_speed(entries: list[dict], tol: float) -> tuple[list[dict], list[dict]]:
+    """The runs of an index that the catalog design uses, and the others: the largest set whose
+    approach speeds (the index's ``approach_speed``, m/s) agree within ``tol`` (the diagnosis's own
+    rule, pipeline.diagnose.core.check_runs: a linear model's coefficients hold at one speed, so runs
+    at another speed are not the same ship to it).  Ties: the set with more zigzags, then the faster
+    (a campaign's extra runs are usually the slower ones).  Runs without a speed go with any set."""
+    known = sorted((e for e in entries if e.get("approach_speed")), key=lambda e: float(e["approach_speed"]))
+    if not known:
+        return list(entries), []
+
+    def zigzags(group):
+        return sum(str(e.get("kind", "")).startswith("zig") for e in group)
+
+    groups = []
+    for i, lo in enumerate(known):
+        top = (1.0 + tol) * float(lo["approach_speed"])
+        groups.append([e for e in known[i:] if float(e["approach_speed"]) <= top])
+    best = max(groups, key=lambda g: (len(g), zigzags(g), float(g[0]["approach_speed"])))
+    chosen = {id(e) for e in best}
+    used = [e for e in entries if id(e) in chosen or not e.get("approach_speed")]
+    return used, [e for e in entries if id(e) not in chosen and e.get("approach_speed")]
+
+
+def _other_speed(e: dict, used: list[dict], tol: float) -> str:
+    speeds = sorted(float(x["approach_speed"]) for x in used if x.get("approach_speed"))
+    return (f"approach speed {float(e['approach_speed']):.3f} m/s, the design's "
+            f"{speeds[0]:.3f}-{speeds[-1]:.3f} m/s: more than {tol:.0%} apart, and one linear model holds at "
+            "one speed; diagnose it with --train/--validate")
+
+
 def extrapolated(entries: list[dict], selection: list[str], test: list[str]) -> list[str]:
     """Test runs outside the range of rudder and heading amplitude of the selection runs of their
     kind (a turning circle is compared with the selection's turning circles; run ids)."""
@@ -262,6 +294,7 @@ def extrapolated(entries: list[dict], selection: list[str], test: list[str]) -> 
 
 def run(args: argparse.Namespace) -> int:
     cfg = DiagnoseConfig()
+    not_used: dict[str, str] = {}       # catalog mode: runs of the index left out, with the reason
     if args.train or args.validate:
         if not (args.train and args.validate and args.out):
             raise InputError("explicit mode needs --train, --validate and --out")
@@ -272,7 +305,10 @@ def run(args: argparse.Namespace) -> int:
     else:
         cat = catalog(args)
         index = read_json(cat.runs_index)
-        entries = index.get("runs", [])
+        entries, other = one_speed(index.get("runs", []), cfg.speed_tolerance)
+        not_used = {e["run_id"]: _other_speed(e, entries, cfg.speed_tolerance) for e in other}
+        if not_used:
+            print("not used: " + "; ".join(f"{k} ({why})" for k, why in not_used.items()))
         train_ids, val_ids, test_ids = pick_catalog_runs(entries)
         outside = extrapolated(entries, train_ids + val_ids, test_ids)
         print(
@@ -294,6 +330,7 @@ def run(args: argparse.Namespace) -> int:
     from pipeline.diagnose.output import write_outputs
 
     diag = diagnose(train, val, cfg, progress=True, test=test)
+    diag.report["runs_not_used"] = not_used
     path = write_outputs(diag, out, plots=not args.no_plots)
     rep = diag.report
     print(
