@@ -297,6 +297,8 @@ def rich_diagnosis_doc(id20: str, id10: str) -> dict:
             {"model": "+nonlinear_yaw_damping", "effects": ["rudder_offset", "nonlinear_yaw_damping"],
              "validation_mae_psi_deg": 1.6, "test_mae_psi_deg": 1.7, "test_interval_95": [0.48, 0.70]},
         ],
+        "runs_not_used": {"zz20_slow": "approach speed 1.500 m/s, the design's 1.980-2.010 m/s: more "
+                                       "than 15% apart, and one linear model holds at one speed"},
         "stability": {"folds_agreeing": 1, "total": 2,
                       "causes": [{"fold": fold_names[0], "cause": "rudder_offset",
                                   "effects": ["rudder_offset", "nonlinear_yaw_damping"]},

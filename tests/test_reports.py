@@ -246,6 +246,8 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     v.feed(page)
     text = " ".join(" ".join(v.text).split())
 
+    # the runs the design left out, with the reason
+    assert f"Not used: zz20_slow ({doc['runs_not_used']['zz20_slow']})." in text
     # the ladder: one row per rung of diagnosis.json, in its order, with its numbers
     ladder = v.table("The model ladder")
     assert len(ladder) == len(doc["ladder"])
