@@ -553,6 +553,37 @@ def test_catalog_design_keeps_to_one_approach_speed():
     assert one_speed([e("p", 2.0), e("q", 2.3)], 0.15)[1] == []
 
 
+def test_catalog_mode_says_which_runs_it_left_out(tmp_path, monkeypatch, capsys):
+    """``diagnose --dataset``: a campaign's index with a run at a 30 % lower approach speed and a test
+    of another kind beside four zigzags: the design is made of the zigzags, the two others are left
+    out with their reasons, printed and in diagnosis.json (``runs_not_used``); the diagnosis runs."""
+    from pipeline.catalog import Catalog
+
+    monkeypatch.setattr("pipeline.cli.diagnose.DiagnoseConfig", lambda: SELECTION_ONLY)   # CI time
+    cat = Catalog(root=tmp_path, dataset="campaign")
+    cfg = TruthConfig(rudder_offset=2.0, seed=3)
+    legs = {"z20s": (20, "starboard"), "z10p": (10, "port"), "z20p": (20, "port"), "z10s": (10, "starboard"),
+            "z20s_slow": (20, "starboard"), "pullout": (20, "starboard")}
+    entries = []
+    for j, (rid, (a, side)) in enumerate(legs.items()):
+        run = zigzag_truth(a, a, side, 40.0, dc.replace(cfg, seed=j))
+        write_run(cat.runs_dir / f"{rid}.parquet", dc.replace(run, meta={**run.meta, "run_id": rid}))
+        entries.append({"run_id": rid, "file": f"{rid}.parquet", "rudder_deg": a, "heading_deg": a,
+                        "kind": "other" if rid == "pullout" else "zigzag", "first_side": side,
+                        "approach_speed": 1.4 if rid == "z20s_slow" else 2.0})
+    cat.runs_index.write_text(json.dumps({"dataset": "campaign", "runs": entries}))
+    assert main(["diagnose", "--dataset", "campaign", "--root", str(tmp_path), "--no-plots"]) == 0
+    out = capsys.readouterr().out
+    rep = json.loads((cat.diagnose_dir / "diagnosis.json").read_text())
+    assert rep["training_runs"] == ["z20s", "z10p"] and rep["validation_runs"] == ["z20p", "z10s"]
+    assert sorted(rep["runs_not_used"]) == ["pullout", "z20s_slow"]
+    slow = rep["runs_not_used"]["z20s_slow"]
+    assert "1.400 m/s" in slow and "2.000-2.000 m/s" in slow
+    assert "kind 'other'" in rep["runs_not_used"]["pullout"]
+    assert "not used: " in out and "z20s_slow (approach speed 1.400 m/s" in out
+    assert "design: train z20s, z10p; validate z20p, z10s" in out
+
+
 def test_catalog_rule_promises_on_any_index():
     """The rule's promises (:func:`_check_design`) on seeded random run indexes: amplitudes from a
     tank's usual grid, sides at random, 2 to 14 runs, some with pairs, some without any twin."""

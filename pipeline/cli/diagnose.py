@@ -307,9 +307,12 @@ def run(args: argparse.Namespace) -> int:
         index = read_json(cat.runs_index)
         entries, other = one_speed(index.get("runs", []), cfg.speed_tolerance)
         not_used = {e["run_id"]: _other_speed(e, entries, cfg.speed_tolerance) for e in other}
+        train_ids, val_ids, test_ids = pick_catalog_runs(entries)
+        placed = set(train_ids + val_ids + test_ids)
+        not_used.update({e["run_id"]: f"a test of kind '{e.get('kind')}': the design takes zigzags and "
+                                      "turning circles" for e in entries if e["run_id"] not in placed})
         if not_used:
             print("not used: " + "; ".join(f"{k} ({why})" for k, why in not_used.items()))
-        train_ids, val_ids, test_ids = pick_catalog_runs(entries)
         outside = extrapolated(entries, train_ids + val_ids, test_ids)
         print(
             f"design: train {', '.join(train_ids)}; validate {', '.join(val_ids)}; test {', '.join(test_ids)}"
