@@ -581,7 +581,7 @@ def test_catalog_mode_says_which_runs_it_left_out(tmp_path, monkeypatch, capsys)
     assert "1.400 m/s" in slow and "2.000-2.000 m/s" in slow
     assert "kind 'other'" in rep["runs_not_used"]["pullout"]
     assert "not used: " in out and "z20s_slow (approach speed 1.400 m/s" in out
-    assert "design: train z20s, z10p; validate z20p, z10s" in out
+    assert "design: train z20s, z10p; validate z20p, z10s; test none (the honest gain by nested" in out
 
 
 def test_catalog_rule_promises_on_any_index():

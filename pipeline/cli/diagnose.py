@@ -315,7 +315,8 @@ def run(args: argparse.Namespace) -> int:
             print("not used: " + "; ".join(f"{k} ({why})" for k, why in not_used.items()))
         outside = extrapolated(entries, train_ids + val_ids, test_ids)
         print(
-            f"design: train {', '.join(train_ids)}; validate {', '.join(val_ids)}; test {', '.join(test_ids)}"
+            f"design: train {', '.join(train_ids)}; validate {', '.join(val_ids)}; test "
+            f"{', '.join(test_ids) or 'none (the honest gain by nested leave-one-run-out)'}"
             + (f"; outside the selection's amplitudes: {', '.join(outside)}" if outside else "")
         )
         files = {e["run_id"]: e.get("file", f"{e['run_id']}.parquet") for e in entries}
