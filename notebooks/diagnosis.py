@@ -67,7 +67,7 @@ drift_warning = ((dg.get("data_checks") or {}).get("approach_drift") or {}).get(
 if drift_warning:
     display(HTML("<div style='border:2px solid #b8860b;padding:6px 10px;margin:8px 0'><b>"
                  + nb.esc(drift_warning) + "</b></div>"))
-# runs of the dataset the design left out (pipeline.cli.diagnose.one_speed), each with its reason
+# runs of the dataset the design left out (another approach speed, another kind of test), with reasons
 not_used = dg.get("runs_not_used") or {}
 if not_used:
     nb.note("Not used: " + "; ".join(f"{k} ({v})" for k, v in not_used.items()) + ".")

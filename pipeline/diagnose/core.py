@@ -356,23 +356,23 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
 
     The inner selection repeats the outer one's design on the remaining runs:
 
-    - Outer design with the reverse fold (two exchangeable sides, so every run is validated once):
-      every remaining run is validated once too.  The remaining runs, sorted by manoeuvre
-      (:func:`_manoeuvre`: turning or not, then rudder amplitude, so twins lie next to each other), are
-      dealt into ``min(n, cfg.inner_folds)`` groups; each group is validated by a model trained on the
-      others (with three remaining runs, every leave-one-out fold).  Dealt in sorted order, a run's
-      twin lies in another group, so it is validated by a model trained on its manoeuvre, as in the
-      outer design; dealt in the design's order, the virtual tank's two turning circles fell into one
-      group, judged by a model trained on zigzags alone.  Reason, measured: validated on ONE run
-      (the outer folds with ``held`` removed, the rule before), an inner selection chose models that
-      fitted that run and diverged on the held-out one: on the bench case (offset + cubic damping,
-      four 80 s zigzags) the held-out 20/20 port run went to 2120 deg MAE and the honest gain to
-      -152, although the outer selection named the truth; on the KVLCC2 side-swap folds the honest
-      gain was 0.41.  Validated on every remaining run, 0.78 and 0.63 (0.97 and 0.63 with the former
-      lsmr solver); the 20 four-run linear truth cases gave the same causes and gains under both
-      rules (lsmr).  The price, stated: one inner fold may train on the small zigzags alone (the
-      reason of the rule before), so the held-out 20/20 P of the bench case gets yaw damping alone,
-      gain 0; the three folds judged together still chose better than one validation run.
+    - Outer design with the reverse fold (two exchangeable sides, so every run is validated once): every
+      remaining run is validated once too. The remaining runs, sorted by manoeuvre (:func:`_manoeuvre`:
+      turning or not, then rudder amplitude, so twins lie next to each other), are dealt into ``min(n,
+      cfg.inner_folds)`` groups; each group is validated by a model trained on the others (with three
+      remaining runs, every leave-one-out fold). Dealt in sorted order, a run's twin lies in another
+      group, so it is validated by a model trained on its manoeuvre, as in the outer design; dealt in
+      the design's order, the virtual tank's two turning circles fell into one group, judged by a model
+      trained on zigzags alone. Why every run is validated, measured: validated on ONE run (the outer
+      folds with ``held`` removed, the rule before), an inner selection chose models that fitted that
+      run and diverged on the held-out one: on the bench case (offset + cubic damping, four 80 s
+      zigzags) the held-out 20/20 port run went to 2120 deg MAE and the honest gain to -152, although
+      the outer selection named the truth; on the KVLCC2 side-swap folds the honest gain was 0.41.
+      Validated on every remaining run, 0.78 and 0.63 (0.97 and 0.63 with the former lsmr solver); the
+      20 four-run linear truth cases gave the same causes and gains under both rules (lsmr). The price,
+      stated: one inner fold may train on the small zigzags alone (the reason of the rule before), so
+      the held-out 20/20 P of the bench case gets yaw damping alone, gain 0; the three folds judged
+      together still chose better than one validation run.
     - One outer fold (sides not exchangeable, or the reverse fold switched off): the user's design
       is kept.  Every outer fold whose training runs do not include ``held`` is kept with ``held``
       removed from its validation runs (when some remain); only when none exists is ``held`` removed
