@@ -329,3 +329,40 @@ def test_cli_dt_option(tmp_path):
     run = read_run(out / "a.parquet")
     assert np.allclose(np.diff(run.frame["time"]), 0.16)
     assert read_json(out / "index.json")["dataset"] == "mine"
+
+
+def _marin_circle(tmp_path, spike_at: int | None = None, spike_deg: float = 30.0) -> Path:
+    """A model-scale turning circle in the MARIN layout (3 significant digits): 3 deg/s for 400 s, the
+    heading through 1185 deg, white heading noise of 0.05 deg; optionally a heading spike."""
+    from truths.files import write_marin
+
+    t = np.arange(0.0, 400.0, 0.1)
+    r = 3.0 * np.clip(t / 5.0, 0.0, 1.0)
+    psi = np.concatenate([[0.0], np.cumsum(0.5 * (r[1:] + r[:-1]) * 0.1)])
+    psi = psi + np.random.default_rng(2).normal(0.0, 0.05, t.size)
+    if spike_at is not None:
+        psi[spike_at] += spike_deg
+    f = pd.DataFrame({"time": t, "x0": 0.0 * t, "y0": 0.0 * t, "psi": psi, "u": np.full(t.size, 1.0),
+                      "v": np.full(t.size, -0.05), "r": r, "delta": np.full(t.size, 35.0), "rpm": 600.0})
+    return write_marin(f, tmp_path / "circle.dat", "Turning circle 35 deg starboard for Model")
+
+
+def test_marin_rounding_is_not_a_spike(tmp_path):
+    """The MARIN layout writes 3 significant digits, so a heading beyond 999 deg is written to 10 deg;
+    a turning circle's third turn flickers across rounding boundaries (1000 between 999 and 1010:
+    5 deg off its neighbours' mean).  That is the format, not the ship: the run is read, its heading
+    within half a unit of the last digit; a real 30 deg spike is still refused, below and beyond 999
+    deg (known answers of checks.last_digit_unit too)."""
+    from pipeline.ingest.checks import last_digit_unit
+
+    units = last_digit_unit(np.array([1230.0, -99.9, 0.5, 0.0]), 3)
+    assert list(units) == pytest.approx([10.0, 0.1, 0.001, 0.0])
+    run = ingest_file(_marin_circle(tmp_path))
+    assert run.frame["psi"].iloc[-1] > 1100.0
+    true = 3.0 * run.frame["time"].to_numpy() - 7.5
+    late = run.frame["time"].to_numpy() > 10.0
+    assert np.max(np.abs(run.frame["psi"].to_numpy()[late] - true[late])) < 5.5
+    for row in (2500, 3800):        # heading about 740 and 1130 deg
+        with pytest.raises(InputError, match="spike") as e:
+            ingest_file(_marin_circle(tmp_path, spike_at=row))
+        assert f"row {row + 4}" in str(e.value) and "'psi'" in str(e.value)

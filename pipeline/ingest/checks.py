@@ -40,7 +40,11 @@ Spikes (issue 14 item 5; SPEC section 8: the run is refused, naming the row)
     physical floor (``SPIKE_FLOOR_PSI_DEG``: 2 deg in one step, which at the 0.05-0.1 s steps of
     tank logging would take a yaw acceleration above 400 deg/s^2; ``SPIKE_FLOOR_R_DEG_S`` 2 deg/s),
     is a spike.  Refused rather than removed: a sample the logger got wrong may have neighbours that
-    are wrong too, and the user should see the file.
+    are wrong too, and the user should see the file.  In a format that writes few significant digits
+    (MARIN: 3) the rounding alone moves a sample's departure by up to one unit of the last digit
+    (half a unit at the sample, half from its neighbours' mean), so that unit is added to the
+    threshold: a heading beyond 999 deg is written to 10 deg, and a turning circle's third turn
+    flickering across a rounding boundary is the format, not the ship.
 
 Scale (issue 13 item 2)
     With the model length L (from the dataset's Lpp over the scale, the file, or a known ship) the
@@ -135,12 +139,23 @@ def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray) ->
 
 
 # ------------------------------------------------------------------ spikes
+def last_digit_unit(x: np.ndarray, digits: int) -> np.ndarray:
+    """Unit of the last of ``digits`` significant digits of each value of ``x`` (its units; 0 at 0):
+    10^(floor(log10|x|) - digits + 1), e.g. 10 for 1.23E+03 written with 3 digits."""
+    ax = np.abs(np.asarray(x, dtype=float))
+    out = np.zeros_like(ax)
+    nz = ax > 0
+    out[nz] = 10.0 ** (np.floor(np.log10(ax[nz])) - digits + 1)
+    return out
+
+
 def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str,
-                 logged: pd.DataFrame | None = None) -> None:
+                 logged: pd.DataFrame | None = None, digits: int | None = None) -> None:
     """Refuse a one-sample jump of psi or r that no ship can make (module docstring).
 
     ``frame`` is the run with heading unwrapped; ``logged`` (same rows) gives the value as the file
-    has it, for the message."""
+    has it, for the message and, with ``digits`` (the significant digits the file writes), for the
+    rounding unit added to the threshold, brought to the frame's scale."""
     for col, floor, unit in (("psi", SPIKE_FLOOR_PSI_DEG, "deg"), ("r", SPIKE_FLOOR_R_DEG_S, "deg/s")):
         x = frame[col].to_numpy(dtype=float)
         if x.size < 5:
@@ -151,13 +166,20 @@ def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str,
         d[-1] = x[-1] - (2 * x[-2] - x[-3])
         inner = d[1:-1]
         mad = 1.4826 * float(np.median(np.abs(inner - np.median(inner))))
-        thr = max(floor, SPIKE_MAD_FACTOR * mad)
+        thr = np.full(x.size, max(floor, SPIKE_MAD_FACTOR * mad))
+        if digits and logged is not None and col in logged:
+            raw = logged[col].to_numpy(dtype=float)
+            # the file's unit at the frame's scale (psi is scale-free; r scales by sqrt(lambda))
+            ratio = np.abs(x[raw != 0] / raw[raw != 0])
+            unit_x = last_digit_unit(raw, digits) * (float(np.median(ratio)) if ratio.size else 1.0)
+            near = np.maximum(unit_x, np.maximum(np.roll(unit_x, 1), np.roll(unit_x, -1)))
+            thr = thr + near
         big = np.flatnonzero(np.abs(d) > thr)
         if big.size:
-            k = int(big[np.argmax(np.abs(d[big]))])
+            k = int(big[np.argmax(np.abs(d[big]) - thr[big])])
             shown = float(logged[col].iloc[k]) if logged is not None and col in logged else x[k]
             raise InputError(f"spike: {shown:.6g} {unit} departs by {d[k]:+.4g} {unit} from its neighbours "
-                             f"(more than the {thr:.3g} {unit} a ship can change in one step)", file=name,
+                             f"(more than the {thr[k]:.3g} {unit} a ship can change in one step)", file=name,
                              row=_row(lines, k), column=col)
 
 

@@ -132,7 +132,7 @@ def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None
         raise InputError(f"too few samples: {n_grid} at {config.dt:g} s over {t[-1] - t[0]:.3g} s, need at "
                          f"least {config.min_samples}", file=name)
     meta.update(checks.check_scale(meta, frame, name, scale, lpp_model, lpp_source))
-    checks.check_spikes(frame, table.lines, name, table.frame)
+    checks.check_spikes(frame, table.lines, name, table.frame, digits=table.digits)
     checks.check_units(frame, table.lines, meta, name, config, meta.get("declared_units"))
     meta.update(checks.check_rudder_sign(frame, name))
     if notes:

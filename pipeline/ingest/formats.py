@@ -94,6 +94,7 @@ class RawTable:
     lines: np.ndarray                      # 1-based line number in the file of each row
     meta: dict[str, Any] = field(default_factory=dict)
     time_quantised: bool = False           # True: time repeats by rounding, rebuild the step
+    digits: int | None = None              # significant digits every value is written with (None: full)
 
 
 GZIP_MAGIC = b"\x1f\x8b"
@@ -485,7 +486,7 @@ def parse_marin(lines: list[str], file=None) -> RawTable:
         "time": raw["time"], "x0": raw["x0"], "y0": raw["y0"], "psi": raw["psi"], "u": u, "v": v,
         "r": raw["r"], "delta": -raw["delta"], "rpm": raw["rev"], "phi": raw["phi"], "p": raw["p"],
     })
-    return RawTable("marin", frame, linenos, meta, time_quantised=True)
+    return RawTable("marin", frame, linenos, meta, time_quantised=True, digits=3)
 
 
 def parse_hsva(lines: list[str], file=None) -> RawTable:
