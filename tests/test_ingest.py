@@ -331,9 +331,10 @@ def test_cli_dt_option(tmp_path):
     assert read_json(out / "index.json")["dataset"] == "mine"
 
 
-def _marin_circle(tmp_path, spike_at: int | None = None, spike_deg: float = 30.0) -> Path:
+def _marin_circle(tmp_path, spike_at: int | None = None, spike_deg: float = 30.0, wrap: bool = False) -> Path:
     """A model-scale turning circle in the MARIN layout (3 significant digits): 3 deg/s for 400 s, the
-    heading through 1185 deg, white heading noise of 0.05 deg; optionally a heading spike."""
+    heading through 1185 deg, white heading noise of 0.05 deg; optionally a heading spike, optionally
+    the heading written wrapped to [-180, 180) deg."""
     from truths.files import write_marin
 
     t = np.arange(0.0, 400.0, 0.1)
@@ -342,6 +343,8 @@ def _marin_circle(tmp_path, spike_at: int | None = None, spike_deg: float = 30.0
     psi = psi + np.random.default_rng(2).normal(0.0, 0.05, t.size)
     if spike_at is not None:
         psi[spike_at] += spike_deg
+    if wrap:
+        psi = (psi + 180.0) % 360.0 - 180.0
     f = pd.DataFrame({"time": t, "x0": 0.0 * t, "y0": 0.0 * t, "psi": psi, "u": np.full(t.size, 1.0),
                       "v": np.full(t.size, -0.05), "r": r, "delta": np.full(t.size, 35.0), "rpm": 600.0})
     return write_marin(f, tmp_path / "circle.dat", "Turning circle 35 deg starboard for Model")
@@ -366,3 +369,8 @@ def test_marin_rounding_is_not_a_spike(tmp_path):
         with pytest.raises(InputError, match="spike") as e:
             ingest_file(_marin_circle(tmp_path, spike_at=row))
         assert f"row {row + 4}" in str(e.value) and "'psi'" in str(e.value)
+    # written wrapped, the heading is unwrapped to the same turn; the threshold is the file's digit
+    wrapped = ingest_file(_marin_circle(tmp_path, wrap=True))
+    assert np.max(np.abs(wrapped.frame["psi"].to_numpy()[late] - true[late])) < 1.0
+    with pytest.raises(InputError, match="spike"):
+        ingest_file(_marin_circle(tmp_path, spike_at=3800, spike_deg=5.0, wrap=True))

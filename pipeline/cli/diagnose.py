@@ -49,6 +49,11 @@ def load_run(path: str | Path, scale: float | None = None) -> Run:
 TWIN_TOL = 0.15
 
 
+def _is_zigzag(e: dict) -> bool:
+    """A runs-index entry of a zigzag (an entry without a kind is taken as one)."""
+    return str(e.get("kind", "zigzag")).startswith("zig")
+
+
 def _twin(a: dict, b: dict) -> bool:
     x, y = a["rudder"], b["rudder"]
     return abs(x - y) <= TWIN_TOL * max(x, y, 1e-9)
@@ -69,7 +74,7 @@ def pick_catalog_runs(entries: list[dict]) -> tuple[list[str], list[str], list[s
        A turning circle without a twin is a test run: no choice sees it, and unless a selection twin
        is a turning circle it is named extrapolated (:func:`extrapolated`).
     """
-    zz = [e for e in entries if str(e.get("kind", "zigzag")).startswith("zig")]
+    zz = [e for e in entries if _is_zigzag(e)]
     tc = [e for e in entries if e.get("kind") == "turning"]
     if not zz:
         return pick_zigzags(entries)
@@ -130,7 +135,7 @@ def pick_zigzags(entries: list[dict]) -> tuple[list[str], list[str], list[str]]:
     heading amplitude) train, the others sorted by amplitude are dealt validate, test in turn (one
     fold, interpolation held out).
     """
-    zz = [e for e in entries if str(e.get("kind", "zigzag")).startswith("zig")] or list(entries)
+    zz = [e for e in entries if _is_zigzag(e)] or list(entries)
     if len(zz) < 2:
         raise InputError("catalog mode needs at least two zigzag runs (one to train, one to validate)")
     runs = [
@@ -253,14 +258,11 @@ def one_speed(entries: list[dict], tol: float) -> tuple[list[dict], list[dict]]:
     if not known:
         return list(entries), []
 
-    def zigzags(group):
-        return sum(str(e.get("kind", "")).startswith("zig") for e in group)
-
     groups = []
     for i, lo in enumerate(known):
         top = (1.0 + tol) * float(lo["approach_speed"])
         groups.append([e for e in known[i:] if float(e["approach_speed"]) <= top])
-    best = max(groups, key=lambda g: (len(g), zigzags(g), float(g[0]["approach_speed"])))
+    best = max(groups, key=lambda g: (len(g), sum(map(_is_zigzag, g)), float(g[0]["approach_speed"])))
     chosen = {id(e) for e in best}
     used = [e for e in entries if id(e) in chosen or not e.get("approach_speed")]
     return used, [e for e in entries if id(e) not in chosen and e.get("approach_speed")]

@@ -126,13 +126,18 @@ def _context(series: list[Series]) -> Context:
     )
 
 
+def _rudder_amplitude(s: Series) -> float:
+    """A run's rudder amplitude, deg: the 99th percentile of |delta| (robust to a spike)."""
+    return float(np.percentile(np.abs(s.delta), 99))
+
+
 def _exchangeable(a: list[Series], b: list[Series], tol: float = 0.15) -> bool:
     """Both sides cover the same manoeuvres: as many runs, sorted rudder amplitudes (99th percentile
     of |delta|) within ``tol``; only then is the reverse fold the same question asked the other way."""
     if len(a) != len(b):
         return False
-    amp_a = sorted(float(np.percentile(np.abs(s.delta), 99)) for s in a)
-    amp_b = sorted(float(np.percentile(np.abs(s.delta), 99)) for s in b)
+    amp_a = sorted(_rudder_amplitude(s) for s in a)
+    amp_b = sorted(_rudder_amplitude(s) for s in b)
     return all(abs(x - y) <= tol * max(x, y, 1e-9) for x, y in zip(amp_a, amp_b, strict=True))
 
 
@@ -405,9 +410,8 @@ TURNING_DEG = 90.0
 
 def _manoeuvre(s: Series) -> tuple[bool, float]:
     """Sort key that puts the same manoeuvres next to each other: turning (the heading turns through
-    :data:`TURNING_DEG` or more, which no zigzag does) or not, then the rudder amplitude (99th
-    percentile of |delta|, deg)."""
-    return bool(np.ptp(s.psi) >= TURNING_DEG), float(np.percentile(np.abs(s.delta), 99))
+    :data:`TURNING_DEG` or more, which no zigzag does) or not, then the rudder amplitude."""
+    return bool(np.ptp(s.psi) >= TURNING_DEG), _rudder_amplitude(s)
 
 
 def _nested_one(folds, held, ctx, cfg, noise):

@@ -42,8 +42,8 @@ Spikes (issue 14 item 5; SPEC section 8: the run is refused, naming the row)
     is a spike.  Refused rather than removed: a sample the logger got wrong may have neighbours that
     are wrong too, and the user should see the file.  In a format that writes few significant digits
     (MARIN: 3) the rounding alone moves a sample's departure by up to one unit of the last digit
-    (half a unit at the sample, half from its neighbours' mean), so that unit is added to the
-    threshold: a heading beyond 999 deg is written to 10 deg, and a turning circle's third turn
+    (half a unit at the sample, half from its neighbours' mean; two at the run's ends), so that is
+    added to the threshold: a heading beyond 999 deg is written to 10 deg, and a turning circle's third turn
     flickering across a rounding boundary is the format, not the ship.
 
 Scale (issue 13 item 2)
@@ -169,10 +169,15 @@ def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str,
         thr = np.full(x.size, max(floor, SPIKE_MAD_FACTOR * mad))
         if digits and logged is not None and col in logged:
             raw = logged[col].to_numpy(dtype=float)
-            # the file's unit at the frame's scale (psi is scale-free; r scales by sqrt(lambda))
-            ratio = np.abs(x[raw != 0] / raw[raw != 0])
-            unit_x = last_digit_unit(raw, digits) * (float(np.median(ratio)) if ratio.size else 1.0)
-            near = np.maximum(unit_x, np.maximum(np.roll(unit_x, 1), np.roll(unit_x, -1)))
+            # the file's unit at the frame's scale: psi is scale-free (and may differ from the file's
+            # by whole turns, unwrapped), r scales by sqrt(lambda)
+            ratio = np.abs(x[raw != 0] / raw[raw != 0]) if col == "r" else np.ones(1)
+            q = np.pad(last_digit_unit(raw, digits) * (float(np.median(ratio)) if ratio.size else 1.0), 1,
+                       mode="edge")
+            # rounding bound of the departure: one unit inside (half at the sample, half from the
+            # neighbours' mean), two at the ends (the line through the next two samples)
+            near = np.maximum(q[1:-1], np.maximum(q[:-2], q[2:]))
+            near[[0, -1]] *= 2.0
             thr = thr + near
         big = np.flatnonzero(np.abs(d) > thr)
         if big.size:

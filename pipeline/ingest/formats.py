@@ -93,8 +93,12 @@ class RawTable:
     frame: pd.DataFrame
     lines: np.ndarray                      # 1-based line number in the file of each row
     meta: dict[str, Any] = field(default_factory=dict)
-    time_quantised: bool = False           # True: time repeats by rounding, rebuild the step
     digits: int | None = None              # significant digits every value is written with (None: full)
+
+    @property
+    def time_quantised(self) -> bool:
+        """True when the time column repeats by rounding (few digits): the step is rebuilt."""
+        return self.digits is not None
 
 
 GZIP_MAGIC = b"\x1f\x8b"
@@ -486,7 +490,7 @@ def parse_marin(lines: list[str], file=None) -> RawTable:
         "time": raw["time"], "x0": raw["x0"], "y0": raw["y0"], "psi": raw["psi"], "u": u, "v": v,
         "r": raw["r"], "delta": -raw["delta"], "rpm": raw["rev"], "phi": raw["phi"], "p": raw["p"],
     })
-    return RawTable("marin", frame, linenos, meta, time_quantised=True, digits=3)
+    return RawTable("marin", frame, linenos, meta, digits=3)
 
 
 def parse_hsva(lines: list[str], file=None) -> RawTable:
