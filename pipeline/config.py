@@ -211,6 +211,15 @@ class DiagnoseConfig:
     # leave-one-out fold of a four-run design, and bounds the cost (one inner selection per group) of
     # a design with many runs
     inner_folds: int = 3
+    # a step that passes everything else must not hinge on one training run (pipeline.diagnose.select.
+    # Search.hinges): refitted without any one training run, the model must still make that run (no
+    # run-away on it).  A fold's verdict must not depend on which runs happened to train: measured
+    # 2026-11-25 on the HSVA KVLCC2, the fold that trains on the 1 deg zigzags named the cross terms
+    # (+42 % on its validation runs) and the other fold named nothing, because every nonlinear damping
+    # fitted without 10/1 runs away on it (6.46 -> 17-36 deg, heading swing 7.1 deg).  Only folds of at
+    # least this many training runs: with two, one left out leaves a single manoeuvre, one amplitude,
+    # from which a nonlinear term is not identifiable, so its extrapolation is no test.  0 = off
+    jackknife_min_train: int = 3
     # relative: runs whose approach speeds differ by more than this are refused together (Froude
     # number, hence the dimensional coefficients, would differ by as much: 15 % of U is ~30 % of the
     # rudder force)
