@@ -454,8 +454,8 @@ class Search:
         hinge = [] if why else self.hinges(ks, before, after)
         if hinge:
             why.append(
-                "hinges on one training run: refitted without it, the model runs away on it (error grown "
-                "by more than its heading swing): " + "; ".join(hinge)
+                "hinges on one training run: refitted without it, the model no longer makes that "
+                "manoeuvre (error grown by more than its heading swing): " + "; ".join(hinge)
             )
         return Step(
             passes=not why,
