@@ -711,6 +711,26 @@ def test_report_verdict_of_an_effect_that_predicts_worse_from_the_measured_state
     assert dt.verdict(f, settings)[0] == "worse from the measured state"
 
 
+def test_report_verdict_of_an_effect_that_hinges_on_a_training_run():
+    """A finding that passes every test but the hinge check (the measured evidence of the virtual KCS's
+    cubic yaw damping, six runs with turning circles, 2026-11-25) reads 'hinges on a training run'
+    with the run and its numbers, not 'not significant' (what an unparsed reason fell back to)."""
+    from pipeline.report import diagnosis_text as dt
+
+    f = {"effect": "nonlinear_yaw_damping", "significant": False, "material": True, "validation_gain": 0.54,
+         "validation_gain_folds": [0.62, 0.44], "abs_gain_deg": 6.6, "block_t": 5.1, "block_t_crit": 1.66,
+         "blocks": 82,
+         "evidence": "Not named: hinges on one training run: refitted without it, the model no longer makes "
+         "that manoeuvre (error grown by more than its heading swing): kcs_zigzag_10_10_P 9.11 -> 41.47 deg "
+         "(heading swing 21.14 deg) (added to the final model: held-out +54%, per fold +62%, +44%); "
+         "fitted: yaw damping grows with the rate of turn."}
+    settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
+    v, why = dt.verdict(f, settings)
+    assert v == "hinges on a training run", (v, why)
+    assert "kcs_zigzag_10_10_P 9.11 -> 41.47 deg (heading swing 21.14 deg)" in why and "added to" not in why
+    assert dt.failed_tests(f, settings) == ("hinges on a training run",)
+
+
 @pytest.mark.slow
 def test_nested_workers_give_the_same_report_bytes():
     """The nested leave-one-run-out in 2 worker processes (forked while the parent makes the main

@@ -131,7 +131,7 @@ def estimate_text(estimate: dict | None, uncertainty: dict | None) -> str:
 
 # ------------------------------------------------------------------------------- verdicts
 VERDICTS = ("named", "immaterial", "failed a fold", "harms a held-out run", "worse from the measured state",
-            "not significant", "not tried", "fit failed")
+            "hinges on a training run", "not significant", "not tried", "fit failed")
 
 
 def rivals_text(f: dict) -> str:
@@ -149,7 +149,9 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     level, or a relative gain below the threshold); failed a fold (not better in every fold); harms
     a held-out run (significantly worse on one, or runs away on it); worse from the measured state
     (the held-out runs' pieces of a ship time scale, each from the measured state, predicted
-    significantly worse: select.py's short-horizon judge); not significant (block t-test).
+    significantly worse: select.py's short-horizon judge); hinges on a training run (refitted without
+    one of its training runs, the model no longer makes that run: select.py's Search.hinges); not
+    significant (block t-test).
     The reason lists every test it failed, with its numbers.
     ``all_tests``: return every verdict it earns instead (see :func:`failed_tests`).
     """
@@ -183,15 +185,16 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     if folds and min(folds) <= 0:
         reasons.append(("failed a fold", "worse in a fold (per fold " + ", ".join(gain_text(x) for x in folds)
                         + ")"))
-    # the stage's no-harm, no-run-away and short-horizon tests (select.py) are stated only in the
-    # evidence text: (its words there, the verdict, where its own reason ends)
+    # the stage's no-harm, no-run-away, short-horizon and hinge tests (select.py) are stated only in
+    # the evidence text: (its words there, the verdict, where its own reason ends, or None: at the end)
     harm, short = "harms a held-out run", "worse from the measured state"
     for key, v, end in (("significantly worse on a held-out manoeuvre", harm, "; runs away"),
                         ("runs away on a held-out manoeuvre", harm, "; runs away"),
-                        ("predicts worse from the measured state", short, "; it fits")):
+                        ("predicts worse from the measured state", short, "; it fits"),
+                        ("hinges on one training run", "hinges on a training run", None)):
         if key in ev:
             part = ev[ev.index(key):].split(" (added to")[0].split(" (in the final")[0]
-            reasons.append((v, part.split(end)[0]))
+            reasons.append((v, part.split(end)[0] if end else part))
     t, tc = f.get("block_t"), f.get("block_t_crit")
     if isinstance(t, (int, float)) and isinstance(tc, (int, float)) and not t >= tc:
         dof = (f.get("blocks") or 0) - 1
