@@ -691,18 +691,23 @@ def test_report_verdict_of_an_effect_that_harms_a_held_out_run():
     assert dt.failed_tests(f, settings) == ("harms a held-out run",)
 
 
+def _rejected(effect, gain, folds, cut_deg, t, t_crit, blocks, evidence) -> dict:
+    """A material finding of diagnosis.json that was not named (for the report's verdict tests)."""
+    return {"effect": effect, "significant": False, "material": True, "validation_gain": gain,
+            "validation_gain_folds": folds, "abs_gain_deg": cut_deg, "block_t": t, "block_t_crit": t_crit,
+            "blocks": blocks, "evidence": evidence}
+
+
 def test_report_verdict_of_an_effect_that_predicts_worse_from_the_measured_state():
     """A finding refused by the short-horizon judge (measured HSVA evidence text of the dead time) reads
     'worse from the measured state' with its numbers beside the gain threshold it also failed."""
     from pipeline.report import diagnosis_text as dt
 
-    f = {"effect": "rudder_delay", "significant": False, "material": True, "validation_gain": 0.03,
-         "validation_gain_folds": [0.03, 0.03], "abs_gain_deg": 0.19, "block_t": 1.9, "block_t_crit": 1.67,
-         "blocks": 76,
-         "evidence": "Not named: held-out gain 3% below 10%; predicts worse from the measured state over 1 "
-         "ship time scale(s): held-out short-horizon MAE psi +14% (block t = -7.13 below -1.67); it fits the "
-         "runs' drift, not the ship's response (added to the linear baseline: held-out +3%, per fold +3%, "
-         "+3%); fitted: the rudder acts 0.84 s after it is logged."}
+    f = _rejected("rudder_delay", 0.03, [0.03, 0.03], 0.19, 1.9, 1.67, 76,
+                  "Not named: held-out gain 3% below 10%; predicts worse from the measured state over 1 "
+                  "ship time scale(s): held-out short-horizon MAE psi +14% (block t = -7.13 below -1.67); "
+                  "it fits the runs' drift, not the ship's response (added to the linear baseline: "
+                  "held-out +3%, per fold +3%, +3%); fitted: the rudder acts 0.84 s after it is logged.")
     settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
     v, why = dt.verdict(f, settings)
     assert v == "immaterial" and "+14% (block t = -7.13 below -1.67)" in why and "added to" not in why
@@ -717,13 +722,11 @@ def test_report_verdict_of_an_effect_that_hinges_on_a_training_run():
     with the run and its numbers, not 'not significant' (what an unparsed reason fell back to)."""
     from pipeline.report import diagnosis_text as dt
 
-    f = {"effect": "nonlinear_yaw_damping", "significant": False, "material": True, "validation_gain": 0.54,
-         "validation_gain_folds": [0.62, 0.44], "abs_gain_deg": 6.6, "block_t": 5.1, "block_t_crit": 1.66,
-         "blocks": 82,
-         "evidence": "Not named: hinges on one training run: refitted without it, the model no longer makes "
-         "that manoeuvre (error grown by more than its heading swing): kcs_zigzag_10_10_P 9.11 -> 41.47 deg "
-         "(heading swing 21.14 deg) (added to the final model: held-out +54%, per fold +62%, +44%); "
-         "fitted: yaw damping grows with the rate of turn."}
+    f = _rejected("nonlinear_yaw_damping", 0.54, [0.62, 0.44], 6.6, 5.1, 1.66, 82,
+                  "Not named: hinges on one training run: refitted without it, the model no longer makes "
+                  "that manoeuvre (error grown by more than its heading swing): kcs_zigzag_10_10_P 9.11 "
+                  "-> 41.47 deg (heading swing 21.14 deg) (added to the final model: held-out +54%, per "
+                  "fold +62%, +44%); fitted: yaw damping grows with the rate of turn.")
     settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
     v, why = dt.verdict(f, settings)
     assert v == "hinges on a training run", (v, why)

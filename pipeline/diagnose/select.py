@@ -267,9 +267,9 @@ class Search:
                     continue
                 eb = jack.eval(i, before)[1][0]["mae_psi_deg"]
                 ea = jack.eval(i, after)[1][0]["mae_psi_deg"]
-                swing = 0.5 * float(np.ptp(run.psi))
-                if ea - eb > swing:
-                    out.append(f"{run.name} {eb:.2f} -> {ea:.2f} deg (heading swing {swing:.2f} deg)")
+                away = ran_away(run, eb, ea)
+                if away:
+                    out.append(away)
         return out
 
     def eval(self, k: int, structure):
@@ -375,14 +375,12 @@ class Search:
             bsum += mb["mae_psi_deg"]
             asum += ma["mae_psi_deg"]
             for s, xb, xa in zip(self.folds[k].val, pb, pa, strict=True):
-                swing = 0.5 * float(np.ptp(s.psi))
-                if xb["mae_psi_deg"] - xa["mae_psi_deg"] > swing:
-                    back_away.append(f"{s.name} {xa['mae_psi_deg']:.2f} -> {xb['mae_psi_deg']:.2f} deg")
-                if xa["mae_psi_deg"] - xb["mae_psi_deg"] > swing:
-                    runaway.append(
-                        f"{s.name} {xb['mae_psi_deg']:.2f} -> {xa['mae_psi_deg']:.2f} deg "
-                        f"(heading swing {swing:.2f} deg)"
-                    )
+                back = ran_away(s, xa["mae_psi_deg"], xb["mae_psi_deg"])
+                if back:
+                    back_away.append(back.split(" (heading swing")[0])
+                away = ran_away(s, xb["mae_psi_deg"], xa["mae_psi_deg"])
+                if away:
+                    runaway.append(away)
                 # per-block differences from the COMMON start (the approach's estimate), not from each
                 # model's own best start in the approach's box (DiagnoseConfig.x0_box_sigma): the box
                 # is a start's uncertainty, but on a short small-amplitude run a shift of r0 inside it
@@ -475,6 +473,16 @@ class Search:
             short_t=short_t,
             removal_runs_away=back_away,
         )
+
+
+def ran_away(s: Series, mae_before: float, mae_after: float) -> str:
+    """The run-away criterion (module docstring, "no run-away"): "run a -> b deg (heading swing c deg)"
+    when the free-run MAE psi (deg) on run ``s`` grows from ``mae_before`` to ``mae_after`` by more than
+    the run's heading swing (half the range of its measured psi, deg), else ""."""
+    swing = 0.5 * float(np.ptp(s.psi))
+    if mae_after - mae_before > swing:
+        return f"{s.name} {mae_before:.2f} -> {mae_after:.2f} deg (heading swing {swing:.2f} deg)"
+    return ""
 
 
 def _mae_psi(sim: np.ndarray, s: Series) -> float:
