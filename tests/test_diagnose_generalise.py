@@ -1040,14 +1040,15 @@ def test_a_step_that_hinges_on_one_training_run_is_found(tk_root):
 
     - cubic yaw damping (not the truth's kind), refitted without the 20/20 zigzag, diverges on it: the
       small zigzags do not hold r^3 where the large one goes (measured 2026-11-25: 6.20 -> 13128 deg,
-      heading swing 34.4 deg);
+      heading swing 34.4 deg); judged as a step it passes every other test and is refused for that
+      alone, the run in ``Step.hinges`` (diagnosis.json's ``findings[].hinges_on``);
     - the truth's kind, sway damping, hinges on no run (it passes every other check too: +65 %);
     - with fewer training runs than ``jackknife_min_train`` nothing is refitted and nothing hinges."""
     from threadpoolctl import threadpool_limits
 
     from pipeline.diagnose import core
     from pipeline.diagnose.fit import series_from_run, set_initial_states, structure_of
-    from pipeline.diagnose.select import Fold, Search
+    from pipeline.diagnose.select import Fold, Search, heading_noise_deg
 
     folder = tk_root / "hinge"
     folder.mkdir()
@@ -1072,5 +1073,11 @@ def test_a_step_that_hinges_on_one_training_run_is_found(tk_root):
         before, after = (float(x) for x in hinge[0].split()[1:4:2])
         assert after - before > 10 * 0.5 * np.ptp(train[0].psi), hinge      # diverges, not a near miss
         assert search.hinges([0], (), sway) == []
+        # in the selection: the step passes every other test (held-out +11 %, measured) and is refused
+        # for the hinge alone, whose runs diagnosis.json carries (findings[].hinges_on)
+        search.fit(0, cubic, start=search.fit(0, ()))
+        step = search.step([0], (), cubic, "nonlinear_yaw_damping", heading_noise_deg(val, ctx.t_ship))
+        assert not step.passes and step.hinges == hinge, (step.why, step.hinges)
+        assert len(step.why) == 1 and step.why[0].startswith("hinges on one training run"), step.why
         fewer = Search([Fold(train, val)], ctx, dc.replace(cfg, jackknife_min_train=4))
         assert fewer.hinges([0], (), cubic) == []

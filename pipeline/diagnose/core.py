@@ -683,6 +683,9 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
         # "no harm from the measured state"): pooled relative cut and its one-sided block t
         "short_horizon_gain": step.short_gain,
         "short_horizon_block_t": step.short_t,
+        # training runs the step hinges on (select's "not hinging on one training run"): refitted
+        # without each, the model no longer makes it, "run a -> b deg (heading swing c deg)"
+        "hinges_on": list(step.hinges),
         "judged": ctxt,
         "folds": fold_rows,
         # candidates the held-out runs could not tell from this one when it was added (chosen only)

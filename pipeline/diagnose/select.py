@@ -140,6 +140,9 @@ class Step:
     #: larger by more than the run's heading swing): read as a drop-one step, removing the effect
     #: leaves a model that no longer makes that manoeuvre (the backward pass never does that)
     removal_runs_away: list = field(default_factory=list)
+    #: training runs the step hinges on (:meth:`Search.hinges`), "run a -> b deg (heading swing c deg)";
+    #: empty when it does not, or when another test already refused the step (then not tried)
+    hinges: list = field(default_factory=list)
     structure: tuple = ()  # the structure judged (after the step)
 
 
@@ -472,6 +475,7 @@ class Search:
             short_gain=short_gain,
             short_t=short_t,
             removal_runs_away=back_away,
+            hinges=hinge,
         )
 
 
