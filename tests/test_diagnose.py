@@ -719,7 +719,8 @@ def test_report_verdict_of_an_effect_that_predicts_worse_from_the_measured_state
 def test_report_verdict_of_an_effect_that_hinges_on_a_training_run():
     """A finding that passes every test but the hinge check (the measured evidence of the virtual KCS's
     cubic yaw damping, six runs with turning circles, 2026-11-25) reads 'hinges on a training run'
-    with the run and its numbers, not 'not significant' (what an unparsed reason fell back to)."""
+    with the run and its numbers (diagnosis.json's findings[].hinges_on), not 'not significant' (what an
+    unknown reason fell back to)."""
     from pipeline.report import diagnosis_text as dt
 
     f = _rejected("nonlinear_yaw_damping", 0.54, [0.62, 0.44], 6.6, 5.1, 1.66, 82,
@@ -727,6 +728,7 @@ def test_report_verdict_of_an_effect_that_hinges_on_a_training_run():
                   "that manoeuvre (error grown by more than its heading swing): kcs_zigzag_10_10_P 9.11 "
                   "-> 41.47 deg (heading swing 21.14 deg) (added to the final model: held-out +54%, per "
                   "fold +62%, +44%); fitted: yaw damping grows with the rate of turn.")
+    f["hinges_on"] = ["kcs_zigzag_10_10_P 9.11 -> 41.47 deg (heading swing 21.14 deg)"]
     settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
     v, why = dt.verdict(f, settings)
     assert v == "hinges on a training run", (v, why)

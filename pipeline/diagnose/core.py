@@ -781,7 +781,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
         away = [e for e, s_ in sel.alone.items() if any("runs away" in w for w in s_.why)]
         if away:
             summary += f" Refused for running away on a held-out manoeuvre: {', '.join(away)}."
-        hinge = [e for e, s_ in sel.alone.items() if any(w.startswith("hinges on") for w in s_.why)]
+        hinge = [e for e, s_ in sel.alone.items() if s_.hinges]
         if hinge:
             summary += (
                 f" Refused for hinging on one training run (refitted without it, the model no longer "

@@ -242,7 +242,8 @@ class Search:
         ``before`` (its free-run MAE psi grown by more than the run's heading swing, the held-out
         run-away criterion of :meth:`step`).  Only folds of at least ``cfg.jackknife_min_train``
         training runs (the reason is at DiagnoseConfig.jackknife_min_train).  Returns "run a -> b deg
-        (heading swing c deg)" per such run."""
+        (heading swing c deg)" per such run, or "run (no fit without it)" where the refit fails (a model
+        that cannot be fitted without one run hinges on it too)."""
         if self.cfg.jackknife_min_train <= 0:
             return []
         if self._jack is None:
@@ -380,7 +381,7 @@ class Search:
             for s, xb, xa in zip(self.folds[k].val, pb, pa, strict=True):
                 back = ran_away(s, xa["mae_psi_deg"], xb["mae_psi_deg"])
                 if back:
-                    back_away.append(back.split(" (heading swing")[0])
+                    back_away.append(back)
                 away = ran_away(s, xb["mae_psi_deg"], xa["mae_psi_deg"])
                 if away:
                     runaway.append(away)

@@ -185,16 +185,18 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     if folds and min(folds) <= 0:
         reasons.append(("failed a fold", "worse in a fold (per fold " + ", ".join(gain_text(x) for x in folds)
                         + ")"))
-    # the stage's no-harm, no-run-away, short-horizon and hinge tests (select.py) are stated only in
-    # the evidence text: (its words there, the verdict, where its own reason ends, or None: at the end)
+    # the stage's no-harm, no-run-away and short-horizon tests (select.py) are stated only in the
+    # evidence text: (its words there, the verdict, where its own reason ends)
     harm, short = "harms a held-out run", "worse from the measured state"
     for key, v, end in (("significantly worse on a held-out manoeuvre", harm, "; runs away"),
                         ("runs away on a held-out manoeuvre", harm, "; runs away"),
-                        ("predicts worse from the measured state", short, "; it fits"),
-                        ("hinges on one training run", "hinges on a training run", None)):
+                        ("predicts worse from the measured state", short, "; it fits")):
         if key in ev:
             part = ev[ev.index(key):].split(" (added to")[0].split(" (in the final")[0]
-            reasons.append((v, part.split(end)[0] if end else part))
+            reasons.append((v, part.split(end)[0]))
+    if f.get("hinges_on"):   # the hinge test's runs (select.Search.hinges), a key of their own
+        reasons.append(("hinges on a training run", "refitted without it, the model no longer makes that "
+                        "training run: " + "; ".join(f["hinges_on"])))
     t, tc = f.get("block_t"), f.get("block_t_crit")
     if isinstance(t, (int, float)) and isinstance(tc, (int, float)) and not t >= tc:
         dof = (f.get("blocks") or 0) - 1
