@@ -317,13 +317,14 @@ nb.show(fig, "Held-out heading error (top) and yaw-rate error (bottom) over time
 
 for e in named:
     sx = dt.signature_x(series, e) if has_r else None
-    if sx is None:
+    ch, ylabel, unit = dt.signature_residual(e)
+    if sx is None or f"{ch}_baseline" not in series or series[ch].isna().all():
         nb.note(f"{dt.effect_label(e)}: its signature cannot be drawn from the series the stage wrote.")
         continue
     x, xlabel = sx
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.6), sharex=True, sharey=True)
     for a, (model, colour) in zip(axes, (("baseline", "tab:blue"), ("extended", "tab:red")), strict=True):
-        yerr = (series.r - series[f"r_{model}"]).to_numpy()
+        yerr = (series[ch] - series[f"{ch}_{model}"]).to_numpy()
         a.plot(x, yerr, ".", ms=2, color=colour, alpha=0.25)
         cx, my = dt.binned(x, yerr)
         a.plot(cx, my, "-o", ms=3, color="k", lw=1.2)
@@ -331,9 +332,10 @@ for e in named:
         a.axhline(float(np.nanmean(yerr)), color="0.3", lw=1.0, ls="--")
         a.set_xlabel(xlabel)
         a.set_title(("linear baseline" if model == "baseline" else "extended model")
-                    + f": mean r error {dt.num(float(np.nanmean(yerr)), 2, 'deg/s')}")
-    axes[0].set_ylabel("r error (deg/s)")
-    nb.show(fig, f"{dt.effect_label(e)}: held-out yaw-rate error against the effect's signature "
+                    + f": mean {ch} error {dt.num(float(np.nanmean(yerr)), 2, unit)}")
+    axes[0].set_ylabel(ylabel)
+    nb.show(fig, f"{dt.effect_label(e)}: held-out {'sway' if ch == 'v' else 'yaw-rate'} error against the "
+            f"effect's signature "
             f"({xlabel}) on the validation runs, baseline left, extended model right; dots every sample, "
             "black line the mean in bins, dashed grey the overall mean. The trend (or, for an offset, the "
             "mean) the baseline leaves is what the effect explains.")

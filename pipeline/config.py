@@ -37,6 +37,9 @@ class TankConfig:
     rudder_lag: float = 0.0              # s, first-order servo lag (explicit Euler at sim_dt)
     rudder_asymmetry: float = 0.0        # a: effective angle x (1 + a sign(angle)); a > 0: starboard stronger
     rudder_stall_deg: float = 0.0        # deg, effective angle = stall tanh(angle / stall); 0 = off
+    # a sensor effect: the logged heading reads this much more than the centreline (deg), and u, v
+    # are read through it (v cos eps - u sin eps); the track x0, y0 is true
+    heading_misalignment: float = 0.0
     hold_speed: bool = False             # True: surge speed held at approach speed (no speed loss)
 
 

@@ -9,6 +9,13 @@ Right-hand side (units of SPEC section 5: v m/s, r deg/s, psi deg, delta deg, t 
     dv/dt    = s (a11 v + a12 r) + s^2 b11 g + sum_j c_j f_j(v, r)   over feature terms of dv/dt
     dr/dt    = s (a21 v + a22 r) + s^2 b21 g + sum_j c_j f_j(v, r)   over feature terms of dr/dt
     dpsi/dt  = r
+    v read   = v + v_bias_m_s q,  q = u / U_ref (ones without u)   the sway velocity a run gives
+
+The last line is a reading, not a force (a sensor effect, e.g. a heading reference set off the
+centreline, through which a file's earth-fixed velocities become a sway velocity biased by
+-u sin(misalignment)): the state integrated is the ship's, while every initial state given to and
+every sway velocity returned by the functions here is a reading; with v_bias_m_s = 0 both are the
+same numbers, bit for bit.
 
 With every effect at its null value this is :func:`pipeline.model.rhs` (tests hold the kernel's copy
 to it).  Integration: classical RK4 at the sample step (``substeps`` per step when asked), the rudder
@@ -304,12 +311,17 @@ def simulate_terms(theta, terms: Terms, x0, t, delta, u_ratio=None, substeps: in
     s_half = speed_half(t, u_ratio, terms.speed_exponent)
     codes, eqs, coefs = _arrays(terms)
     lag, m = _lag_and_substeps(terms, h, substeps)
+    vb = float(terms.v_bias_m_s)
+    x0 = np.array(x0, dtype=float).reshape(3)
+    if vb != 0.0:  # the reading's start -> the ship's (module docstring)
+        q = reading_ratio(d.size, u_ratio)
+        x0[0] = x0[0] - vb * q[0]
     out = np.empty((d.size, 3))
     _run(
         out,
         0,
         d.size,
-        np.asarray(x0, dtype=float).reshape(3),
+        x0,
         a_half[0],
         a_half,
         s_half,
@@ -324,7 +336,14 @@ def simulate_terms(theta, terms: Terms, x0, t, delta, u_ratio=None, substeps: in
         float(terms.asymmetry),
         float(terms.rudder_cubic_per_deg2),
     )
+    if vb != 0.0:  # the ship's sway velocity -> the reading
+        out[:, 0] = out[:, 0] + vb * q
     return out
+
+
+def reading_ratio(n: int, u_ratio) -> np.ndarray:
+    """q = u/U_ref per sample (ones without u): the scale of a sway reading's bias (module docstring)."""
+    return np.ones(n) if u_ratio is None else np.asarray(u_ratio, dtype=float)
 
 
 def predict_segments(
@@ -343,12 +362,18 @@ def predict_segments(
     s_half = speed_half(t, u_ratio, terms.speed_exponent)
     codes, eqs, coefs = _arrays(terms)
     lag, m = _lag_and_substeps(terms, h, substeps)
+    starts = np.asarray(starts, dtype=np.int64)
+    xs = np.array(states, dtype=float, order="C")
+    vb = float(terms.v_bias_m_s)
+    if vb != 0.0:  # the readings at the restarts -> the ship's states (module docstring)
+        q = reading_ratio(t.size, u_ratio)
+        xs[:, 0] = xs[:, 0] - vb * q
     out = np.empty((len(starts), length, 3))
     _segments(
         out,
-        np.asarray(starts, dtype=np.int64),
+        starts,
         int(length),
-        np.ascontiguousarray(states, dtype=float),
+        xs,
         a_half,
         s_half,
         h,
@@ -362,6 +387,9 @@ def predict_segments(
         float(terms.asymmetry),
         float(terms.rudder_cubic_per_deg2),
     )
+    if vb != 0.0:
+        idx = starts[:, None] + np.arange(length)[None, :]
+        out[:, :, 0] = out[:, :, 0] + vb * q[idx]
     return out
 
 
@@ -428,25 +456,34 @@ def _oe_batch(
     sc_v,
     r_off,
     scratch,
+    vbs,
+    q,
 ):  # pragma: no cover - compiled; held to fit._oe_residuals bit for bit by tests/test_model_definition.py
     """Output-error residuals of every parameter vector (row c of ``res``) on every run k, in the
     layout of :func:`pipeline.diagnose.fit._oe_residuals`: per run w (psi_sim - psi)/sc_psi,
     w (r_sim - r)/sc_r and, when sway is measured, w (v_sim - v)/sc_v (same operations, same order,
     so the same bits).  Row c starts run k from x0s[c, k].  Row c's rudder and speed factor on the
     half grid of run k start at a_buf[a_off[c, k]] and s_buf[s_off[c, k]]; its lag and RK4 sub-steps
-    are lags[c, k], ms[c, k]."""
+    are lags[c, k], ms[c, k].  Row c's sway readings carry vbs[c] q (q = u/U_ref of every sample, the
+    runs one after another as psi): x0s are readings, and so are the sway velocities compared."""
+    x0 = np.empty(3)
     for c in range(thetas.shape[0]):
+        vb = vbs[c]
         for k in range(ns.shape[0]):
             n = ns[k]
             nh = 2 * n - 1
             a_half = a_buf[a_off[c, k] : a_off[c, k] + nh]
             s_half = s_buf[s_off[c, k] : s_off[c, k] + nh]
             sim = scratch[:n]
+            mo = m_off[k]
+            x0[0] = x0s[c, k, 0] - vb * q[mo] if vb != 0.0 else x0s[c, k, 0]
+            x0[1] = x0s[c, k, 1]
+            x0[2] = x0s[c, k, 2]
             _run(
                 sim,
                 0,
                 n,
-                x0s[c, k],
+                x0,
                 a_half[0],
                 a_half,
                 s_half,
@@ -463,7 +500,6 @@ def _oe_batch(
             )
             w = ws[k]
             o = r_off[k]
-            mo = m_off[k]
             for i in range(n):
                 res[c, o + i] = w * (sim[i, 2] - psi[mo + i]) / sc_psi
             o += n
@@ -472,7 +508,8 @@ def _oe_batch(
             if has_v[k]:
                 o += n
                 for i in range(n):
-                    res[c, o + i] = w * (sim[i, 0] - v[mo + i]) / sc_v
+                    sv = sim[i, 0] + vb * q[mo + i] if vb != 0.0 else sim[i, 0]
+                    res[c, o + i] = w * (sv - v[mo + i]) / sc_v
 
 
 class OEBatch:
@@ -503,6 +540,7 @@ class OEBatch:
             ]
         )
         self.has_v = np.array([x[5] is not None for x in runs], dtype=np.bool_)
+        self.q = np.concatenate([reading_ratio(t.size, x[6]) for x, t in zip(runs, self.t, strict=True)])
         self.ws = np.array([float(x[7]) for x in runs])
         self.sc = tuple(float(x) for x in scales)
         sizes = self.ns * np.where(self.has_v, 3, 2)
@@ -543,7 +581,7 @@ class OEBatch:
         coefs = np.empty((nc, codes.size))
         lags = np.empty((nc, nk))
         ms = np.empty((nc, nk), dtype=np.int64)
-        offsets, asyms, cubics = np.empty(nc), np.empty(nc), np.empty(nc)
+        offsets, asyms, cubics, vbs = np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc)
         a_off = np.empty((nc, nk), dtype=np.int64)
         s_off = np.empty((nc, nk), dtype=np.int64)
         a_parts, s_parts, a_at, s_at = [], [], {}, {}
@@ -554,6 +592,7 @@ class OEBatch:
             offsets[c] = terms.offset_deg
             asyms[c] = terms.asymmetry
             cubics[c] = terms.rudder_cubic_per_deg2
+            vbs[c] = terms.v_bias_m_s
             for k in range(nk):
                 lags[c, k], ms[c, k], a, s = self._inputs(terms, k)
                 if id(a) not in a_at:
@@ -596,5 +635,7 @@ class OEBatch:
             self.sc[2],
             self.r_off,
             self.scratch,
+            vbs,
+            self.q,
         )
         return res

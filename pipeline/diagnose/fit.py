@@ -836,9 +836,10 @@ def fit_structure(
 def _fit_structure(series, structure, ctx, start, max_nfev, block_T) -> FitResult:
     layout = Layout(structure_of(*structure), ctx)
     lo, hi = layout.bounds()
-    u_ref = reference_speed(series) if any(e == "speed_loss" for e, _ in layout.structure) else None
-    if any(e == "speed_loss" for e, _ in layout.structure) and u_ref is None:
-        raise ModelError("speed_loss needs the surge speed u in every training run")
+    need_u = [e for e, _ in layout.structure if BY_NAME[e].needs_u]
+    u_ref = reference_speed(series) if need_u else None
+    if need_u and u_ref is None:
+        raise ModelError(f"{need_u[0]} needs the surge speed u in every training run")
     sc = _scales(series)
     names = layout.names
     if start is None:

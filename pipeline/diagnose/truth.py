@@ -16,7 +16,9 @@ Effects (each off by default) act as SPEC section 7 defines them:
 - ``rudder_stall_deg`` deg: the rudder force follows stall_deg tanh(delta_eff / stall_deg) instead of
   delta_eff (a smooth lift saturation, not the catalogue's cubic form; 0 = off);
 - ``speed_loss_k``: surge u' = -(u - U0)/tau_u - k U0 (r in rad/s)^2; the linear coefficients scale
-  with u/U0 and the rudder terms with (u/U0)^2 (dimensional coefficients ~ U/L, rudder force ~ U^2).
+  with u/U0 and the rudder terms with (u/U0)^2 (dimensional coefficients ~ U/L, rudder force ~ U^2);
+- ``heading_misalignment`` deg: a sensor effect, not the ship's: the logged heading reads eps more
+  than the centreline and u, v are read through it (v cos eps - u sin eps, u cos eps + v sin eps).
 
 Without effects the data are exactly linear plus seeded white measurement noise: "clean" means that.
 The logged rudder is the servo's output (what a rudder-angle sensor reads).
@@ -51,6 +53,7 @@ class TruthConfig:
     n_vvr: float = 0.0  # s/m^2, yaw cross term v^2 r
     rudder_stall_deg: float = 0.0  # deg, rudder force ~ stall tanh(delta_eff / stall); 0 = linear
     speed_loss_k: float = 0.0  # non-dimensional surge loss coefficient
+    heading_misalignment: float = 0.0  # deg, a sensor: psi reads this much more, u and v read through it
     tau_u: float = 12.0  # s, surge recovery time constant
     noise: bool = True
     noise_psi: float = 0.05  # deg
@@ -130,6 +133,10 @@ def zigzag_truth(
             "delta": out[:, 5],
         }
     )
+    if cfg.heading_misalignment:  # read through a heading set off the centreline: axes turned by eps
+        c, sn = np.cos(np.deg2rad(cfg.heading_misalignment)), np.sin(np.deg2rad(cfg.heading_misalignment))
+        frame["u"], frame["v"] = out[:, 4] * c + out[:, 3] * sn, out[:, 3] * c - out[:, 4] * sn
+        frame["psi"] += cfg.heading_misalignment
     if cfg.noise:
         frame["psi"] += noise_psi
         frame["r"] += rng.normal(0.0, cfg.noise_r, n)

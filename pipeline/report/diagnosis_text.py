@@ -27,6 +27,7 @@ EFFECT_WORDS = {
     "sway_yaw_coupling": "sway-yaw cross terms",
     "rudder_saturation": "rudder saturation (stall)",
     "rudder_asymmetry": "rudder asymmetry (port/starboard)",
+    "heading_misalignment": "heading reference misalignment (a sensor effect)",
 }
 
 #: the signature an effect leaves in the residuals of a model without it: (column of the series
@@ -42,7 +43,22 @@ SIGNATURE = {
     "sway_yaw_coupling": ("vr", "v r (m/s x deg/s)"),
     "rudder_saturation": ("delta", "logged rudder delta (deg)"),
     "rudder_asymmetry": ("delta", "logged rudder delta (deg)"),
+    "heading_misalignment": ("u", "surge speed u (m/s)"),
 }
+
+#: the residual an effect's signature is read in, where it is not the yaw rate's: (column of the series
+#: table, axis label, unit).  A sensor effect of the sway reading shows in the sway residual.
+SIGNATURE_RESIDUAL = {
+    "heading_misalignment": ("v", "v error (m/s)", "m/s"),
+}
+_R_RESIDUAL = ("r", "r error (deg/s)", "deg/s")
+
+
+def signature_residual(effect: str) -> tuple[str, str, str]:
+    """(series column, axis label, unit) of the held-out residual ``effect``'s signature is drawn in:
+    the yaw rate's unless :data:`SIGNATURE_RESIDUAL` says otherwise."""
+    return SIGNATURE_RESIDUAL.get(effect, _R_RESIDUAL)
+
 
 #: parameter-key unit suffixes of diagnosis.json -> unit text (the stage writes units only in the key
 #: names; matched longest first).  Keys without a suffix are dimensionless.

@@ -56,7 +56,7 @@ ESTIMATE_KEY = {"rudder_offset": "offset_deg", "rudder_delay": "delay_s",
                 "nonlinear_yaw_damping": "n_rrr_s_per_deg2", "speed_loss": "coefficient_loss",
                 "rudder_lag": "lag_s", "rudder_asymmetry": "asymmetry",
                 "nonlinear_sway_damping": "y_vv_per_m", "sway_yaw_coupling": "n_vvr_s_per_m2",
-                "rudder_saturation": "force_change_at_max_rudder"}
+                "rudder_saturation": "force_change_at_max_rudder", "heading_misalignment": "misalignment_deg"}
 MAGNITUDE_UNIT = {"rudder_offset": "deg", "rudder_delay": "s",
                   "nonlinear_yaw_damping": "cut of the 20/20 yaw-rate amplitude",
                   "speed_loss": "fraction of approach speed lost",
@@ -64,7 +64,8 @@ MAGNITUDE_UNIT = {"rudder_offset": "deg", "rudder_delay": "s",
                   "rudder_asymmetry": "a: rudder force x (1 + a sign(delta))",
                   "nonlinear_sway_damping": "cut of the 20/20 sway-velocity amplitude (v|v| drag, sway only)",
                   "sway_yaw_coupling": "cut of the 20/20 yaw-rate amplitude (v^2 r in the yaw equation)",
-                  "rudder_saturation": "rudder force lost at 20 deg (stall tanh(delta/stall) law)"}
+                  "rudder_saturation": "rudder force lost at 20 deg (stall tanh(delta/stall) law)",
+                  "heading_misalignment": "deg the logged heading reads more than the centreline (a sensor)"}
 
 
 def catalogue_effects() -> tuple[str, ...]:
@@ -79,7 +80,7 @@ def catalogue_effects() -> tuple[str, ...]:
 
 #: effects whose magnitude is a setting of the same name and meaning in both plants (TruthConfig and
 #: TankConfig): the injected value is the magnitude itself, in the estimate's own terms
-DIRECT = ("rudder_offset", "rudder_delay", "rudder_lag", "rudder_asymmetry")
+DIRECT = ("rudder_offset", "rudder_delay", "rudder_lag", "rudder_asymmetry", "heading_misalignment")
 
 
 #: truth effects set through a coefficient solved from the magnitude (pipeline.diagnose.truth):
@@ -129,8 +130,10 @@ def _tank_inject(effect: str, mag: float, cfg: TankConfig, rudder_deg: float):
 #: what each plant can inject, and why not the rest
 INJECTABLE = {
     "truth": ("rudder_offset", "rudder_delay", "nonlinear_yaw_damping", "speed_loss", "rudder_lag",
-              "rudder_asymmetry", "nonlinear_sway_damping", "sway_yaw_coupling", "rudder_saturation"),
-    "tank": ("rudder_offset", "rudder_delay", "rudder_lag", "rudder_asymmetry", "rudder_saturation"),
+              "rudder_asymmetry", "nonlinear_sway_damping", "sway_yaw_coupling", "rudder_saturation",
+              "heading_misalignment"),
+    "tank": ("rudder_offset", "rudder_delay", "rudder_lag", "rudder_asymmetry", "rudder_saturation",
+             "heading_misalignment"),
 }
 WHY_NOT = {
     ("tank", "speed_loss"): "the tank's speed loss is its own (speed free or held), not a set magnitude",

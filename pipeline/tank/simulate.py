@@ -30,7 +30,7 @@ from pipeline.units import deg2rad, rad2deg
 NOTE = "virtual tank (MMG model of the KCS, SIMMAN 2020 model scale); not measured data"
 EFFECT_FIELDS = ("rudder_offset", "rudder_delay", "extra_yaw_damping", "hold_speed")
 #: the servo effects of the power study, in the metadata only when set (a clean run's metadata as before)
-SERVO_FIELDS = ("rudder_lag", "rudder_asymmetry", "rudder_stall_deg")
+SERVO_FIELDS = ("rudder_lag", "rudder_asymmetry", "rudder_stall_deg", "heading_misalignment")
 #: Column formats of the CSV (decimals well below the noise sizes).
 CSV_FORMATS = {"time": "%.3f", "x0": "%.4f", "y0": "%.4f", "psi": "%.4f", "u": "%.5f", "v": "%.5f",
                "r": "%.4f", "delta": "%.4f", "rpm": "%.2f"}
@@ -86,13 +86,15 @@ def simulate(manoeuvre: Manoeuvre, cfg: TankConfig = DEFAULT_TANK,
                deg2rad(cfg.rudder_offset), deg2rad(noise["psi"]), float(cfg.rudder_lag),
                float(cfg.rudder_asymmetry), deg2rad(cfg.rudder_stall_deg))
     time = np.arange(n_log) * cfg.log_dt
+    eps = deg2rad(cfg.heading_misalignment)     # 0: the readings are the ship's, bit for bit
+    u_read, v_read = read_through_heading(out[:, 0], out[:, 1], eps)
     frame = pd.DataFrame({
         "time": time,
         "x0": out[:, 3] + noise["x0"],
         "y0": out[:, 4] + noise["y0"],
-        "psi": rad2deg(out[:, 5]) + noise["psi"],
-        "u": out[:, 0] + noise["u"],
-        "v": out[:, 1] + noise["v"],
+        "psi": rad2deg(out[:, 5] + eps) + noise["psi"],
+        "u": u_read + noise["u"],
+        "v": v_read + noise["v"],
         "r": rad2deg(out[:, 2]) + noise["r"],
         "delta": rad2deg(out[:, 6]) + noise["delta"],
         "rpm": np.full(n_log, 60.0 * rps),
@@ -123,6 +125,16 @@ def simulate(manoeuvre: Manoeuvre, cfg: TankConfig = DEFAULT_TANK,
     }
     meta.update(meta["effects"])
     return Run(frame=frame, meta=meta)
+
+
+def read_through_heading(u, v, eps_rad: float):
+    """(u, v) (m/s) as read through a heading that reads ``eps_rad`` more than the centreline: the
+    ship's velocity resolved in axes turned by eps, u cos eps + v sin eps and v cos eps - u sin eps (a
+    tank that forms body velocities from its earth-fixed track and heading).  eps = 0: (u, v) as given."""
+    if eps_rad == 0.0:
+        return u, v
+    c, s = np.cos(eps_rad), np.sin(eps_rad)
+    return u * c + v * s, v * c - u * s
 
 
 def _note(meta: dict) -> str:

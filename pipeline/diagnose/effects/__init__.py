@@ -8,6 +8,7 @@ Adding an effect = one new module defining ``EFFECT`` (a :class:`~.base.Effect`)
 from __future__ import annotations
 
 from pipeline.diagnose.effects import (
+    heading_misalignment,
     nonlinear_sway_damping,
     nonlinear_yaw_damping,
     rudder_asymmetry,
@@ -30,6 +31,7 @@ CATALOGUE: tuple[Effect, ...] = (
     sway_yaw_coupling.EFFECT,
     rudder_saturation.EFFECT,
     rudder_asymmetry.EFFECT,
+    heading_misalignment.EFFECT,
 )
 BY_NAME = {e.name: e for e in CATALOGUE}
 NAMES = tuple(BY_NAME)

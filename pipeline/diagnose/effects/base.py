@@ -13,6 +13,8 @@ An effect is a small object (one module per effect, registered in
   * a transformation of the effective rudder, or of the coefficients with speed, set through
     :meth:`Effect.apply` on :class:`Terms` (offset, dead time, servo lag, saturation, asymmetry,
     speed exponent);
+  * or no term at all but a reading of the runs: a bias of the sway velocity the files give
+    (``Terms.v_bias_m_s``), for a sensor effect (heading misalignment);
 - ``signature``: what it leaves in the residuals of a model without it (words, and
   :meth:`Effect.signature_series` for the residual-structure table);
 - its materiality floor (:meth:`Effect.material`) with the physical reason (``floor_reason``);
@@ -61,9 +63,9 @@ def feature_value(code: int, v, r):
 
 @dataclass(frozen=True)
 class Param:
-    """One parameter of an effect.  ``lo``/``hi``/``start`` are in ``unit`` unless ``time_scaled``, in
-    which case they are multiples of the ship's time scale T_ship (s) so that bounds do not depend on
-    the scale of the data."""
+    """One parameter of an effect.  ``lo``/``hi``/``start`` are in ``unit`` unless ``time_scaled`` or
+    ``speed_scaled``, in which case they are multiples of the ship's time scale T_ship (s) or of its
+    approach speed U_ref (m/s), so that bounds do not depend on the scale of the data."""
 
     name: str
     null: float
@@ -73,13 +75,19 @@ class Param:
     unit: str
     feature: tuple[int, int] | None = None  # (feature code, equation) for a term linear in the parameter
     time_scaled: bool = False
+    speed_scaled: bool = False
+
+    def _scale(self, ctx: Context) -> float:
+        if self.speed_scaled:
+            return float(ctx.u_ref or 1.0)
+        return ctx.t_ship if self.time_scaled else 1.0
 
     def bounds(self, ctx: Context) -> tuple[float, float]:
-        k = ctx.t_ship if self.time_scaled else 1.0
+        k = self._scale(ctx)
         return self.lo * k, self.hi * k
 
     def start_value(self, ctx: Context) -> float:
-        return self.start * (ctx.t_ship if self.time_scaled else 1.0)
+        return self.start * self._scale(ctx)
 
 
 @dataclass(frozen=True)
@@ -101,6 +109,10 @@ class Terms:
     rudder_cubic_per_deg2: float = 0.0
     asymmetry: float = 0.0
     speed_exponent: float = 0.0
+    #: m/s at the reference speed U_ref: the sway velocity a run gives is the ship's plus
+    #: v_bias_m_s (u/U_ref) (constant without u).  A reading, not a force: the model's states are the
+    #: ship's, its initial states and outputs are readings (pipeline.diagnose.extended)
+    v_bias_m_s: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,81 @@
+"""heading_misalignment: the heading reference is set off the ship's centreline (a sensor effect).
+
+A tank that logs earth-fixed velocities (the MARIN layout: dx0/dt, dy0/dt) gives the sway velocity
+through the logged heading, v = -dx0/dt sin(psi) + dy0/dt cos(psi).  If the heading reads eps more
+than the ship's centreline (a tracking system's body frame or a gyro set off the centreline), the v
+a file gives is v cos(eps) - u sin(eps): the ship's sway velocity plus a bias -u sin(eps) that
+follows the surge speed.  The heading itself is only shifted by eps, which no free run from the
+measured heading sees.  A sway sensor's zero error that scales with speed reads the same.
+
+No force: the model's states are the ship's, the sway velocity it is compared with is the reading
+(``Terms.v_bias_m_s``, pipeline.diagnose.extended).  Without the effect the output-error fit bends
+the hull's sway coefficients to follow the biased v, and the heading it predicts pays for it.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pipeline.diagnose.effects.base import Context, Effect, Form, Param, Terms
+
+#: deg: floor of a named misalignment.  Twice the 0.1 deg to which a tank's optical tracking system
+#: or a gyro resolves heading: below it a heading reference cannot be set, nor checked, any better.
+MIN_MISALIGNMENT_DEG = 0.2
+#: bounds of the bias as a fraction of the approach speed: sin(5.7 deg), a set-up error no tank makes
+#: unnoticed (the runs' approach would drift visibly; pipeline.diagnose.datacheck warns from 0.5 deg)
+MAX_BIAS_PER_U = 0.1
+
+
+def misalignment_deg(v_bias_m_s: float, u_ref: float | None) -> float:
+    """The misalignment eps (deg, positive: the heading reads more than the centreline) of a sway bias
+    ``v_bias_m_s`` (m/s) at the approach speed ``u_ref`` (m/s): v_bias = -u_ref sin(eps)."""
+    u = float(u_ref or 1.0)
+    return -math.degrees(math.asin(max(-1.0, min(1.0, v_bias_m_s / u))))
+
+
+class HeadingMisalignment(Effect):
+    name = "heading_misalignment"
+    forms = (
+        Form(
+            "track",
+            (Param("v_bias_m_s", 0.0, -MAX_BIAS_PER_U, MAX_BIAS_PER_U, 0.0, "m/s", speed_scaled=True),),
+        ),
+    )
+    words = "a heading reference misaligned with the ship's centreline"
+    term = ("no force: the sway velocity a run gives is v + v_bias_m_s u/U_ref, with v_bias_m_s = "
+            "-U_ref sin(misalignment)")
+    signature = ("a sway velocity that reads -u sin(misalignment) on a straight course; the sway residual "
+                 "follows the surge speed, and the hull's sway coefficients bend to absorb it")
+    floor_reason = (
+        f"|misalignment| >= {MIN_MISALIGNMENT_DEG} deg: twice the 0.1 deg a tank's tracking system or gyro "
+        "resolves heading to, below which a heading reference cannot be set or checked"
+    )
+    needs_u = True
+    needs_v = True
+
+    def apply(self, form: Form, values: dict, terms: Terms) -> None:
+        terms.v_bias_m_s = float(values["v_bias_m_s"])
+
+    def material(self, form, values, ctx: Context, response_change):
+        eps = abs(misalignment_deg(values["v_bias_m_s"], ctx.u_ref))
+        text = f"|misalignment| {eps:.2f} deg (floor {MIN_MISALIGNMENT_DEG} deg)"
+        return bool(eps >= MIN_MISALIGNMENT_DEG), text
+
+    def physical(self, form: Form, values: dict, ctx: Context) -> str:
+        eps = misalignment_deg(values["v_bias_m_s"], ctx.u_ref)
+        side = "starboard" if eps > 0 else "port"
+        return (
+            f"the heading reads {abs(eps):.2f} deg to {side} of the ship's centreline: the sway velocity "
+            f"taken from it is off by {abs(values['v_bias_m_s']):.3g} m/s at the {ctx.u_ref or 0:.3g} m/s "
+            f"approach speed, a heading reference set off the centreline (or a sway sensor's zero error "
+            f"growing with speed), not a property of the hull"
+        )
+
+    def extra_estimate(self, form, values, ctx):
+        return {
+            "misalignment_deg": misalignment_deg(values["v_bias_m_s"], ctx.u_ref),
+            "bias_share_of_max_sway": abs(values["v_bias_m_s"]) / max(ctx.v_max, 1e-9),
+        }
+
+
+EFFECT = HeadingMisalignment()
