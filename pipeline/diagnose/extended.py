@@ -311,11 +311,10 @@ def simulate_terms(theta, terms: Terms, x0, t, delta, u_ratio=None, substeps: in
     s_half = speed_half(t, u_ratio, terms.speed_exponent)
     codes, eqs, coefs = _arrays(terms)
     lag, m = _lag_and_substeps(terms, h, substeps)
-    vb = float(terms.v_bias_m_s)
+    bias = reading_bias(terms, d.size, u_ratio)
     x0 = np.array(x0, dtype=float).reshape(3)
-    if vb != 0.0:  # the reading's start -> the ship's (module docstring)
-        q = reading_ratio(d.size, u_ratio)
-        x0[0] = x0[0] - vb * q[0]
+    if bias is not None:  # the reading's start -> the ship's (module docstring)
+        x0[0] = x0[0] - bias[0]
     out = np.empty((d.size, 3))
     _run(
         out,
@@ -336,14 +335,21 @@ def simulate_terms(theta, terms: Terms, x0, t, delta, u_ratio=None, substeps: in
         float(terms.asymmetry),
         float(terms.rudder_cubic_per_deg2),
     )
-    if vb != 0.0:  # the ship's sway velocity -> the reading
-        out[:, 0] = out[:, 0] + vb * q
+    if bias is not None:  # the ship's sway velocity -> the reading
+        out[:, 0] = out[:, 0] + bias
     return out
 
 
 def reading_ratio(n: int, u_ratio) -> np.ndarray:
     """q = u/U_ref per sample (ones without u): the scale of a sway reading's bias (module docstring)."""
     return np.ones(n) if u_ratio is None else np.asarray(u_ratio, dtype=float)
+
+
+def reading_bias(terms: Terms, n: int, u_ratio) -> np.ndarray | None:
+    """The sway reading's bias v_bias_m_s q (m/s) at each of ``n`` samples, None without one; formed
+    as the batch kernel forms it (the product, then the sum), so the bits agree."""
+    vb = float(terms.v_bias_m_s)
+    return None if vb == 0.0 else vb * reading_ratio(n, u_ratio)
 
 
 def predict_segments(
@@ -364,10 +370,9 @@ def predict_segments(
     lag, m = _lag_and_substeps(terms, h, substeps)
     starts = np.asarray(starts, dtype=np.int64)
     xs = np.array(states, dtype=float, order="C")
-    vb = float(terms.v_bias_m_s)
-    if vb != 0.0:  # the readings at the restarts -> the ship's states (module docstring)
-        q = reading_ratio(t.size, u_ratio)
-        xs[:, 0] = xs[:, 0] - vb * q
+    bias = reading_bias(terms, t.size, u_ratio)
+    if bias is not None:  # the readings at the restarts -> the ship's states (module docstring)
+        xs[:, 0] = xs[:, 0] - bias
     out = np.empty((len(starts), length, 3))
     _segments(
         out,
@@ -387,9 +392,8 @@ def predict_segments(
         float(terms.asymmetry),
         float(terms.rudder_cubic_per_deg2),
     )
-    if vb != 0.0:
-        idx = starts[:, None] + np.arange(length)[None, :]
-        out[:, :, 0] = out[:, :, 0] + vb * q[idx]
+    if bias is not None:
+        out[:, :, 0] = out[:, :, 0] + bias[starts[:, None] + np.arange(length)[None, :]]
     return out
 
 
