@@ -270,3 +270,15 @@ def test_backward_never_removes_an_effect_without_which_the_model_runs_away(monk
             return st
 
     assert _names(sel.select(Old(), [0], noise_deg=0.05).structure) == {C}
+
+
+def test_a_floor_failure_names_the_fold_that_fails():
+    """Measured on HSVA (2026-11-25): the misalignment's evidence read "below its physical floor:
+    |misalignment| 0.39 deg (floor 0.2 deg)", the passing fold's text, where the other fold's estimate
+    was under the floor."""
+    from pipeline.diagnose.select import floor_failure
+
+    floors = ["|m| 0.39 deg (floor 0.2 deg)", "|m| 0.05 deg (floor 0.2 deg)"]
+    assert floor_failure([True, False], floors, [0, 1]) == "below its physical floor in fold 2: " + floors[1]
+    assert floor_failure([False, True], floors, [0, 1]) == "below its physical floor in fold 1: " + floors[0]
+    assert floor_failure([False], floors[1:], [0]) == "below its physical floor: " + floors[1]

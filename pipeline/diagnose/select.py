@@ -428,7 +428,7 @@ class Search:
                 f"block t = {t:.2f} below t(0.95, {g - 1}) = {tc:.2f}" if g >= 3 else "fewer than 3 blocks"
             )
         if not all(mats):
-            why.append("below its physical floor: " + floors[0])
+            why.append(floor_failure(mats, floors, ks))
         harm = []
         for name, mb_, ma_, d in per_run:  # Bonferroni over the held-out runs: alpha / N each
             if len(d) >= 3 and np.std(d, ddof=1) > 0:
@@ -478,6 +478,15 @@ class Search:
             removal_runs_away=back_away,
             hinges=hinge,
         )
+
+
+def floor_failure(mats: list[bool], floors: list[str], ks: list[int]) -> str:
+    """The reason a step fails the physical floor: the text of the first fold (of ``ks``) whose
+    estimate is under it, that fold named when there are several (another fold may pass, and its
+    estimate would read as above the floor)."""
+    bad = mats.index(False)
+    where = f" in fold {ks[bad] + 1}" if len(ks) > 1 else ""
+    return f"below its physical floor{where}: {floors[bad]}"
 
 
 def ran_away(s: Series, mae_before: float, mae_after: float) -> str:
