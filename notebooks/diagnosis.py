@@ -60,6 +60,10 @@ if has_gain and (named or cause != "none"):
              + (f" ({nb.esc(dt.num(bm, 3))} deg to {nb.esc(dt.num(em, 3))} deg)"
                 if isinstance(bm, (int, float)) and isinstance(em, (int, float)) else ""))
 display(HTML(f"<div style='font-size:1.3em;margin:6px 0'>{head}</div>"))
+# the honest gain's own check (diagnosis.json gain.flag): said beside the number it qualifies
+if gain_block.get("flag"):
+    display(HTML("<div style='border:2px solid #b00020;padding:6px 10px;margin:8px 0'><b>Flag: "
+                 + nb.esc(str(gain_block["flag"])) + "</b></div>"))
 nb.note(f"Ship and scale: {ship}. Every number below is at {scale_words}, in the units of the logged "
         "data (deg, deg/s, m/s, s). Residuals are measured minus model.")
 # a check of the data's own set-up (pipeline.diagnose.datacheck): said before any result it may bend

@@ -852,3 +852,23 @@ def test_inner_folds_keep_the_users_one_fold_design():
     cfg = DiagnoseConfig(two_fold=False)
     assert _names(_inner_folds(folds, c, cfg)) == [(["A", "B"], ["D"])]
     assert _names(_inner_folds(folds, a, cfg)) == [(["B"], ["C", "D"])]
+
+
+def test_the_honest_gain_is_flagged_when_it_fails_its_check():
+    """diagnosis.json gain.flag known answers: no flag for a gain whose interval is above zero or where
+    nothing is named; 'WORSE' (naming the runs) below zero; 'not shown better' for an interval that
+    reaches zero (the virtual KCS read through a 1 deg misaligned heading, 2026-11-25: +0.5 % [-4 %,
+    +4 %], printed as a cut and unflagged before)."""
+    from pipeline.diagnose.core import _gain_flag
+
+    runs = [{"run_id": "a", "gain": 0.1}, {"run_id": "b", "gain": -0.3}]
+    ok = {"mae_psi_relative_reduction": 0.58, "interval_95": [0.41, 0.69], "per_run": runs}
+    assert _gain_flag(ok, ["rudder_offset"]) is None
+    assert _gain_flag({**ok, "interval_95": None}, ["rudder_offset"]) is None
+    null = {**ok, "mae_psi_relative_reduction": 0.005, "interval_95": [-0.04, 0.04]}
+    assert _gain_flag(null, []) is None
+    flag = _gain_flag(null, ["nonlinear_sway_damping"])
+    assert flag.startswith("the extended model is not shown better") and "[-4%, +4%]" in flag, flag
+    worse = {**ok, "mae_psi_relative_reduction": -0.05, "interval_95": [-0.11, 0.03]}
+    flag = _gain_flag(worse, ["rudder_offset"])
+    assert "WORSE" in flag and "worse on b:" in flag and "a," not in flag, flag
