@@ -454,7 +454,8 @@ if named and has_gain:
         + f"{dt.pct(gain_block.get('validation_mae_psi_relative_reduction'))}; "
         + f"on the runs no choice has seen, adding it {dt.gain_sentence(gain, gain_block.get('interval_95'))}"
         + f", measured on {len(measured_on)} run{'s' if len(measured_on) != 1 else ''} no choice has seen ("
-        + ", ".join(data.short_label(r) for r in measured_on) + ").")
+        + ", ".join(data.short_label(r) for r in measured_on) + ")"
+        + (f". Flagged: {gain_block['flag']}." if gain_block.get("flag") else "."))
     f0 = by_eff.get(cause, {})
     if f0.get("physical"):
         points.append(f"Read physically: {dt.plain(f0['physical'], (f0.get('estimate') or {}).keys())}.")

@@ -7,6 +7,7 @@ other stages' code; the rendered HTML is then checked for its figures, tables an
 
 from __future__ import annotations
 
+import json
 import re
 import sys
 from html.parser import HTMLParser
@@ -307,6 +308,23 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     assert "61 %" in concl and test_run in concl
     # the cause's rival is in the conclusion too
     assert "hardly told it from rudder asymmetry (port/starboard) (+52 %)" in concl, concl
+    assert "Flag:" not in text and "Flagged" not in concl      # an interval above zero: no flag
+
+    # a flagged honest gain (diagnosis.json gain.flag) is said under the headline and in the conclusion
+    path = next(root.rglob("diagnosis.json"))
+    flagged = json.loads(path.read_text())
+    flagged["gain"].update(mae_psi_relative_reduction=0.01, interval_95=[-0.04, 0.05],
+                           flag="the extended model is not shown better than the baseline on the unseen runs")
+    path.write_text(json.dumps(flagged))
+    assert main(["report", "--datasets", "tiny", "--root", str(root), "--out", str(out),
+                 "--notebooks", "diagnosis"]) == 0
+    page = (out / "diagnosis-tiny.html").read_text(encoding="utf-8")
+    v = _Visible()
+    v.feed(page)
+    text = " ".join(" ".join(v.text).split())
+    assert "Flag: the extended model is not shown better than the baseline on the unseen runs" in text
+    (concl,) = re.findall(r"class=.conclusion.[^>]*>(.*?)</div>", page, flags=re.S)
+    assert "Flagged: the extended model is not shown better" in concl, concl
 
 
 def test_diagnosis_words_and_verdicts():

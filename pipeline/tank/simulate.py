@@ -29,7 +29,8 @@ from pipeline.units import deg2rad, rad2deg
 
 NOTE = "virtual tank (MMG model of the KCS, SIMMAN 2020 model scale); not measured data"
 EFFECT_FIELDS = ("rudder_offset", "rudder_delay", "extra_yaw_damping", "hold_speed")
-#: the servo effects of the power study, in the metadata only when set (a clean run's metadata as before)
+#: the servo and sensor effects of the power study, in the metadata only when set (a clean run's metadata
+#: as before)
 SERVO_FIELDS = ("rudder_lag", "rudder_asymmetry", "rudder_stall_deg", "heading_misalignment")
 #: Column formats of the CSV (decimals well below the noise sizes).
 CSV_FORMATS = {"time": "%.3f", "x0": "%.4f", "y0": "%.4f", "psi": "%.4f", "u": "%.5f", "v": "%.5f",
