@@ -228,6 +228,17 @@ class _Visible(HTMLParser):
         return [r for r in rows if r and r[0] and any(r[1:])]
 
 
+def _render_diagnosis(root, out):
+    """Render the 'tiny' dataset's diagnosis report: (page HTML, its visible-text parser, the visible
+    text on one line)."""
+    assert main(["report", "--datasets", "tiny", "--root", str(root), "--out", str(out),
+                 "--notebooks", "diagnosis"]) == 0
+    page = (out / "diagnosis-tiny.html").read_text(encoding="utf-8")
+    v = _Visible()
+    v.feed(page)
+    return page, v, " ".join(" ".join(v.text).split())
+
+
 @pytest.mark.slow
 def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     """The full diagnosis.json of the stage (report_catalog.rich_diagnosis_doc): the ladder table holds
@@ -240,12 +251,7 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     make_catalog(root, "tiny", "virtual", rich_diagnosis=True)
     doc = rich_diagnosis_doc("zz20", "zz10")
     out = tmp_path / "reports"
-    assert main(["report", "--datasets", "tiny", "--root", str(root), "--out", str(out),
-                 "--notebooks", "diagnosis"]) == 0
-    page = (out / "diagnosis-tiny.html").read_text(encoding="utf-8")
-    v = _Visible()
-    v.feed(page)
-    text = " ".join(" ".join(v.text).split())
+    page, v, text = _render_diagnosis(root, out)
 
     # the runs the design left out, with the reason
     assert f"Not used: zz20_slow ({doc['runs_not_used']['zz20_slow']})." in text
@@ -316,12 +322,7 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     flagged["gain"].update(mae_psi_relative_reduction=0.01, interval_95=[-0.04, 0.05],
                            flag="the extended model is not shown better than the baseline on the unseen runs")
     path.write_text(json.dumps(flagged))
-    assert main(["report", "--datasets", "tiny", "--root", str(root), "--out", str(out),
-                 "--notebooks", "diagnosis"]) == 0
-    page = (out / "diagnosis-tiny.html").read_text(encoding="utf-8")
-    v = _Visible()
-    v.feed(page)
-    text = " ".join(" ".join(v.text).split())
+    page, v, text = _render_diagnosis(root, out)
     assert "Flag: the extended model is not shown better than the baseline on the unseen runs" in text
     (concl,) = re.findall(r"class=.conclusion.[^>]*>(.*?)</div>", page, flags=re.S)
     assert "Flagged: the extended model is not shown better" in concl, concl
