@@ -282,3 +282,13 @@ def test_a_floor_failure_names_the_fold_that_fails():
     assert floor_failure([True, False], floors, [0, 1]) == "below its physical floor in fold 2: " + floors[1]
     assert floor_failure([False, True], floors, [0, 1]) == "below its physical floor in fold 1: " + floors[0]
     assert floor_failure([False], floors[1:], [0]) == "below its physical floor: " + floors[1]
+
+
+def test_floor_readings_label_the_folds_when_they_differ():
+    from pipeline.diagnose.select import floor_readings
+
+    same = "|offset| 0.50 deg (floor 0.3 deg)"
+    assert floor_readings([same, same], [0, 1]) == same
+    assert floor_readings([same], [0]) == same
+    got = floor_readings(["|m| 0.39 deg", "|m| 0.07 deg"], [0, 1])
+    assert got == "fold 1: |m| 0.39 deg; fold 2: |m| 0.07 deg"

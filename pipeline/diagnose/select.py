@@ -468,7 +468,7 @@ class Search:
             t_crit=tc,
             blocks=g,
             material=all(mats),
-            floor="; ".join(dict.fromkeys(floors)),
+            floor=floor_readings(floors, ks),
             why=why,
             structure=structure_of(*after),
             mean_diff=float(np.mean(diffs)) if diffs else 0.0,
@@ -478,6 +478,15 @@ class Search:
             removal_runs_away=back_away,
             hinges=hinge,
         )
+
+
+def floor_readings(floors: list[str], ks: list[int]) -> str:
+    """The floor texts of a step's folds (of ``ks``) for diagnosis.json: one text when every fold reads
+    the same, else each labelled with its fold (the floor is judged per fold; unlabelled, a passing
+    fold's reading beside a failing one read as a contradiction)."""
+    if len(set(floors)) <= 1:
+        return floors[0] if floors else ""
+    return "; ".join(f"fold {k + 1}: {t}" for k, t in zip(ks, floors, strict=True))
 
 
 def floor_failure(mats: list[bool], floors: list[str], ks: list[int]) -> str:
