@@ -762,6 +762,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
         for n in honest["nested"]
     ]
     agree = sum(c["cause"] == cause for c in causes)
+    flag = _gain_flag(honest, chosen)  # the honest gain's own check: in the summary and gain.flag
     if not chosen:
         summary = (
             f"No effect passes: the linear model's held-out heading error "
@@ -791,7 +792,6 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             summary += " " + sign_bound_text(base.at_bound)
     else:
         summary = next(r["evidence"] for r in rows if r["effect"] == cause)
-        flag = _gain_flag(honest, chosen)
         if flag:
             summary += f" Honest gain flagged: {flag}."
     a12_held = latent_sway_a12(ctx)
@@ -837,7 +837,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             }
         )
     gain = {k: v for k, v in honest.items() if k not in ("ladder",)}
-    gain["flag"] = _gain_flag(honest, chosen)
+    gain["flag"] = flag
     gain["validation_mae_psi_relative_reduction"] = _gain(pooled(()), pooled(structure_of(*st)))
     report = {
         "cause": cause,
