@@ -67,10 +67,11 @@ if gain_block.get("flag"):
 nb.note(f"Ship and scale: {ship}. Every number below is at {scale_words}, in the units of the logged "
         "data (deg, deg/s, m/s, s). Residuals are measured minus model.")
 # a check of the data's own set-up (pipeline.diagnose.datacheck): said before any result it may bend
-drift_warning = ((dg.get("data_checks") or {}).get("approach_drift") or {}).get("warning")
-if drift_warning:
-    display(HTML("<div style='border:2px solid #b8860b;padding:6px 10px;margin:8px 0'><b>"
-                 + nb.esc(drift_warning) + "</b></div>"))
+# (approach drift: a heading reference off the centreline; rate bias: r against the heading's change)
+for check in (dg.get("data_checks") or {}).values():
+    if (check or {}).get("warning"):
+        display(HTML("<div style='border:2px solid #b8860b;padding:6px 10px;margin:8px 0'><b>"
+                     + nb.esc(check["warning"]) + "</b></div>"))
 # runs of the dataset the design left out (another approach speed, another kind of test), with reasons
 not_used = dg.get("runs_not_used") or {}
 if not_used:

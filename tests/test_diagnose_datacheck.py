@@ -1,4 +1,5 @@
-"""pipeline.diagnose.datacheck: the approach's drift angle, a heading reference off the centreline."""
+"""pipeline.diagnose.datacheck: the approach's drift angle (a heading reference off the centreline) and
+the yaw rate against the heading's change (a rate gyro's bias)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,12 @@ from truths import tanker as tk
 from truths.files import marin_test_name, write_marin
 
 from pipeline.config import IngestConfig
-from pipeline.diagnose.datacheck import MISALIGNMENT_FLOOR_DEG, approach_drift
+from pipeline.diagnose.datacheck import (
+    MISALIGNMENT_FLOOR_DEG,
+    approach_drift,
+    correct_rate_bias,
+    rate_bias,
+)
 from pipeline.diagnose.fit import Series, series_from_run
 from pipeline.ingest import ingest_file
 
@@ -73,3 +79,49 @@ def test_misaligned_marin_files_are_told(tmp_path, eps):
     assert len(got["per_run"]) == 2
     assert got["median_deg"] == pytest.approx(-eps, abs=0.1), got
     assert (got["warning"] is not None) == (eps > 0), got
+
+
+def _gyro_run(name: str, bias: float, seed: int, turn_deg_s: float = 0.0, dur: float = 120.0) -> Series:
+    """A continuous-time heading, not the check's formula: psi(t) = 15 sin(2 pi t / 40) + 5 sin(2 pi t
+    / 13 + 1) deg plus a steady turn (deg/s), sampled every 0.08 s; psi logged with 0.1 deg white
+    noise, r the exact derivative plus ``bias`` (deg/s) plus AR(1) noise (0.05 deg/s, lag-1
+    correlation 0.9: a gyro's coloured noise)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, dur, 0.08)
+    w1, w2 = 2 * math.pi / 40, 2 * math.pi / 13
+    psi = 15 * np.sin(w1 * t) + 5 * np.sin(w2 * t + 1) + turn_deg_s * t
+    r = 15 * w1 * np.cos(w1 * t) + 5 * w2 * np.cos(w2 * t + 1) + turn_deg_s
+    e = np.empty(t.size)
+    e[0] = rng.normal(0.0, 0.05)
+    for k in range(1, t.size):
+        e[k] = 0.9 * e[k - 1] + rng.normal(0.0, 0.05 * math.sqrt(1 - 0.81))
+    delta = 10.0 * np.sign(np.sin(w1 * t))
+    return Series(name, t, delta, psi + rng.normal(0.0, 0.1, t.size), r + bias + e)
+
+
+def test_rate_bias_known_answers():
+    """A gyro's bias read against the heading's change, within noise; corrected only when significant;
+    its standard error is the scatter of the estimate; a turning circle's heading (hundreds of
+    degrees) is no bias."""
+    got = rate_bias([_gyro_run(f"g{k}", 0.05, seed=k) for k in range(4)])
+    for x in got["per_run"].values():
+        assert x["bias_deg_s"] == pytest.approx(0.05, abs=3 * x["se_deg_s"]) and x["corrected"], x
+    assert got["warning"] and "4 of 4 runs" in got["warning"]
+    # the correction leaves r agreeing with the heading, and runs not marked untouched
+    runs = [_gyro_run("a", 0.05, seed=10), _gyro_run("b", 0.0, seed=11)]
+    check = rate_bias(runs)
+    fixed = correct_rate_bias(runs, check)
+    assert check["per_run"]["b"]["corrected"] is False and fixed[1] is runs[1]
+    after = rate_bias(fixed)["per_run"]["a"]
+    assert abs(after["bias_deg_s"]) < 1e-9 and not after["corrected"]
+    assert np.allclose(runs[0].r - fixed[0].r, check["per_run"]["a"]["bias_deg_s"])
+    # unbiased: the estimates scatter as their standard error says (coloured noise counted), and none
+    # of 100 runs is corrected (RATE_BIAS_ALPHA: 0.27 % each)
+    clean = rate_bias([_gyro_run(f"c{k}", 0.0, seed=100 + k) for k in range(100)])
+    b = np.array([x["bias_deg_s"] for x in clean["per_run"].values()])
+    se = np.mean([x["se_deg_s"] for x in clean["per_run"].values()])
+    assert 0.7 < np.std(b) / se < 1.3, (np.std(b), se)
+    assert clean["warning"] is None and not any(x["corrected"] for x in clean["per_run"].values())
+    # a turning circle: 0.8 deg/s for 120 s, 96 deg of steady turn, no bias
+    circle = rate_bias([_gyro_run("tc", 0.0, seed=7, turn_deg_s=0.8)])["per_run"]["tc"]
+    assert not circle["corrected"] and abs(circle["bias_deg_s"]) < 3 * circle["se_deg_s"], circle

@@ -346,9 +346,9 @@ def run(args: argparse.Namespace) -> int:
         f"(held-out gain {_pct(rep['gain']['mae_psi_relative_reduction'])} on "
         f"{', '.join(rep['gain']['measured_on']) or 'no unseen run'}); wrote {path}"
     )
-    warning = rep["data_checks"]["approach_drift"]["warning"]
-    if warning:
-        print(f"warning: {warning}", file=sys.stderr)
+    for check in rep["data_checks"].values():
+        if check["warning"]:
+            print(f"warning: {check['warning']}", file=sys.stderr)
     return 0
 
 

@@ -37,7 +37,7 @@ from scipy.signal import savgol_filter
 from threadpoolctl import threadpool_limits
 
 from pipeline.config import DiagnoseConfig
-from pipeline.diagnose.datacheck import approach_drift
+from pipeline.diagnose.datacheck import approach_drift, correct_rate_bias, rate_bias
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
 from pipeline.diagnose.effects.rudder_delay import time_floor
 from pipeline.diagnose.fit import (
@@ -292,6 +292,10 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
             f"the same run is given twice (training, validation and test must differ): {', '.join(dup)}"
         )
     check_runs(tr + va + te, cfg)
+    # a rate gyro's bias, read against the heading without a model, corrected before any fit
+    # (pipeline.diagnose.datacheck)
+    rates = rate_bias(tr + va + te)
+    tr, va, te = (correct_rate_bias(x, rates) for x in (tr, va, te))
 
     folds = [Fold(tr, va)]
     if cfg.two_fold and len(tr) >= 2 and len(va) >= 2 and _exchangeable(tr, va):
@@ -308,7 +312,7 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     # in worker processes while this one makes the main selection (same results, any worker count)
     workers = 1 if te or not cfg.nested_gain else _nested_workers(cfg, len(tr) + len(va))
     with _nested_in_workers(folds, ctx, cfg, noise, workers) as futures:
-        return _select_and_report(train, validate, test, cfg, progress, folds, te, ctx, noise, futures)
+        return _select_and_report(train, validate, test, cfg, progress, folds, te, ctx, noise, futures, rates)
 
 
 @contextlib.contextmanager
@@ -328,7 +332,9 @@ def _nested_in_workers(folds, ctx, cfg, noise, workers: int):
                 f.cancel()
 
 
-def _select_and_report(train, validate, test, cfg, progress, folds, te, ctx, noise, futures) -> Diagnosis:
+def _select_and_report(
+    train, validate, test, cfg, progress, folds, te, ctx, noise, futures, rates
+) -> Diagnosis:
     bar = None
     if progress:
         from tqdm import tqdm
@@ -345,7 +351,7 @@ def _select_and_report(train, validate, test, cfg, progress, folds, te, ctx, noi
     if bar is not None:
         bar.close()
     report, base, ext, series = _report(
-        search, sel, per_fold, honest, folds, te, ctx, cfg, noise, train + validate + test
+        search, sel, per_fold, honest, folds, te, ctx, cfg, noise, train + validate + test, rates
     )
     return Diagnosis(
         report=report,
@@ -697,7 +703,7 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
     }
 
 
-def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cfg, noise, runs):
+def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cfg, noise, runs, rates):
     st = sel.structure
     base, ext = search.fit(0, ()), search.fit(0, st)
     base_val, base_per = search.eval(0, ())
@@ -803,8 +809,9 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             + "), so the sway parameters are in that convention's units and terms in v were not tried."
         )
     drift = approach_drift(folds[0].train + folds[0].val + list(te))
-    if drift["warning"]:
-        summary += " " + drift["warning"]
+    for check in (drift, rates):
+        if check["warning"]:
+            summary += " " + check["warning"]
     fold_reports = []
     for k, fold in enumerate(folds):
         b = search.fit(k, ())
@@ -879,7 +886,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
         "folds": fold_reports,
         "summary": summary,
         # what the data's own set-up may do to every fit (pipeline.diagnose.datacheck)
-        "data_checks": {"approach_drift": drift},
+        "data_checks": {"approach_drift": drift, "rate_bias": rates},
         "training_runs": [s.name for s in folds[0].train],
         "validation_runs": [s.name for s in folds[0].val],
         "test_runs": [s.name for s in te],
