@@ -125,3 +125,7 @@ def test_rate_bias_known_answers():
     # a turning circle: 0.8 deg/s for 120 s, 96 deg of steady turn, no bias
     circle = rate_bias([_gyro_run("tc", 0.0, seed=7, turn_deg_s=0.8)])["per_run"]["tc"]
     assert not circle["corrected"] and abs(circle["bias_deg_s"]) < 3 * circle["se_deg_s"], circle
+    # the same circle's heading wrapped into [0, 360) (a file not through ingest): the same reading
+    wrapped = _gyro_run("tc", 0.0, seed=7, turn_deg_s=0.8)
+    wrapped.psi = np.mod(wrapped.psi, 360.0)
+    assert rate_bias([wrapped])["per_run"]["tc"] == pytest.approx(circle)

@@ -106,7 +106,8 @@ def rate_bias(series: list[Series]) -> dict:
         n = s.t.size // RATE_BIAS_BLOCKS
         if n < 4:
             continue
-        d = np.concatenate([[0.0], np.cumsum(0.5 * (s.r[1:] + s.r[:-1]) * np.diff(s.t))]) - (s.psi - s.psi[0])
+        psi = np.unwrap(s.psi, period=360.0)  # ingest unwraps; a run made elsewhere may not be
+        d = np.concatenate([[0.0], np.cumsum(0.5 * (s.r[1:] + s.r[:-1]) * np.diff(s.t))]) - (psi - psi[0])
         slopes = np.array([np.polyfit(s.t[k * n:(k + 1) * n], d[k * n:(k + 1) * n], 1)[0]
                            for k in range(RATE_BIAS_BLOCKS)])
         b = float(np.mean(slopes))
