@@ -13,7 +13,11 @@ import pytest
 
 from pipeline.diagnose import TruthConfig, zigzag_truth
 from pipeline.diagnose.effects import BY_NAME, Context, Terms
-from pipeline.diagnose.effects.heading_misalignment import MIN_MISALIGNMENT_DEG, misalignment_deg
+from pipeline.diagnose.effects.heading_misalignment import (
+    MAX_OWN_DRIFT_DEG,
+    MIN_MISALIGNMENT_DEG,
+    misalignment_deg,
+)
 from pipeline.diagnose.extended import predict_segments, simulate_terms
 from pipeline.model import PAPER_TABLE4
 
@@ -72,6 +76,18 @@ def test_misalignment_angle_and_floor_known_answers():
         assert ok is material and "floor" in text, (eps, text)
     words = EFFECT.physical(form, {"v_bias_m_s": -U_REF * math.sin(math.radians(0.8))}, ctx)
     assert "0.80 deg to starboard" in words, words
+    # with a straight approach read: the ship's own drift it implies (read + misalignment) at most
+    # MAX_OWN_DRIFT_DEG; the tanker's 1 deg (approach read -0.96 deg, own +0.06) passes, the KVLCC2
+    # stand-in's false -5.24 deg (approach read -0.38 deg, own -5.62) does not
+    def judged(eps, drift):
+        bias = -U_REF * math.sin(math.radians(eps))
+        return EFFECT.material(form, {"v_bias_m_s": bias}, dc.replace(ctx, approach_drift_deg=drift), 0.0)
+
+    assert judged(1.02, -0.96)[0] and "drift" not in judged(1.02, -0.96)[1]
+    ok, text = judged(-5.24, -0.38)
+    assert not ok and "drift -5.62 deg" in text and "read -0.38 deg" in text, text
+    assert judged(MAX_OWN_DRIFT_DEG - 0.05, 0.0)[0] and not judged(MAX_OWN_DRIFT_DEG + 0.05, 0.0)[0]
+    assert not judged(-MAX_OWN_DRIFT_DEG - 0.5, 0.4)[0]     # own -2.1 deg
     # a sensor effect needs both the sway velocity and the surge speed
     assert EFFECT.applicable(dc.replace(ctx, v_measured=False)) is not None
     assert EFFECT.applicable(dc.replace(ctx, u_ref=None)) is not None

@@ -123,6 +123,7 @@ def _context(series: list[Series]) -> Context:
         u_min_ratio=umin,
         lpp_m=lpp,
         v_measured=any(s.v is not None for s in series),
+        approach_drift_deg=approach_drift(series)["median_deg"],
     )
 
 

@@ -136,6 +136,9 @@ class Context:
     #: False when no training run measures the sway velocity v: v is then a latent state of the model
     #: (its scale held by a convention, fit.Layout.bounds) and terms in v are not tried
     v_measured: bool = True
+    #: deg: median drift angle of the runs' straight approaches as read (atan2(v, u) before the first
+    #: rudder execute; pipeline.diagnose.datacheck.approach_drift), None when no run has an approach
+    approach_drift_deg: float | None = None
 
 
 class Effect:
