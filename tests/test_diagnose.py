@@ -192,10 +192,11 @@ def test_hsva_measured_kvlcc2(hsva_design):
     assert len(drift["per_run"]) == 13 and drift["warning"] is None
     assert max(abs(d) for d in drift["per_run"].values()) < 0.2, drift
     # HSVA's r is the heading's derivative (SPEC): no run's rate bias is significant, none corrected
-    # (measured 2026-11-25: -0.0002 to +0.0001 deg/s against standard errors of 0.002-0.004)
+    # (measured 2026-11-25: -0.0009 to +0.0008 deg/s against standard errors of 0.0004-0.0018), all
+    # under the smallest bias a MEMS gyro has (0.003 deg/s)
     rates = rep["data_checks"]["rate_bias"]["per_run"]
     assert len(rates) == 13 and not any(x["corrected"] for x in rates.values()), rates
-    assert max(abs(x["bias_deg_s"]) for x in rates.values()) < 0.001, rates
+    assert max(abs(x["bias_deg_s"]) for x in rates.values()) < 0.003, rates
     # the linear model's free-run error on held-out KVLCC2 zigzags is degrees, not noise
     assert rep["baseline"]["validation"]["mae_psi_deg"] > 1.0
     assert len(rep["folds"]) == 2 and rep["stability"]["total"] == 2
