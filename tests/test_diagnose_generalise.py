@@ -28,6 +28,13 @@ The truths (tests/truths/, no import of pipeline.model or pipeline.diagnose):
   with ``--scale 50``; the same side-swap folds.  Linear -> none (and the baseline recovers its
   parameters within 10 %), linear with the propeller's constants -> the offset alone within 25 %,
   the published model a cause and a >= 50 % held-out cut with the offset among the effects.
+- :mod:`truths.container`: a fifth ship and model family, with a degree of freedom the diagnosis has
+  not: the Son & Nomoto (1982) container ship, sway-yaw-ROLL coupled (GM 0.3 m: 5-9 deg of heel in
+  these zigzags, a lightly damped roll mode of 28 s period in the zigzag's band), cubic hull terms of
+  every kind, the rudder on the slipstream, a surge equation, port/starboard symmetric; MARIN .dat read
+  with ``--scale 35``; the same side-swap folds.  Linearised with its roll mode -> none (the roll is
+  no effect of the catalogue and must not be named as one), the published model a cause, a >= 50 %
+  held-out cut, and no rudder, servo or sensor effect (it has none).
 - Scale invariance: the same KVLCC2 runs (a) Froude-scaled to model scale and read without
   ``--scale``, (b) read at full scale without ``--scale`` (a 320 m "model"; logged step scaled by
   sqrt(45.7) so that the runs have the same number of samples): the cause must be the one found
@@ -50,6 +57,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from truths import cases as tc
+from truths import container as ct
 from truths import kvlcc2 as kv
 from truths import mariner as mr
 from truths import swayyaw as sy
@@ -1175,3 +1183,97 @@ def test_a_step_that_hinges_on_one_training_run_is_found(tk_root):
         assert len(step.why) == 1 and step.why[0].startswith("hinges on one training run"), step.why
         fewer = Search([Fold(train, val)], ctx, dc.replace(cfg, jackknife_min_train=4))
         assert fewer.hinges([0], (), cubic) == []
+
+
+# ------------------------------- a fifth ship and model family, with roll: the Son & Nomoto container ship
+CT_SCALE = 35.0           # a 5 m tank model of the 175 m ship
+CT_DURATION = 600.0       # s full scale (101 s at 1:35): 3-4 periods of the 20/20 zigzag
+#: not in the truth: the measured rudder is logged (the servo is no hidden effect), the hull and the
+#: propeller are port/starboard symmetric (no side force: no offset, no asymmetry), the heading is true
+CT_WRONG = ("rudder_offset", "rudder_asymmetry", "rudder_delay", "rudder_lag", "heading_misalignment")
+#: (form, seed, disturbance deg, fold) named wrongly (strict xfails, measured 2026-11-25)
+CT_KNOWN_WRONG = {
+    ("linear", 700, MR_DISTURBANCE_DEG, 1): "nonlinear_sway_damping named on the disturbed linear ship, "
+    "held-out 2.87 -> 2.30 deg (20 %); the disturbance draw of the seed that names the cross terms on the "
+    "disturbed linear Mariner (MR_DIST_KNOWN_WRONG); seeds 1300, 2000, 3000 none",
+    ("linear", 700, MR_DISTURBANCE_DEG, 2): "nonlinear_sway_damping named, held-out 2.54 -> 2.40 deg (5 %)",
+    ("full", 1300, MR_DISTURBANCE_DEG, 2): "yaw damping named (a kind the truth has), but the held-out cut "
+    "is 36 % (5.19 -> 3.29 deg), under the 50 % bar; fold 1 of the same seed 72 %",
+}
+
+
+def _ct_param(form, seed, dist, fold):
+    return known_wrong((form, seed, dist, fold), CT_KNOWN_WRONG, (form, seed, dist, fold),
+                       f"{form}-seed{seed}-dist{dist:g}-fold{fold}", "2026-11-25")
+
+
+_CT: dict = {}
+
+
+def container_fold(tmp_root: Path, form: str, fold: int, seed: int = TK_SEED,
+                   disturbance_deg: float = 0.0) -> dict:
+    """Side-swap fold 1 (train starboard 20/20 + 10/10, validate port) or 2 (the reverse) of one
+    container-ship form and noise seed, made once per process (selection only)."""
+    runs = (form, seed, disturbance_deg)
+    if (*runs, fold) not in _CT:
+        if runs not in _CT:
+            _CT[runs] = write_ship(tmp_root / f"{form}{seed}d{disturbance_deg:g}", ct.simulate_zigzag,
+                                   ct.Container(form=form), "Container", CT_DURATION, CT_SCALE, seed,
+                                   disturbance_deg)
+        _CT[(*runs, fold)] = side_swap_fold(_CT[runs], fold, CT_SCALE, nested_gain=False)
+    return _CT[(*runs, fold)]
+
+
+@pytest.fixture(scope="module")
+def ct_root(tmp_path_factory):
+    return tmp_path_factory.mktemp("container")
+
+
+def test_container_truth_is_what_it_says():
+    """SPEC signs and an outward heel in a steady turn; a lightly damped roll mode in the zigzag's band
+    (linearised: a complex pair of period 20-40 s, damping ratio under 0.1) beside two real, stable
+    sway-yaw poles; the published model slows in a 20/20 zigzag, heels several degrees, and the heel
+    changes the heading it makes (its overshoots differ from the same ship held upright)."""
+    s = ct.check_signs()
+    assert s["r_deg_s"] > 0 and s["v_m_s"] < 0 and -10.0 < s["phi_deg"] < -2.0, s
+    poles = ct.linear_poles()
+    roll = poles[np.abs(poles.imag) > 1e-6]
+    assert len(roll) == 2 and 20.0 < 2 * np.pi / abs(roll[0].imag) < 40.0, poles
+    assert -roll[0].real / abs(roll[0]) < 0.1 and np.all(poles.real < 0), poles
+    full = ct.simulate_zigzag(ct.Container(), 20, 20, noise=False, duration=CT_DURATION)
+    up = ct.simulate_zigzag(ct.Container(form="noroll"), 20, 20, noise=False, duration=CT_DURATION)
+    assert 3.0 < full["phi"].abs().max() < 15.0 and up["phi"].abs().max() == 0.0
+    assert full["u"].min() < 0.8 * full["u"].iloc[0]
+    over = [kv.zigzag_metrics(f, 20)["overshoots_deg"][0] for f in (full, up)]
+    assert over[0] > over[1] + 0.5, over
+
+
+@pytest.mark.parametrize("form,seed,dist,fold", [
+    _ct_param(f, s, d, k) for d in (0.0, MR_DISTURBANCE_DEG) for f in ("linear", "full")
+    for s in (TK_SEED, *TK_SEEDS) for k in (1, 2) if FULL or (d, s, k) == (0.0, TK_SEED, 1)])
+def test_container_side_swap(ct_root, form, seed, dist, fold):
+    """A ship, a model family and a degree of freedom no part of the method was built for (added after
+    the method, run as found): the Son & Nomoto container ship, whose heel in a turn feeds back into sway
+    and yaw (tests/truths/container.py), full-scale MARIN .dat read with ``--scale 35``, the side-swap
+    folds of issue #11 item 7; clean, and with the process disturbance of the Mariner and tanker tests.
+
+    - linear (the baseline's family plus the roll mode, speed held): none.  The roll is in no candidate's
+      formula; whatever it leaves must not be named as a rudder lag, a dead time or a hull term;
+    - full (the published model): a cause, a held-out cut of at least half, and none of CT_WRONG (the
+      truth's kinds: hull nonlinearity of every cubic form, the speed it loses, the rudder's flow).
+
+    Measured 2026-11-25, clean, seeds 1300 / 700 / 2000 / 3000, both folds: linear none in all 8
+    (baseline held-out 0.20-0.22 deg; the best candidate, cubic yaw damping, +36 %, cuts 0.07 deg:
+    under the heading-noise floor); full the cross terms in all 8 (with speed loss at seed 2000),
+    3.70-3.84 -> 0.35-0.61 deg (84-91 %).  Held upright (form "noroll", not tested) the same ship gives
+    cross terms + saturation, 3.11 -> 0.22 deg: the heel roughly doubles what the best model leaves.
+    Disturbed (0.5 deg of rudder, 30 s): linear none at 1300, 2000, 3000; full 65-73 % with hull kinds
+    at 2000, 3000, 700 (fold 1) and 1300 fold 1; CT_KNOWN_WRONG for the rest.  make test runs the clean
+    seed 1300 fold 1 of both forms."""
+    rep = container_fold(ct_root, form, fold, seed, dist)
+    effects = rep["extended"]["effects"]
+    if form == "linear":
+        assert rep["cause"] == "none" and effects == [], (rep["cause"], rep["extended"])
+        return
+    assert_names_a_cause_and_halves(rep)
+    assert not set(effects) & set(CT_WRONG), effects
