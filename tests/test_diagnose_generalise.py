@@ -1076,15 +1076,7 @@ def write_tanker_circles(folder: Path, form: str, seed: int = TK_SEED) -> dict:
 
 
 #: (form, seed) of the tanker with turning circles whose honest gain's interval does not exclude 0
-TK_CIRCLE_WRONG = {
-    ("full", 2000): "2026-11-25, since a step must not hinge on one training run (pipeline.diagnose."
-    "select.Search.hinges): cause nonlinear_sway_damping as before, honest gain 19 % [-5 %, +41 %] "
-    "(25 % [8 %, 44 %] before). The selection without 10/10 S trains each inner fold on one turning "
-    "circle; refitted without it, the cross terms (its choice before, +62 %) run away on the circle "
-    "(54 -> 1018 deg), so the one-standard-error rule takes cubic yaw damping (1 parameter, +48 %) over "
-    "sway damping (+54 %), which predicts 10/10 S worse (9.33 -> 14.75 deg). Seed 1300 went the other "
-    "way: 40 % [25 %, 55 %] -> 58 % [41 %, 69 %]",
-}
+TK_CIRCLE_WRONG: dict = {}
 
 
 @pytest.mark.parametrize("form,seed", [
@@ -1193,10 +1185,6 @@ CT_DURATION = 600.0       # s full scale (101 s at 1:35): 3-4 periods of the 20/
 CT_WRONG = ("rudder_offset", "rudder_asymmetry", "rudder_delay", "rudder_lag", "heading_misalignment")
 #: (form, seed, disturbance deg, fold) named wrongly (strict xfails, measured 2026-11-25)
 CT_KNOWN_WRONG = {
-    ("linear", 700, MR_DISTURBANCE_DEG, 1): "nonlinear_sway_damping named on the disturbed linear ship, "
-    "held-out 2.87 -> 2.30 deg (20 %); the disturbance draw of the seed that names the cross terms on the "
-    "disturbed linear Mariner (MR_DIST_KNOWN_WRONG); seeds 1300, 2000, 3000 none",
-    ("linear", 700, MR_DISTURBANCE_DEG, 2): "nonlinear_sway_damping named, held-out 2.54 -> 2.40 deg (5 %)",
     ("full", 1300, MR_DISTURBANCE_DEG, 2): "yaw damping named (a kind the truth has), but the held-out cut "
     "is 36 % (5.19 -> 3.29 deg), under the 50 % bar; fold 1 of the same seed 72 %",
 }

@@ -292,3 +292,24 @@ def test_floor_readings_label_the_folds_when_they_differ():
     assert floor_readings([same], [0]) == same
     got = floor_readings(["|m| 0.39 deg", "|m| 0.07 deg"], [0, 1])
     assert got == "fold 1: |m| 0.39 deg; fold 2: |m| 0.07 deg"
+
+
+def test_a_cut_carried_by_one_held_out_run_is_named():
+    """select.carried_by_one_run, known answers on per-block held-out MAE differences (deg): a cut that
+    every run shares survives leaving any one out; a cut one run makes (a drift it corrected, the other
+    runs' blocks noise about zero) does not, and that run is named; the pooled t of the latter still
+    clears the one-sided 5 % bound, which is why the check exists; two runs are too few to ask."""
+    import numpy as np
+    from scipy import stats
+
+    rng = np.random.default_rng(11)
+    shared = [(f"run{j}", list(0.4 + 0.2 * rng.standard_normal(7))) for j in range(4)]
+    assert sel.carried_by_one_run(shared, 0.05) == []
+    one = [("drift", [0.0, 0.5, 1.1, 1.2, 1.5, 1.8, 1.3])] + [
+        (f"run{j}", list(0.3 * rng.standard_normal(7))) for j in range(3)]
+    pooled = np.concatenate([d for _, d in one])
+    t = pooled.mean() / (pooled.std(ddof=1) / np.sqrt(pooled.size))
+    assert t > stats.t.ppf(0.95, pooled.size - 1), t
+    named = sel.carried_by_one_run(one, 0.05)
+    assert len(named) == 1 and named[0].startswith("drift (without it block t = "), named
+    assert sel.carried_by_one_run(one[:2], 0.05) == []
