@@ -256,18 +256,10 @@ def simulate_zigzag(
         cf = math.cos(phi)
         return (t, x0, y0, psi / RAD, u, v * cf, r * cf / RAD, d / RAD, s.rpm, phi / RAD, p / RAD)
 
-    rng = np.random.default_rng(seed)
-    sq = math.sqrt(scale)
-    sig = {"psi": 0.05, "r": 0.05 / sq, "u": 0.005 * sq, "v": 0.005 * sq, "delta": 0.05, "phi": 0.05,
-           "p": 0.05 / sq}
-    e = {k: (rng.normal(0.0, v, n) if noise else np.zeros(n)) for k, v in sig.items()}
+    e = zigzag.sensor_noise(n, scale, seed, noise, {"phi": 0.05, "p": 0.05 / math.sqrt(scale)})
     out = zigzag.run(rhs, [u0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], row, lambda x: x[5] / RAD,
                      rudder_deg, heading_deg, first_side, n, dt_log, h, t_execute, e["psi"], dist)
-    f = pd.DataFrame(out, columns=["time", "x0", "y0", "psi", "u", "v", "r", "delta", "rpm", "phi", "p"])
-    f.attrs["true"] = f.copy()
-    for k in sig:
-        f[k] = f[k] + e[k]
-    return f
+    return zigzag.logged(out, ["time", "x0", "y0", "psi", "u", "v", "r", "delta", "rpm", "phi", "p"], e)
 
 
 def check_signs(s: Container | None = None) -> dict:

@@ -214,20 +214,13 @@ def simulate_zigzag(
         cp, sp = math.cos(psi), math.sin(psi)
         return (du, dv, dr, r, U * cp - v * sp, U * sp + v * cp, dd)
 
-    rng = np.random.default_rng(seed)
-    sq = math.sqrt(scale)
-    sig = {"psi": 0.05, "r": 0.05 / sq, "u": 0.005 * sq, "v": 0.005 * sq, "delta": 0.05}
-    e = {k: (rng.normal(0.0, v, n) if noise else np.zeros(n)) for k, v in sig.items()}
+    e = zigzag.sensor_noise(n, scale, seed, noise)
     out = zigzag.run(
         rhs, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         lambda t, x: (t, x[4], x[5], x[3] / RAD, s.U0 + x[0], x[1], x[2] / RAD, -x[6] / RAD),
         lambda x: x[3] / RAD, rudder_deg, heading_deg, first_side, n, dt_log, h, t_execute, e["psi"], dist,
         command=lambda c: -c)     # the published rudder is minus the SPEC's
-    f = pd.DataFrame(out, columns=["time", "x0", "y0", "psi", "u", "v", "r", "delta"])
-    f.attrs["true"] = f.copy()
-    for k in ("psi", "r", "u", "v", "delta"):
-        f[k] = f[k] + e[k]
-    return f
+    return zigzag.logged(out, ["time", "x0", "y0", "psi", "u", "v", "r", "delta"], e)
 
 
 def check_signs(form: str = "linear") -> dict:

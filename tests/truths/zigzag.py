@@ -13,6 +13,7 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
+import pandas as pd
 
 RAD = math.pi / 180.0
 
@@ -76,3 +77,24 @@ def run(
         for _ in range(sub):
             x = rk4(rhs, x, h, c, ne)
     return out
+
+
+def sensor_noise(n: int, scale: float, seed: int, noise: bool = True, extra: dict | None = None) -> dict:
+    """White sensor noise of the full-scale truths' logged channels (``n`` samples each), from
+    model-scale figures Froude-scaled at 1:``scale``: psi 0.05 deg, r 0.05 deg/s, u and v 0.005 m/s,
+    delta 0.05 deg, then ``extra`` (channel: full-scale std), drawn in that order from
+    ``default_rng(seed)``; zeros when ``noise`` is False."""
+    rng = np.random.default_rng(seed)
+    sq = math.sqrt(scale)
+    sig = {"psi": 0.05, "r": 0.05 / sq, "u": 0.005 * sq, "v": 0.005 * sq, "delta": 0.05, **(extra or {})}
+    return {k: (rng.normal(0.0, v, n) if noise else np.zeros(n)) for k, v in sig.items()}
+
+
+def logged(rows: np.ndarray, columns: list[str], noise: dict) -> pd.DataFrame:
+    """The logged frame: the rows as measured (each channel of ``noise`` added), the true series in
+    ``attrs["true"]``."""
+    f = pd.DataFrame(rows, columns=columns)
+    f.attrs["true"] = f.copy()
+    for k, e in noise.items():
+        f[k] = f[k] + e
+    return f
