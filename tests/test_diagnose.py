@@ -743,6 +743,33 @@ def test_report_verdict_of_an_effect_that_hinges_on_a_training_run():
     assert dt.failed_tests(f, settings) == ("hinges on a training run",)
 
 
+def test_report_verdict_of_an_effect_carried_by_one_held_out_run():
+    """A finding whose whole-run cut is significant only with one held-out run's blocks (the measured
+    evidence of the virtual KCS's rudder offset, six runs with turning circles, 2026-11-25; the
+    wording of select.py) reads 'carried by one held-out run' with the run and its t, not 'not
+    significant: another effect already explained the same error' (what an unknown reason fell back
+    to, and what the report said until this verdict existed); beside a floor failure both are listed."""
+    from pipeline.report import diagnosis_text as dt
+
+    ev = ("Not named: carried by one held-out run: without it the block t-test no longer finds a cut, and "
+          "a free run's blocks are not independent, so the cut is that run's, not the ship's: "
+          "kcs_zigzag_20_20_P (without it block t = 1.24 below 1.67) (added to the linear baseline: "
+          "held-out +18%, per fold +7%, +29%); fitted: the rudder acts as if 1.13 deg to port of its "
+          "logged angle.")
+    f = _rejected("rudder_offset", 0.18, [0.07, 0.29], 2.4, 2.1, 1.66, 82, ev)
+    settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
+    v, why = dt.verdict(f, settings)
+    assert v == "carried by one held-out run", (v, why)
+    assert why.endswith("kcs_zigzag_20_20_P (without it block t = 1.24 below 1.67)") and "added to" not in why
+    assert dt.failed_tests(f, settings) == ("carried by one held-out run",)
+    f["evidence"] = ev.replace("(without it block t = 1.24 below 1.67)", "(without it block t = 1.24 below "
+                               "1.67); below its physical floor in fold 2: |offset| 0.2 deg (floor 0.3 deg)")
+    f["material"], f["floor"] = False, "|offset| 0.2 deg (floor 0.3 deg)"
+    assert dt.failed_tests(f, settings) == ("immaterial", "carried by one held-out run")
+    # each reason read up to the next: the offset's reason ends at its run, the floor's is its own
+    assert dt.verdict(f, settings)[1].endswith("kcs_zigzag_20_20_P (without it block t = 1.24 below 1.67)")
+
+
 @pytest.mark.slow
 def test_nested_workers_give_the_same_report_bytes():
     """The nested leave-one-run-out in 2 worker processes (forked while the parent makes the main

@@ -472,10 +472,10 @@ class Search:
         # they show significantly is the ship's response whatever run it comes from
         carried = carried_by_one_run(run_diffs, cfg.alpha) if t >= tc and not short_t >= short_tc else []
         if carried:
-            why.append(
-                "carried by one held-out run: without it the block t-test no longer finds a cut (the blocks "
-                "of one free run are not independent; a cut that one run alone makes significant is "
-                "that run's, not the ship's): " + "; ".join(carried)
+            why.append(  # no "; " inside: the report reads each reason up to the next one
+                "carried by one held-out run: without it the block t-test no longer finds a cut, and a free "
+                "run's blocks are not independent, so the cut is that run's, not the ship's: "
+                + ", ".join(carried)
             )
         if not all(mats):
             why.append(floor_failure(mats, floors, ks))
