@@ -415,8 +415,8 @@ for f in findings:
 if rows:
     tab = pd.DataFrame(rows).sort_values("_o").drop(columns="_o").set_index("effect")
     nb.table(tab, "Every effect of the catalogue, named effects first, then by verdict (immaterial, failed a "
-             "fold, harms a held-out run, worse from the measured state, hinges on a training run, "
-             "carried by one held-out run, not significant, not tried, fit "
+             "fold, harms a held-out run, worse from the measured state, carried by one held-out run, "
+             "hinges on a training run, not significant, not tried, fit "
              "failed) and within a verdict by "
              "held-out gain, "
              "largest first. Held-out gain: the relative cut of the validation runs' free-run MAE of psi "

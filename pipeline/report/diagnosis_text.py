@@ -147,7 +147,7 @@ def estimate_text(estimate: dict | None, uncertainty: dict | None) -> str:
 
 # ------------------------------------------------------------------------------- verdicts
 VERDICTS = ("named", "immaterial", "failed a fold", "harms a held-out run", "worse from the measured state",
-            "hinges on a training run", "carried by one held-out run", "not significant", "not tried",
+            "carried by one held-out run", "hinges on a training run", "not significant", "not tried",
             "fit failed")
 
 
@@ -166,10 +166,10 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     level, or a relative gain below the threshold); failed a fold (not better in every fold); harms
     a held-out run (significantly worse on one, or runs away on it); worse from the measured state
     (the held-out runs' pieces of a ship time scale, each from the measured state, predicted
-    significantly worse: select.py's short-horizon judge); hinges on a training run (refitted without
-    one of its training runs, the model no longer makes that run: select.py's Search.hinges); carried
-    by one held-out run (significant only with that run's blocks: select.carried_by_one_run); not
-    significant (block t-test).
+    significantly worse: select.py's short-horizon judge); carried by one held-out run (significant
+    only with that run's blocks: select.carried_by_one_run); hinges on a training run (refitted
+    without one of its training runs, the model no longer makes that run: select.py's Search.hinges);
+    not significant (block t-test).
     The reason lists every test it failed, with its numbers.
     ``all_tests``: return every verdict it earns instead (see :func:`failed_tests`).
     """
@@ -208,17 +208,15 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     harm, short = "harms a held-out run", "worse from the measured state"
     for key, v, end in (("significantly worse on a held-out manoeuvre", harm, "; runs away"),
                         ("runs away on a held-out manoeuvre", harm, "; runs away"),
-                        ("predicts worse from the measured state", short, "; it fits")):
+                        ("predicts worse from the measured state", short, "; it fits"),
+                        # select.carried_by_one_run's text has no "; " inside: it ends at the next reason
+                        ("carried by one held-out run", "carried by one held-out run", "; ")):
         if key in ev:
             part = ev[ev.index(key):].split(" (added to")[0].split(" (in the final")[0]
             reasons.append((v, part.split(end)[0]))
     if f.get("hinges_on"):   # the hinge test's runs (select.Search.hinges), a key of their own
         reasons.append(("hinges on a training run", "refitted without it, the model no longer makes that "
                         "training run: " + "; ".join(f["hinges_on"])))
-    carried = "carried by one held-out run: "
-    if carried in ev:      # select.py's text: no "; " inside, so the next reason starts at the next one
-        part = ev[ev.index(carried) + len(carried):].split(" (added to")[0].split(" (in the final")[0]
-        reasons.append(("carried by one held-out run", part.split("; ")[0]))
     t, tc = f.get("block_t"), f.get("block_t_crit")
     if isinstance(t, (int, float)) and isinstance(tc, (int, float)) and not t >= tc:
         dof = (f.get("blocks") or 0) - 1
