@@ -813,12 +813,18 @@ def tanker_fold(tmp_root: Path, form: str, fold: int, seed: int = TK_SEED, distu
     """Side-swap fold 1 (train starboard 20/20 + 10/10, validate port) or 2 (the reverse) of one tanker
     form and noise seed, made once per process (selection only: DiagnoseConfig.nested_gain off)."""
     runs = (form, seed, disturbance_deg, misalignment_deg, rate_bias_deg_s)
-    if (*runs, fold) not in _TK:
-        if runs not in _TK:
-            folder = tmp_root / f"{form}{seed}d{disturbance_deg:g}m{misalignment_deg:g}b{rate_bias_deg_s:g}"
-            _TK[runs] = write_tanker(folder, *runs)
-        _TK[(*runs, fold)] = side_swap_fold(_TK[runs], fold, TK_SCALE, nested_gain=False)
-    return _TK[(*runs, fold)]
+    folder = tmp_root / f"{form}{seed}d{disturbance_deg:g}m{misalignment_deg:g}b{rate_bias_deg_s:g}"
+    return cached_fold(_TK, runs, fold, lambda: write_tanker(folder, *runs), TK_SCALE)
+
+
+def cached_fold(cache: dict, runs: tuple, fold: int, write, scale: float) -> dict:
+    """The selection-only report of side-swap fold ``fold`` of the files ``write()`` makes for the key
+    ``runs``, each made once per process (files, then each fold's diagnosis) in ``cache``."""
+    if (*runs, fold) not in cache:
+        if runs not in cache:
+            cache[runs] = write()
+        cache[(*runs, fold)] = side_swap_fold(cache[runs], fold, scale, nested_gain=False)
+    return cache[(*runs, fold)]
 
 
 @pytest.fixture(scope="module")
@@ -1204,14 +1210,9 @@ def container_fold(tmp_root: Path, form: str, fold: int, seed: int = TK_SEED,
                    disturbance_deg: float = 0.0) -> dict:
     """Side-swap fold 1 (train starboard 20/20 + 10/10, validate port) or 2 (the reverse) of one
     container-ship form and noise seed, made once per process (selection only)."""
-    runs = (form, seed, disturbance_deg)
-    if (*runs, fold) not in _CT:
-        if runs not in _CT:
-            _CT[runs] = write_ship(tmp_root / f"{form}{seed}d{disturbance_deg:g}", ct.simulate_zigzag,
-                                   ct.Container(form=form), "Container", CT_DURATION, CT_SCALE, seed,
-                                   disturbance_deg)
-        _CT[(*runs, fold)] = side_swap_fold(_CT[runs], fold, CT_SCALE, nested_gain=False)
-    return _CT[(*runs, fold)]
+    return cached_fold(_CT, (form, seed, disturbance_deg), fold, lambda: write_ship(
+        tmp_root / f"{form}{seed}d{disturbance_deg:g}", ct.simulate_zigzag, ct.Container(form=form),
+        "Container", CT_DURATION, CT_SCALE, seed, disturbance_deg), CT_SCALE)
 
 
 @pytest.fixture(scope="module")
