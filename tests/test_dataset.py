@@ -234,3 +234,22 @@ def test_identification_window_from_the_toml_is_scale_free(tmp_path, capsys):
     assert e1["settings"]["measurement_noise"] == "data"
     assert e1["consistency"]["r_std_source"].startswith("measured from the run")
     assert e1["settings"]["r_std"] != [0.02, 0.02, 0.01]
+
+
+
+@pytest.mark.parametrize("declared", ["virtual", "measured"])
+def test_declared_provenance_is_the_datasets_as_well_as_each_runs(tmp_path, capsys, declared):
+    """A dataset.toml's ``[data] provenance`` is the user's word on what the files are: every run AND
+    the dataset's index.json say it, whatever the file's own header says (here the opposite).  The
+    index's provenance is what indices, control and their reports label the dataset with.  Found
+    2026-11-26: the index was formed from the files before the declaration was applied, so simulated
+    files declared "virtual", whose headers said nothing, were reported as "measured"."""
+    raw = tmp_path / "raw"
+    (raw / "d").mkdir(parents=True)
+    other = "measured" if declared == "virtual" else "virtual"
+    (raw / "d" / "zz.csv").write_text(f"# provenance: {other}\n" + (PROBES / "clean.csv").read_text())
+    (raw / "d" / "dataset.toml").write_text(f'[data]\nscale = 1\nprovenance = "{declared}"\n')
+    assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 0, capsys.readouterr().err
+    index = json.loads((tmp_path / "p" / "d" / "runs" / "index.json").read_text())
+    assert index["provenance"] == declared
+    assert [r["provenance"] for r in index["runs"]] == [declared]

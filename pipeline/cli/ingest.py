@@ -140,7 +140,11 @@ def _run(args) -> int:
             kw["test_name"] = over.test_name
         if ds is not None and ds.toml_path is not None:
             kw.update(ship=ds.ship.name, lpp_full=ds.ship.lpp_m, model_scale=ds.model_scale)
-        runs.append(ingest_file(f, fmt=fmt, scale=scale, config=config, **kw))
+        run = ingest_file(f, fmt=fmt, scale=scale, config=config, **kw)
+        if ds is not None and ds.provenance:
+            # the description's word on what the files are, before anything (the index below) reads it
+            run.meta["provenance"] = ds.provenance
+        runs.append(run)
     dataset = args.dataset or args.out.resolve().parent.name
     provs = {r.meta.get("provenance") for r in runs}
     index = {
@@ -162,8 +166,6 @@ def _run(args) -> int:
                 for k, v in ds.particulars().items():
                     if v is not None:
                         run.meta.setdefault(k, v)
-                if ds.provenance:
-                    run.meta["provenance"] = ds.provenance
             write_run(tmp / f"{run_id}.parquet", run)
             index["runs"].append({"run_id": run_id, "file": f"{run_id}.parquet", **run.meta})
         write_json(tmp / "index.json", index)
