@@ -87,7 +87,8 @@ fuzz: $(STAMP)
 	TANKTEST_HYPOTHESIS=fuzz $(PY) -m pytest -n 2 tests/test_fuzzy.py tests/test_ingest_bad.py
 
 # make generalise                 all 32 truth cases + a fresh draw + KVLCC2 + the Mariner at 7 noise seeds,
-#                                 with and without a process disturbance, + the tanker at 4 seeds
+#                                 with and without a process disturbance, + the tanker at 4 seeds,
+#                                 + the container ship, + the cross-flow ferry and bulker (model-scale CSV)
 #                                 (tests/test_diagnose_generalise.py)
 #                                 (make test runs a CI-sized cut of 8 cases)
 .PHONY: generalise
