@@ -89,3 +89,26 @@ class Catalog:
     @property
     def raw_dir_default(self) -> Path:
         return Path("data/raw") / self.dataset
+
+
+#: how the built-in tank's CSV files begin their ``# note:`` (pipeline/tank/simulate.py NOTE)
+TANK_NOTE_PREFIX = "virtual tank (MMG model of the KCS"
+
+
+def is_builtin_tank_run(meta: dict) -> bool:
+    """Whether a run (its metadata, or its entry of ``runs/index.json``) is the built-in virtual
+    tank's: provenance virtual, the KCS or no ship named, and no file note other than the tank's own.
+    A user's simulator writing "provenance: virtual" (or a dataset.toml declaring it) makes simulated
+    data, but not this tank's: its ship is not the KCS the tank's plant and words describe."""
+    if meta.get("provenance") != "virtual":
+        return False
+    header = meta.get("header")
+    note = str((header or {}).get("note") or "") if isinstance(header, dict) else ""
+    return meta.get("ship") in (None, "KCS") and (not note or note.startswith(TANK_NOTE_PREFIX))
+
+
+def is_builtin_tank(index: dict) -> bool:
+    """Whether every run of a dataset's ``runs/index.json`` is the built-in tank's
+    (:func:`is_builtin_tank_run`), the dataset's provenance virtual and at least one run listed."""
+    runs = index.get("runs") or []
+    return index.get("provenance") == "virtual" and bool(runs) and all(is_builtin_tank_run(r) for r in runs)

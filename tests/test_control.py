@@ -40,8 +40,11 @@ K, T, TW = PAPER_TABLE7["K"], PAPER_TABLE7["T"], 3.0
 T1, T2, T3 = PAPER_TABLE7["T1"], PAPER_TABLE7["T2"], PAPER_TABLE7["T3"]
 
 
-def _indices(provenance="measured"):
-    return {"dataset": "t", "provenance": provenance,
+def _indices(provenance="measured", builtin_tank=None):
+    """Indices of a dataset; ``builtin_tank`` (default: provenance virtual) as the indices stage
+    writes it (pipeline.catalog.is_builtin_tank)."""
+    builtin = provenance == "virtual" if builtin_tank is None else builtin_tank
+    return {"dataset": "t", "provenance": provenance, "builtin_tank": builtin,
             "control_model": {"source": "test", **PAPER_TABLE7},
             "graphical_model": {"source": "test", **PAPER_GRAPHICAL}}
 
@@ -376,6 +379,15 @@ def test_virtual_dataset_uses_the_kcs_plant():
     assert set(ts["plant"]) == {"nomoto", "kcs"}
     doc2, ts2 = run_control(_indices("measured"), replace(FAST, seeds=1), progress=False)
     assert set(ts2["plant"]) == {"nomoto"} and doc2["plants"]["kcs"]["used"] is False
+
+
+def test_users_simulated_dataset_is_not_run_on_the_kcs():
+    """A user's simulated runs of their own ship (provenance virtual, not the built-in tank's) are
+    simulated data, but the KCS is not their ship: the autopilot runs on the identified Nomoto plant
+    only, and the document says which (found 2026-11-26 on a bulk carrier's simulated zigzags)."""
+    doc, ts = run_control(_indices("virtual", builtin_tank=False), replace(FAST, seeds=1), progress=False)
+    assert set(ts["plant"]) == {"nomoto"} and doc["plants"]["kcs"]["used"] is False
+    assert doc["virtual"] is True and doc["builtin_tank"] is False
 
 
 def test_first_order_fallback_control_model():

@@ -253,3 +253,25 @@ def test_declared_provenance_is_the_datasets_as_well_as_each_runs(tmp_path, caps
     index = json.loads((tmp_path / "p" / "d" / "runs" / "index.json").read_text())
     assert index["provenance"] == declared
     assert [r["provenance"] for r in index["runs"]] == [declared]
+
+
+
+@pytest.mark.parametrize("entry, builtin", [
+    ({"provenance": "virtual", "ship": "KCS", "header": {"note": "virtual tank (MMG model of the KCS, ...)"}},
+     True),
+    ({"provenance": "virtual", "ship": None}, True),
+    ({"provenance": "virtual", "ship": "KCS", "header": {"note": "CFD free-running simulation"}}, False),
+    ({"provenance": "virtual", "ship": "bulk carrier"}, False),
+    ({"provenance": "measured", "ship": "KCS"}, False),
+])
+def test_builtin_tank_is_the_tanks_runs_only(entry, builtin):
+    """One rule (pipeline.catalog.is_builtin_tank) for every stage that treats the built-in tank's data
+    differently (identify's and validate's labels, control's KCS plant, the reports' banner and index):
+    provenance virtual, the KCS or no ship, no note but the tank's.  A dataset is the tank's only when
+    every run is."""
+    from pipeline.catalog import is_builtin_tank, is_builtin_tank_run
+
+    assert is_builtin_tank_run(entry) is builtin
+    tank = {"provenance": "virtual", "ship": "KCS"}
+    assert is_builtin_tank({"provenance": "virtual", "runs": [tank, entry]}) is builtin
+    assert is_builtin_tank({"provenance": "virtual", "runs": []}) is False

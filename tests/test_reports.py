@@ -442,3 +442,17 @@ def test_banner_names_the_builtin_tank_only_for_its_runs(tmp_path, ship, note, b
     # the figures' legend says the same: a user's simulated runs are not "virtual tank"
     want = "virtual tank (logged)" if builtin else "simulated (logged)"
     assert Data(tmp_path, "usersim").source_label == want
+
+
+@pytest.mark.parametrize("builtin", [True, False])
+def test_index_page_labels_only_the_builtin_tank_virtual_tank(tmp_path, builtin):
+    """The reports' index page says VIRTUAL TANK for the built-in tank's dataset only; a user's simulated
+    runs are labelled simulated, not the KCS tank (as each page's banner says)."""
+    from pipeline.report.render import Report, write_index
+
+    (tmp_path / "identification-sim.html").write_text("<html></html>")
+    write_index(tmp_path, [Report("identification", "sim", tmp_path / "identification-sim.html", 1.0,
+                                  "virtual", 2, builtin_tank=builtin)])
+    page = (tmp_path / "index.html").read_text()
+    assert ("VIRTUAL TANK (simulated, not measured)" in page) is builtin
+    assert ("SIMULATED data (not measured; not the built-in KCS tank)" in page) is (not builtin)

@@ -88,7 +88,8 @@ def _run(args) -> int:
 def _print_summary(m: dict) -> None:
     keys = ("rise_time", "max_deviation", "steady_mae", "max_rudder", "steady_rudder_min",
             "steady_rudder_max", "mean_rudder", "rudder_reversals")
-    print(f"provenance: {m['provenance']}" + ("  (VIRTUAL TANK)" if m.get("virtual") else ""))
+    print(f"provenance: {m['provenance']}" + ("  (VIRTUAL TANK)" if m.get("builtin_tank") else
+                                               "  (SIMULATED, not measured)" if m.get("virtual") else ""))
     print(f"{'plant':<7} {'design':<15} " + " ".join(f"{k[:14]:>14}" for k in keys))
     for r in m["results"]:
         vals = " ".join(f"{r['stats'][k]['mean']:>8.3f}±{r['stats'][k]['std']:<5.2f}" for k in keys)

@@ -11,7 +11,9 @@ Designs (all with Tw = ``cfg.tw``):
   ``cfg.filter_tau``;
 * ``graphical``: first-order CGSA from the graphical-method K and T (when the indices give it).
 Plants: ``nomoto`` (the identified second-order Nomoto model, always) and ``kcs`` (the nonlinear
-virtual-tank KCS, only when the dataset's provenance is "virtual" and :mod:`pipeline.tank` is present).
+virtual-tank KCS, only when the runs are the built-in tank's, the indices' ``builtin_tank``
+(:func:`pipeline.catalog.is_builtin_tank`), and :mod:`pipeline.tank` is present: a user's simulated
+runs of another ship, provenance "virtual" too, are not the KCS).
 Every (plant, design) pair is run on the same wave seeds (common random numbers), so the
 identified-minus-graphical differences are paired.
 """
@@ -117,7 +119,8 @@ def refused_document(indices: dict, cfg: ControlConfig) -> tuple[dict, pd.DataFr
     """The control outputs when no index set can be trusted: no design, the reason, nothing simulated."""
     basis = design_basis(indices)
     doc = {"dataset": indices.get("dataset"), "provenance": indices.get("provenance", "unknown"),
-           "virtual": indices.get("provenance") == "virtual", "refused": True, "reason": basis["reason"],
+           "virtual": indices.get("provenance") == "virtual",
+           "builtin_tank": bool(indices.get("builtin_tank")), "refused": True, "reason": basis["reason"],
            "design_basis": basis, "notes": [f"autopilot not designed: {basis['reason']}"],
            "config": asdict(cfg), "designs": {}, "results": [], "identification_value": {},
            "paper": PAPER_CONTROL, "plants": {}, "seeds": []}
@@ -209,7 +212,7 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
         notes.append(f"T3 = {control_model['T3']:.4g} s <= 0: second-order CGSA skipped ({why})")
     if plants is None:
         plants = ("nomoto",)
-        if provenance == "virtual":
+        if indices.get("builtin_tank"):
             if kcs_available():
                 plants = ("nomoto", "kcs")
             else:
@@ -267,6 +270,7 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
         "dataset": indices.get("dataset"),
         "provenance": provenance,
         "virtual": provenance == "virtual",
+        "builtin_tank": bool(indices.get("builtin_tank")),
         "plants": {
             "nomoto": {"used": "nomoto" in plants,
                        "description": "identified second-order Nomoto model (control_model), linear, "

@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from pipeline.catalog import is_builtin_tank
 from pipeline.config import IndicesConfig
 from pipeline.errors import InputError, PipelineError
 from pipeline.indices import trust
@@ -254,7 +255,8 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
 
     prov = index.get("provenance")
     indices_doc = {
-        "dataset": index.get("dataset"), "provenance": prov, "identification_run": ident,
+        "dataset": index.get("dataset"), "provenance": prov, "builtin_tank": is_builtin_tank(index),
+        "identification_run": ident,
         "identified": ident_out, "identified_flags": ident_flags, "nondimensional": nondim,
         "uncertainty_method": methods,
         "uncertainty_check": checks, "identified_failures": failures,

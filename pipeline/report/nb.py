@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pipeline.catalog import Catalog
+from pipeline.catalog import Catalog, is_builtin_tank
 from pipeline.errors import InputError
 from pipeline.io import read_frame, read_json
 from pipeline.report import particulars
@@ -126,12 +126,8 @@ class Data:
         """The runs are the built-in virtual tank's: provenance virtual, the KCS (or no ship named), and
         no file note other than the tank's own (a user's simulator writing "provenance: virtual" is
         simulated data, but not this tank)."""
-        if self.provenance != "virtual":
-            return False
-        runs = self.runs()
-        notes = [str((h or {}).get("note", "")) if isinstance(h, dict) else ""
-                 for h in (runs["header"] if "header" in runs.columns else [None] * len(runs))]
-        return self.ships in ([], ["KCS"]) and all(not n or n.startswith(TANK_NOTE_PREFIX) for n in notes)
+        self.runs()                               # no runs listed: refused, as every page does
+        return is_builtin_tank(self.index)
 
     @property
     def ships(self) -> list[str]:
@@ -212,10 +208,6 @@ def flatten(obj: Any, prefix: str = "") -> dict[str, Any]:
     else:
         out[prefix] = obj
     return out
-
-
-#: how the built-in tank's CSV files begin their ``# note:`` (pipeline/tank/simulate.py NOTE)
-TANK_NOTE_PREFIX = "virtual tank (MMG model of the KCS"
 
 
 def banner(data: Data, title: str, settings: dict[str, Any] | None = None):

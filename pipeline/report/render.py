@@ -28,7 +28,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from pipeline.catalog import Catalog
+from pipeline.catalog import Catalog, is_builtin_tank
 from pipeline.errors import InputError, PipelineError
 from pipeline.io import atomic_path, read_json, write_json
 from pipeline.report import particulars
@@ -206,6 +206,7 @@ class Report:
     ship: str = ""            # one-line ship and scale summary (pipeline.report.particulars.summary)
     fingerprint: str = ""     # SHA-256 of everything the page depends on (see fingerprint())
     skipped: bool = False     # True: the page was up to date and not rendered again
+    builtin_tank: bool = False  # the runs are the built-in tank's (pipeline.catalog.is_builtin_tank)
 
 
 # Stage folders each notebook reads (every file in them counts for "changed").
@@ -298,7 +299,7 @@ def render(notebook: str, cat: Catalog, out_dir: Path, kernel: str = KERNEL_NAME
     index = read_json(cat.runs_index)
     return Report(notebook, cat.dataset, dest, time.perf_counter() - t0,
                   str(index.get("provenance", "unknown")), len(index.get("runs", [])),
-                  ship=particulars.summary(index), fingerprint=fp)
+                  ship=particulars.summary(index), fingerprint=fp, builtin_tank=is_builtin_tank(index))
 
 
 # ------------------------------------------------------------------------------------------ index
@@ -329,7 +330,7 @@ def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
             continue
         entries[r.html.name] = {"file": r.html.name, "notebook": r.notebook, "dataset": r.dataset,
                                 "provenance": r.provenance, "runs": r.runs, "ship": r.ship,
-                                "fingerprint": r.fingerprint,
+                                "fingerprint": r.fingerprint, "builtin_tank": r.builtin_tank,
                                 "seconds": round(r.seconds, 2), "rendered": stamp}
     order = {n: i for i, n in enumerate(NOTEBOOKS)}
     rows = sorted((e for e in entries.values() if (out_dir / e["file"]).is_file()),
@@ -340,7 +341,10 @@ def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
     for ds in dict.fromkeys(e["dataset"] for e in rows):
         group = [e for e in rows if e["dataset"] == ds]
         prov = group[0]["provenance"]
-        label = ("<b class='virtual'>VIRTUAL TANK (simulated, not measured)</b>" if prov == "virtual"
+        label = ("<b class='virtual'>VIRTUAL TANK (simulated, not measured)</b>"
+                 if prov == "virtual" and group[0].get("builtin_tank")
+                 else "<b class='virtual'>SIMULATED data (not measured; not the built-in KCS tank)</b>"
+                 if prov == "virtual"
                  else "<b class='measured'>measured tank data</b>" if prov == "measured"
                  else f"<b class='mixed'>{esc(prov)} data</b>")
         items = "\n".join(f"<li><a href='{esc(e['file'])}'>{esc(e['notebook'])}</a></li>" for e in group)
@@ -403,7 +407,7 @@ def render_all(datasets: Sequence[str], notebooks: Sequence[str], out_dir: Path,
             if dest.is_file() and entry.get("fingerprint") == fingerprint(nb, cat):
                 reports.append(Report(nb, cat.dataset, dest, 0.0, entry.get("provenance", "unknown"),
                                       entry.get("runs", 0), entry.get("ship", ""), entry["fingerprint"],
-                                      skipped=True))
+                                      skipped=True, builtin_tank=entry.get("builtin_tank", False)))
             else:
                 todo.append((nb, cat))
         pairs = todo
