@@ -114,6 +114,24 @@ def test_heading_is_unwrapped(tmp_path):
     np.testing.assert_allclose(run.frame["psi"], frame["psi"], atol=1e-5)
 
 
+def test_missing_samples_are_noted_not_silently_bridged(tmp_path):
+    """Samples missing from a log (shorter than the gap limit, so bridged by the resampling's
+    interpolation) are said in the run's ingest_notes: how many gaps, the longest and where.  A logger's
+    jitter of a fifth of a step is not a gap; a clean log has no such note."""
+    frame = _synthetic()
+    clean = ingest_file(_write_csv(tmp_path / "clean.csv", frame))
+    assert not any("gap" in n for n in clean.meta.get("ingest_notes", []))
+    holed = frame.drop(frame.index[100:103]).drop(frame.index[300:301])     # 3 samples, then 1
+    notes = ingest_file(_write_csv(tmp_path / "holed.csv", holed)).meta["ingest_notes"]
+    gap = [n for n in notes if "gap" in n]
+    assert gap == ["2 gaps in time (samples missing), the longest 0.32 s after 7.92 s; interpolated over by "
+                   "the resampling"], notes
+    jit = frame.copy()
+    jit["time"] = jit["time"] + np.random.default_rng(1).uniform(-0.016, 0.016, len(jit))
+    assert not any("gap" in n for n in ingest_file(_write_csv(tmp_path / "jit.csv", jit)).meta.get(
+        "ingest_notes", []))
+
+
 def test_detect_format():
     assert detect_format(TANK_HEADER.splitlines() + ["time,psi,r,delta", "0,0,0,0"]) == "csv"
     assert detect_format(MARIN_FILE.read_text().splitlines()) == "marin"

@@ -241,6 +241,22 @@ def _rebuild_step(t: np.ndarray, lines: np.ndarray, name: str) -> np.ndarray:
     return a + h * k
 
 
+def gap_note(t: np.ndarray) -> str | None:
+    """A note on samples missing from a time base ``t`` (s): steps longer than 1.5 logging steps (the
+    median step; one dropped sample makes a step of two, a logger's jitter stays well under half a
+    step), which the resampling bridges by interpolation (a gap beyond ``IngestConfig.max_gap`` is
+    refused before this).  None when there is none."""
+    steps = np.diff(t)
+    if steps.size < 2:
+        return None
+    holes = np.flatnonzero(steps > 1.5 * np.median(steps))
+    if not holes.size:
+        return None
+    k = int(holes[np.argmax(steps[holes])])
+    return (f"{holes.size} gap{'s' if holes.size > 1 else ''} in time (samples missing), the longest "
+            f"{steps[k]:.3g} s after {t[k] - t[0]:.4g} s; interpolated over by the resampling")
+
+
 def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.DataFrame) -> dict[str, Any]:
     meta: dict[str, Any] = {
         "run_id": Path(name).stem,
@@ -257,6 +273,9 @@ def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.D
         meta["lpp_source"] = "the file's header"
     t = frame["time"].to_numpy()
     meta["original_dt"] = float(f"{np.median(np.diff(t)):.10g}")
+    note = gap_note(t)
+    if note:
+        meta.setdefault("ingest_notes", []).append(note)
     test = parse_test_name(meta["test_name"])
     meta.update(test)
     t, psi, delta = (frame[c].to_numpy(dtype=float) for c in ("time", "psi", "delta"))
