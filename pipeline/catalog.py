@@ -112,3 +112,13 @@ def is_builtin_tank(index: dict) -> bool:
     (:func:`is_builtin_tank_run`), the dataset's provenance virtual and at least one run listed."""
     runs = index.get("runs") or []
     return index.get("provenance") == "virtual" and bool(runs) and all(is_builtin_tank_run(r) for r in runs)
+
+
+def data_label(builtin_tank: bool, provenance: str | None) -> dict[str, str]:
+    """What a stage output made from simulated runs says about them: ``{"virtual_tank": ...}`` for the
+    built-in tank's, ``{"simulated": ...}`` for a user's simulated runs, nothing for measured ones."""
+    if builtin_tank:
+        return {"virtual_tank": "made from virtual-tank (simulated KCS) data, not from measurements"}
+    if provenance == "virtual":
+        return {"simulated": "made from simulated data (provenance virtual), not from measurements"}
+    return {}

@@ -269,9 +269,13 @@ def test_builtin_tank_is_the_tanks_runs_only(entry, builtin):
     differently (identify's and validate's labels, control's KCS plant, the reports' banner and index):
     provenance virtual, the KCS or no ship, no note but the tank's.  A dataset is the tank's only when
     every run is."""
-    from pipeline.catalog import is_builtin_tank, is_builtin_tank_run
+    from pipeline.catalog import data_label, is_builtin_tank, is_builtin_tank_run
 
     assert is_builtin_tank_run(entry) is builtin
+    # what identify's and validate's documents then say of the data
+    label = data_label(builtin, entry["provenance"])
+    assert set(label) == ({"virtual_tank"} if builtin else {"simulated"} if entry["provenance"] == "virtual"
+                          else set())
     tank = {"provenance": "virtual", "ship": "KCS"}
     assert is_builtin_tank({"provenance": "virtual", "runs": [tank, entry]}) is builtin
     assert is_builtin_tank({"provenance": "virtual", "runs": []}) is False

@@ -6,7 +6,7 @@ identified); writes validate/metrics.json and validate/predictions.parquet (pipe
 
 from __future__ import annotations
 
-from pipeline.catalog import is_builtin_tank
+from pipeline.catalog import data_label, is_builtin_tank
 from pipeline.cli._common import add_dataset_args, catalog
 from pipeline.config import FilterConfig
 from pipeline.errors import InputError
@@ -64,10 +64,7 @@ def _run(args) -> int:
                "units": "mse_v (m/s)^2, mse_r (deg/s)^2, mae_psi deg"}}
     # the identify-side trust flags of each estimate travel with the errors computed from it
     doc["flags"] = {alg: identify_side_flags(est) for alg, est in estimates.items()}
-    if is_builtin_tank(index):
-        doc["virtual_tank"] = "made from virtual-tank (simulated KCS) data, not from measurements"
-    elif index.get("provenance") == "virtual":
-        doc["simulated"] = "made from simulated data (provenance virtual), not from measurements"
+    doc.update(data_label(is_builtin_tank(index), index.get("provenance")))
     with atomic_dir(cat.validate_dir) as tmp:
         write_frame(tmp / "predictions.parquet", preds, {"dataset": args.dataset, "ident_run": ident_id})
         write_json(tmp / "metrics.json", doc)

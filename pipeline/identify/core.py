@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pipeline.catalog import is_builtin_tank_run
+from pipeline.catalog import data_label, is_builtin_tank_run
 from pipeline.config import FilterConfig
 from pipeline.errors import FilterError, InputError, ModelError
 from pipeline.identify import fast
@@ -456,10 +456,7 @@ def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfi
     if "v" not in ident.measured:
         doc["note"] = ("run has no sway-velocity column: identified from r and psi only; the six "
                        "parameters are not unique, the Nomoto indices are")
-    if is_builtin_tank_run(meta):
-        doc["virtual_tank"] = "made from virtual-tank (simulated KCS) data, not from measurements"
-    elif meta.get("provenance") == "virtual":
-        doc["simulated"] = "made from simulated data (provenance virtual), not from measurements"
+    doc.update(data_label(is_builtin_tank_run(meta), meta.get("provenance")))
     return doc
 
 

@@ -123,9 +123,7 @@ class Data:
 
     @property
     def builtin_tank(self) -> bool:
-        """The runs are the built-in virtual tank's: provenance virtual, the KCS (or no ship named), and
-        no file note other than the tank's own (a user's simulator writing "provenance: virtual" is
-        simulated data, but not this tank)."""
+        """The runs are the built-in virtual tank's (:func:`pipeline.catalog.is_builtin_tank`)."""
         self.runs()                               # no runs listed: refused, as every page does
         return is_builtin_tank(self.index)
 
