@@ -249,6 +249,14 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
             tmp.write_text(_tank_key() + "\n")
     if not raw_files(ds):
         raise InputError(f"dataset {ds.name!r}: no tank files in {ds.raw}")
+    if ds.name not in (VIRTUAL, HSVA) and not (ds.raw / "dataset.toml").is_file():
+        # a user's folder without a description: say what is assumed and write one beside the files
+        # to edit, as `ingest --dataset NAME` does (ingest is handed the files here, and was silent),
+        # and before ingest's key is formed, so that the next build finds it unchanged
+        from pipeline.dataset import load_dataset
+
+        load_dataset(ds.name, ds.raw if ds.name == LOCAL else ds.raw.parent,
+                     notice=lambda line: say(f"[{ds.name}] {line}"))
     done = []
     for stage in stages:
         if up_to_date(stage, ds, root):

@@ -143,6 +143,33 @@ def test_only_stale_stages_rerun(tmp_path, monkeypatch):
     assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == ["indices", "control"]
 
 
+def test_a_folder_without_description_is_told_and_given_one_once(tmp_path):
+    """`make pipeline` (build_dataset) on a user's folder without a dataset.toml: one line says what was
+    assumed and a dataset.toml to edit is written beside the files, before ingest's key, so the next
+    build reruns nothing.  Found 2026-11-26: ingest is handed the files by the build, and then said
+    nothing and wrote nothing (only `ingest --dataset NAME` without files did)."""
+    raw, root = tmp_path / "raw", tmp_path / "proc"
+    (raw / "mine").mkdir(parents=True)
+    (raw / "mine" / "a.csv").write_text("time,psi,r,delta\n0,0,0,0\n")
+    outputs = {s.name: s.outputs for s in build.STAGES}
+
+    def fake(argv):
+        for o in outputs[argv[0]]:
+            p = root / "mine" / o
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_text(argv[0])
+        return 0
+
+    said: list[str] = []
+    ds = build.Dataset("mine", raw / "mine")
+    assert build.build_dataset(ds, root, run=fake, say=said.append)[0] == "ingest"
+    notice = [s for s in said if "no dataset.toml" in s]
+    assert len(notice) == 1 and "assumed model-scale files (scale 1)" in notice[0], said
+    assert "scale = 1.0" in (raw / "mine" / "dataset.toml").read_text()
+    said.clear()
+    assert build.build_dataset(ds, root, run=fake, say=said.append) == [] and said == []
+
+
 @pytest.mark.skipif(shutil.which("make") is None, reason="GNU make is not installed")
 @pytest.mark.skipif(shutil.which("git") is None or not (ROOT / ".git").exists(),
                     reason="needs git and a git checkout to know which files are committed")
