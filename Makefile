@@ -35,11 +35,15 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
+# A dataset or stage that fails stops only what reads its outputs: the other datasets and stages are
+# built and every report whose inputs exist is rendered; then the exit status is non-zero.
 pipeline: $(STAMP)
 	@start=$$(date +%s); \
-	$(PY) -m pipeline run --all --shared '$(SHARED)' && \
-	$(PY) -m pipeline report --all --changed --out reports && \
-	echo "pipeline finished in $$(( $$(date +%s) - start )) s; reports in reports/index.html"
+	$(PY) -m pipeline run --all --shared '$(SHARED)'; st=$$?; \
+	$(PY) -m pipeline report --all --changed --keep-going --out reports || st=$$((st ? st : 2)); \
+	echo "pipeline finished in $$(( $$(date +%s) - start )) s; reports in reports/index.html"; \
+	if [ $$st -ne 0 ]; then echo "pipeline: not everything was built or rendered (see the errors above)" >&2; fi; \
+	exit $$st
 
 datasets: $(STAMP)
 	@$(PY) -m pipeline run --list --shared '$(SHARED)'

@@ -228,8 +228,11 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
                   say: Callable[[str], None] = print) -> list[str]:
     """Bring every stage of ``ds`` up to date (up to and including ``until``); returns the stages run.
 
-    ``run`` executes one argv list (default :func:`pipeline.cli.main`); a non-zero code stops the
-    build with :class:`pipeline.errors.PipelineError` naming the dataset and the stage.
+    ``run`` executes one argv list (default :func:`pipeline.cli.main`).  A stage whose command exits
+    non-zero stops only the stages that read its outputs (directly or not, ``Stage.after``): the others
+    still run, as ``make -k`` would (a campaign of turning circles alone has no zigzag to identify
+    from, and its diagnosis needs none).  Then :class:`pipeline.errors.PipelineError` names the
+    dataset, the failed stage, the stages not run and those that ran.
     """
     from pipeline.errors import InputError, PipelineError
 
@@ -257,16 +260,30 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
 
         load_dataset(ds.name, ds.raw if ds.name == LOCAL else ds.raw.parent,
                      notice=lambda line: say(f"[{ds.name}] {line}"))
-    done = []
+    done: list[str] = []
+    failed: list[tuple[str, int]] = []
+    blocked: list[str] = []
     for stage in stages:
+        if any(u in blocked or u in dict(failed) for u in stage.after):
+            blocked.append(stage.name)
+            continue
         if up_to_date(stage, ds, root):
             continue
         say(f"[{ds.name}] {stage.name}")
+        code = 0
         for argv in stage.argv(ds, root):
             code = run(argv)
             if code != 0:
-                raise PipelineError(f"dataset {ds.name!r}: stage {stage.name} failed "
-                                    f"(exit {code}, see above)")
+                break
+        if code != 0:
+            failed.append((stage.name, code))
+            continue
         _write_stamp(stage, ds, root)
         done.append(stage.name)
+    if failed:
+        name, code = failed[0]
+        more = "".join(f"; stage {n} failed too (exit {c})" for n, c in failed[1:])
+        raise PipelineError(f"dataset {ds.name!r}: stage {name} failed (exit {code}, see above){more}"
+                            + (f"; not run, they read its outputs: {', '.join(blocked)}" if blocked else "")
+                            + (f"; ran {', '.join(done)}" if done else ""))
     return done

@@ -143,6 +143,64 @@ def test_only_stale_stages_rerun(tmp_path, monkeypatch):
     assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == ["indices", "control"]
 
 
+def test_a_failing_stage_stops_only_what_reads_its_outputs(tmp_path):
+    """A stage whose command fails (identify on a campaign of turning circles alone: no zigzag to
+    identify from) stops validate, indices and control, which read its outputs, and nothing else: the
+    diagnosis, which reads only the runs, is built.  Then one error names the stage, what was not run
+    and what ran; the next build tries the failed stage and its dependents again, not the rest."""
+    from pipeline.errors import PipelineError
+
+    raw, root = tmp_path / "raw", tmp_path / "proc"
+    (raw / "mine").mkdir(parents=True)
+    (raw / "mine" / "a.csv").write_text("time,psi,r,delta\n0,0,0,0\n")
+    (raw / "mine" / "dataset.toml").write_text("[data]\nscale = 1\n")
+    outputs = {s.name: s.outputs for s in build.STAGES}
+    ran: list[str] = []
+
+    def fake(argv):
+        ran.append(argv[0])
+        if argv[0] == "identify":
+            return 2
+        for o in outputs[argv[0]]:
+            p = root / "mine" / o
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_text(argv[0])
+        return 0
+
+    ds = build.Dataset("mine", raw / "mine")
+    with pytest.raises(PipelineError) as err:
+        build.build_dataset(ds, root, run=fake, say=lambda s: None)
+    assert ran == ["ingest", "identify", "diagnose"]
+    assert str(err.value) == ("dataset 'mine': stage identify failed (exit 2, see above); not run, they read "
+                              "its outputs: validate, indices, control; ran ingest, diagnose")
+    ran.clear()
+    with pytest.raises(PipelineError):
+        build.build_dataset(ds, root, run=fake, say=lambda s: None)
+    assert ran == ["identify"]
+
+
+def test_run_builds_the_other_datasets_when_one_fails(tmp_path, capsys):
+    """`run --dataset A B`: a dataset that cannot be built (a folder of files that are not tank data)
+    is one error line; the next dataset is built all the same; the exit status is 2."""
+    from pipeline.cli import main
+
+    raw = tmp_path / "raw"
+    (raw / "bad").mkdir(parents=True)
+    (raw / "bad" / "broken.csv").write_text("time,psi,r,delta\n0,0,0,oops\n")
+    (raw / "bad" / "dataset.toml").write_text("[data]\nscale = 1\n")
+    (raw / "good").mkdir()
+    shutil.copy(ROOT / "tests" / "data" / "probes" / "clean.csv", raw / "good" / "zz.csv")
+    (raw / "good" / "dataset.toml").write_text("[data]\nscale = 1\n")
+    rc = main(["run", "--dataset", "bad", "good", "--raw", str(raw), "--root", str(tmp_path / "proc"),
+               "--until", "ingest"])
+    cap = capsys.readouterr()
+    assert rc == 2
+    assert "dataset 'bad': stage ingest failed" in cap.err and "[good] ran ingest" in cap.out
+    assert cap.err.strip().splitlines()[-1] == "error: 1 of 2 dataset(s) not fully built: bad (see above)"
+    assert (tmp_path / "proc" / "good" / "runs" / "index.json").is_file()
+    assert not (tmp_path / "proc" / "bad" / "runs").exists()
+
+
 def test_a_folder_without_description_is_told_and_given_one_once(tmp_path):
     """`make pipeline` (build_dataset) on a user's folder without a dataset.toml: one line says what was
     assumed and a dataset.toml to edit is written beside the files, before ingest's key, so the next

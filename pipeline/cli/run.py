@@ -6,10 +6,11 @@ never pass through a shell.  ``--list`` prints the dataset names, one per line.
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 
-from pipeline.errors import InputError
+from pipeline.errors import InputError, PipelineError
 
 
 def register(sub) -> None:
@@ -46,8 +47,19 @@ def _run(args) -> int:
             raise InputError(f"unknown dataset {missing[0]!r} (known: {', '.join(by_name)})")
         chosen = [by_name[n] for n in args.dataset]
     t0 = time.perf_counter()
+    failed = []
     for ds in chosen:
-        done = build_dataset(ds, args.root, until=args.until)
+        # one dataset's failure does not stop the others (a user's folder with a bad file must not
+        # keep the rest from being built); each is said on its line, and the exit status is 2
+        try:
+            done = build_dataset(ds, args.root, until=args.until)
+        except PipelineError as exc:
+            print(f"error: {exc}", file=sys.stderr, flush=True)
+            failed.append(ds.name)
+            continue
         print(f"[{ds.name}] " + (f"ran {', '.join(done)}" if done else "up to date"), flush=True)
     print(f"stages finished in {time.perf_counter() - t0:.0f} s")
+    if failed:
+        raise PipelineError(f"{len(failed)} of {len(chosen)} dataset(s) not fully built: {', '.join(failed)} "
+                            "(see above)")
     return 0
