@@ -42,9 +42,19 @@ def is_tank_file(path: Path) -> bool:
 
 
 def raw_files(ds: Dataset) -> list[Path]:
-    """The dataset's raw tank files, sorted (top level of its folder only)."""
+    """The dataset's raw tank files, sorted.  A user's folder with a dataset.toml: the files its
+    description names (``files_dir``, the ``files`` globs, less the runs marked ``skip``:
+    :meth:`pipeline.dataset.Dataset.raw_files`), as ``ingest --dataset NAME`` reads them; otherwise
+    the top level of its folder (the built-in datasets' folders are their files' own).  Found
+    2026-11-26: the build listed the folder's top level whatever the description said, so ``make
+    pipeline`` found no files behind a ``files_dir`` and ingested files the globs left out."""
     if not ds.raw.is_dir():
         return []
+    if ds.name not in (VIRTUAL, HSVA) and (ds.raw / "dataset.toml").is_file():
+        from pipeline.dataset import load_dataset
+
+        described = load_dataset(ds.name, ds.raw if ds.name == LOCAL else ds.raw.parent, write_missing=False)
+        return sorted(described.raw_files(), key=lambda p: p.name)
     return sorted(p for p in ds.raw.iterdir() if is_tank_file(p))
 
 

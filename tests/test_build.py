@@ -143,6 +143,31 @@ def test_only_stale_stages_rerun(tmp_path, monkeypatch):
     assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == ["indices", "control"]
 
 
+def test_the_build_reads_the_files_the_description_names(tmp_path):
+    """`make pipeline` hands ingest the files a dataset.toml names, as `ingest --dataset NAME` reads
+    them: from its ``files_dir``, matching its ``files`` globs, without the runs marked ``skip``.
+    Found 2026-11-26: the build listed the folder's own top level, so a description pointing at its
+    files elsewhere gave "no tank files", and files its globs left out were ingested."""
+    from pipeline.dataset import load_dataset
+
+    raw = tmp_path / "raw"
+    (raw / "mine").mkdir(parents=True)
+    elsewhere = tmp_path / "logger_export"
+    elsewhere.mkdir()
+    for name in ("zz20_s.csv", "zz10_s.csv", "zz10_p.csv", "calibration.csv"):
+        (elsewhere / name).write_text("time,psi,r,delta\n0,0,0,0\n")
+    (raw / "mine" / "stray.csv").write_text("time,psi,r,delta\n0,0,0,0\n")
+    (raw / "mine" / "dataset.toml").write_text('[data]\nscale = 1\nfiles_dir = "../../logger_export"\n'
+                                               'files = ["zz*"]\n\n[runs.zz10_p]\nskip = true\n')
+    ds = build.Dataset("mine", raw / "mine")
+    names = [p.name for p in build.raw_files(ds)]
+    assert names == ["zz10_s.csv", "zz20_s.csv"]
+    assert names == [p.name for p in load_dataset("mine", raw, write_missing=False).raw_files()]
+    argv = build._ingest_argv(ds, tmp_path / "proc")[0]
+    handed = [Path(a).resolve() for a in argv if a.endswith(".csv")]
+    assert handed == [(elsewhere / n).resolve() for n in names]
+
+
 def test_a_failing_stage_stops_only_what_reads_its_outputs(tmp_path):
     """A stage whose command fails (identify on a campaign of turning circles alone: no zigzag to
     identify from) stops validate, indices and control, which read its outputs, and nothing else: the
