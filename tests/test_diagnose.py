@@ -581,6 +581,53 @@ def test_catalog_mode_says_which_runs_it_left_out(tmp_path, monkeypatch, capsys)
     assert "design: train z20s, z10p; validate z20p, z10s; test none (the honest gain by nested" in out
 
 
+def test_catalog_mode_takes_the_descriptions_roles(tmp_path, monkeypatch, capsys):
+    """``diagnose --dataset`` with ``[roles]`` train / validate / test in the dataset's description (SPEC
+    section 9; ingest records them in runs/index.json): the design is the user's, said so, and a run
+    in no role is left out with that reason.  Found 2026-11-26: the roles were recorded and ignored,
+    the stated rule designing instead."""
+    from pipeline.catalog import Catalog
+
+    monkeypatch.setattr("pipeline.cli.diagnose.DiagnoseConfig", lambda: SELECTION_ONLY)   # CI time
+    cat = Catalog(root=tmp_path, dataset="mine")
+    cfg = TruthConfig(rudder_offset=2.0, seed=3)
+    legs = {"z20s": (20, "starboard"), "z10p": (10, "port"), "z20p": (20, "port"), "z10s": (10, "starboard"),
+            "z15s": (15, "starboard")}
+    entries = []
+    for j, (rid, (a, side)) in enumerate(legs.items()):
+        run = zigzag_truth(a, a, side, 40.0, dc.replace(cfg, seed=j))
+        write_run(cat.runs_dir / f"{rid}.parquet", dc.replace(run, meta={**run.meta, "run_id": rid}))
+        entries.append({"run_id": rid, "file": f"{rid}.parquet", "rudder_deg": a, "heading_deg": a,
+                        "kind": "zigzag", "first_side": side, "approach_speed": 2.0})
+    roles = {"identify": None, "train": ["z20p", "z10s"], "validate": ["z20s"], "test": ["z10p"]}
+    cat.runs_index.write_text(json.dumps({"dataset": "mine", "roles": roles, "runs": entries}))
+    assert main(["diagnose", "--dataset", "mine", "--root", str(tmp_path), "--no-plots"]) == 0
+    out = capsys.readouterr().out
+    rep = json.loads((cat.diagnose_dir / "diagnosis.json").read_text())
+    assert rep["training_runs"] == ["z20p", "z10s"] and rep["validation_runs"] == ["z20s"]
+    assert rep["gain"]["measured_on"] == ["z10p"]
+    assert rep["runs_not_used"] == {"z15s": "in no [roles] of the dataset's description"}
+    assert "design (the dataset's [roles]): train z20p, z10s; validate z20s; test z10p" in out
+
+
+@pytest.mark.parametrize("roles, msg", [
+    ({"train": ["z20s"]}, "[roles] gives train but not validate"),
+    ({"train": ["z20s"], "validate": ["zz99"]},
+     "[roles] validate names run 'zz99', which the dataset has not"),
+    ({"train": ["z20s"], "validate": ["z20s"]}, "[roles] names run 'z20s' in both train and validate"),
+])
+def test_descriptions_roles_refused_in_one_line(roles, msg):
+    from pipeline.cli.diagnose import roles_design
+    from pipeline.errors import InputError
+
+    index = {"ship": {"dataset_toml": "data/raw/mine/dataset.toml"}, "roles": roles,
+             "runs": [{"run_id": "z20s"}, {"run_id": "z10p"}]}
+    with pytest.raises(InputError) as err:
+        roles_design(index)
+    assert str(err.value).startswith("data/raw/mine/dataset.toml: " + msg) and "\n" not in str(err.value)
+    assert roles_design({"roles": {"identify": "z20s", "train": [], "validate": []}, "runs": []}) is None
+
+
 def test_catalog_rule_promises_on_any_index():
     """The rule's promises (:func:`_check_design`) on seeded random run indexes: amplitudes from a
     tank's usual grid, sides at random, 2 to 14 runs, some with pairs, some without any twin."""

@@ -7,7 +7,8 @@ Catalog mode:   ``--dataset D`` uses every zigzag and turning circle of data/pro
 by the rule of :func:`pick_catalog_runs` (selection runs in twins spanning the rudder and heading
 amplitudes, crossed by side; turning circles in twins crossed the same way; every other run a test run;
 runs at another approach speed than the largest set that agrees within 15 % left out, with the reason,
-in ``runs_not_used`` of diagnosis.json: :func:`one_speed`);
+in ``runs_not_used`` of diagnosis.json: :func:`one_speed`), or, when the dataset's description gives
+``[roles]`` train and validate (SPEC section 9), by those roles (:func:`roles_design`);
 writes data/processed/D/diagnose/.
 """
 
@@ -41,6 +42,33 @@ def load_run(path: str | Path, scale: float | None = None) -> Run:
     run = ingest_file(path, **kw)
     run.meta.setdefault("run_id", path.stem)
     return run
+
+
+def roles_design(index: dict) -> tuple[list[str], list[str], list[str]] | None:
+    """(train, validate, test) run ids from the ``[roles]`` of the dataset's description, as ingest
+    recorded them in runs/index.json, or None when it gives neither train nor validate (the stated
+    rule then designs).  Refused in one line naming the description: only one of train and validate,
+    a run id the dataset has not, or a run in two roles."""
+    roles = index.get("roles") or {}
+    given = {k: list(roles.get(k) or []) for k in ("train", "validate", "test")}
+    if not (given["train"] or given["validate"]):
+        return None
+    toml = (index.get("ship") or {}).get("dataset_toml") or "dataset.toml"
+    if not (given["train"] and given["validate"]):
+        missing = "validate" if given["train"] else "train"
+        raise InputError(f"[roles] gives {'train' if given['train'] else 'validate'} but not {missing}: "
+                         "the diagnosis needs both (or neither, for its own design)", file=toml)
+    known = {e["run_id"] for e in index.get("runs", [])}
+    seen: dict[str, str] = {}
+    for role, ids in given.items():
+        for rid in ids:
+            if rid not in known:
+                raise InputError(f"[roles] {role} names run {rid!r}, which the dataset has not (its runs: "
+                                 f"{', '.join(sorted(known))})", file=toml)
+            if rid in seen:
+                raise InputError(f"[roles] names run {rid!r} in both {seen[rid]} and {role}", file=toml)
+            seen[rid] = role
+    return given["train"], given["validate"], given["test"]
 
 
 #: two runs are TWINS (the same manoeuvre for the purpose of swapping training and validation) when
@@ -307,17 +335,29 @@ def run(args: argparse.Namespace) -> int:
     else:
         cat = catalog(args)
         index = read_json(cat.runs_index)
-        entries, other = one_speed(index.get("runs", []), cfg.speed_tolerance)
-        not_used = {e["run_id"]: _other_speed(e, entries, cfg.speed_tolerance) for e in other}
-        train_ids, val_ids, test_ids = pick_catalog_runs(entries)
-        placed = set(train_ids + val_ids + test_ids)
-        not_used.update({e["run_id"]: f"a test of kind '{e.get('kind')}': the design takes zigzags and "
-                                      "turning circles" for e in entries if e["run_id"] not in placed})
+        roles = roles_design(index)
+        if roles is not None:
+            # the user's own design (SPEC section 9 [roles]): taken as given; the diagnosis itself
+            # refuses runs of different approach speeds
+            entries = index.get("runs", [])
+            train_ids, val_ids, test_ids = roles
+            placed = set(train_ids + val_ids + test_ids)
+            not_used = {e["run_id"]: "in no [roles] of the dataset's description" for e in entries
+                        if e["run_id"] not in placed}
+        else:
+            entries, other = one_speed(index.get("runs", []), cfg.speed_tolerance)
+            not_used = {e["run_id"]: _other_speed(e, entries, cfg.speed_tolerance) for e in other}
+            train_ids, val_ids, test_ids = pick_catalog_runs(entries)
+            placed = set(train_ids + val_ids + test_ids)
+            not_used.update({e["run_id"]: f"a test of kind '{e.get('kind')}': the design takes zigzags "
+                                          "and turning circles"
+                             for e in entries if e["run_id"] not in placed})
         if not_used:
             print("not used: " + "; ".join(f"{k} ({why})" for k, why in not_used.items()))
         outside = extrapolated(entries, train_ids + val_ids, test_ids)
         print(
-            f"design: train {', '.join(train_ids)}; validate {', '.join(val_ids)}; test "
+            ("design (the dataset's [roles])" if roles is not None else "design")
+            + f": train {', '.join(train_ids)}; validate {', '.join(val_ids)}; test "
             f"{', '.join(test_ids) or 'none (the honest gain by nested leave-one-run-out)'}"
             + (f"; outside the selection's amplitudes: {', '.join(outside)}" if outside else "")
         )
