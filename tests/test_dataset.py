@@ -279,3 +279,47 @@ def test_builtin_tank_is_the_tanks_runs_only(entry, builtin):
     tank = {"provenance": "virtual", "ship": "KCS"}
     assert is_builtin_tank({"provenance": "virtual", "runs": [tank, entry]}) is builtin
     assert is_builtin_tank({"provenance": "virtual", "runs": []}) is False
+
+
+def test_a_users_simulated_ship_through_every_stage(tmp_path, monkeypatch, capsys):
+    """A user's folder as `make pipeline` meets it, through every real stage: a simulated ferry that is
+    not the built-in tank (tests/truths/crossflow.py, canonical CSV at model scale, one run with a
+    0.3 s dropout), described by a dataset.toml that declares it virtual, points at its files elsewhere
+    and gives the diagnosis its roles.  Each stage must read the description as ingest does: the
+    dataset virtual but not the tank's (identify says simulated, control runs no KCS), the dropout
+    noted, the diagnosis on the given roles.  The faults this guards were found 2026-11-26 on such a
+    folder (README, "Running it on your own files")."""
+    from selection_only import SELECTION_ONLY
+    from truths import crossflow as cf
+    from truths.files import write_csv
+
+    monkeypatch.setattr("pipeline.cli.diagnose.DiagnoseConfig", lambda: SELECTION_ONLY)   # CI time
+    raw, root, export = tmp_path / "raw", tmp_path / "proc", tmp_path / "logger_export"
+    export.mkdir()
+    legs = ((20, "starboard"), (10, "port"), (20, "port"), (10, "starboard"))
+    for j, (a, side) in enumerate(legs):
+        f = cf.simulate_zigzag(cf.hull("ferry"), a, a, side, seed=9100 + j, duration=60.0)
+        if j == 3:
+            f = f.drop(f.index[400:406])                                   # 0.3 s at 20 Hz
+        write_csv(f, export / f"ferry_zz{a}_{side[0].upper()}.csv",
+                  {"ship": "ferry model", "test": f"zigzag {a}/{a} {side}"})
+    (raw / "ferry").mkdir(parents=True)
+    (raw / "ferry" / "dataset.toml").write_text(
+        '[ship]\nname = "ferry"\nlpp_m = 160.0\n\n[data]\nscale = 1.0\nmodel_scale = 40.0\n'
+        'provenance = "virtual"\nfiles_dir = "../../logger_export"\n\n'
+        '[roles]\ntrain = ["ferry_zz20_S", "ferry_zz10_P"]\nvalidate = ["ferry_zz20_P", "ferry_zz10_S"]\n')
+    rc = main(["run", "--dataset", "ferry", "--raw", str(raw), "--root", str(root)])
+    cap = capsys.readouterr()
+    assert rc == 0, cap.err
+    index = json.loads((root / "ferry" / "runs" / "index.json").read_text())
+    assert index["provenance"] == "virtual" and len(index["runs"]) == 4
+    holed = next(r for r in index["runs"] if r["run_id"] == "ferry_zz10_S")
+    assert any(n.startswith("1 gap in time") for n in holed["ingest_notes"]), holed.get("ingest_notes")
+    est = json.loads((root / "ferry" / "identify" / "srukf-ffm" / "estimates.json").read_text())
+    assert "simulated" in est and "virtual_tank" not in est
+    ctl = json.loads((root / "ferry" / "control" / "metrics.json").read_text())
+    assert ctl["virtual"] is True and ctl["builtin_tank"] is False and ctl["plants"]["kcs"]["used"] is False
+    diag = json.loads((root / "ferry" / "diagnose" / "diagnosis.json").read_text())
+    assert diag["training_runs"] == ["ferry_zz20_S", "ferry_zz10_P"]
+    assert diag["validation_runs"] == ["ferry_zz20_P", "ferry_zz10_S"]
+    assert "design (the dataset's [roles])" in cap.out
