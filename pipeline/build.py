@@ -41,6 +41,12 @@ def is_tank_file(path: Path) -> bool:
     return path.is_file() and not (path.name.startswith(".") or path.suffix.lower() in NOT_TANK_SUFFIXES)
 
 
+def raw_root(ds: Dataset) -> Path:
+    """The raw root the dataset's description is found under (pipeline.dataset.load_dataset): the
+    folder itself for 'local' (files straight in data/raw), else its parent."""
+    return ds.raw if ds.name == LOCAL else ds.raw.parent
+
+
 def raw_files(ds: Dataset) -> list[Path]:
     """The dataset's raw tank files, sorted.  A user's folder with a dataset.toml: the files its
     description names (``files_dir``, the ``files`` globs, less the runs marked ``skip``:
@@ -53,7 +59,7 @@ def raw_files(ds: Dataset) -> list[Path]:
     if ds.name not in (VIRTUAL, HSVA) and (ds.raw / "dataset.toml").is_file():
         from pipeline.dataset import load_dataset
 
-        described = load_dataset(ds.name, ds.raw if ds.name == LOCAL else ds.raw.parent, write_missing=False)
+        described = load_dataset(ds.name, raw_root(ds), write_missing=False)
         return sorted(described.raw_files(), key=lambda p: p.name)
     return sorted(p for p in ds.raw.iterdir() if is_tank_file(p))
 
@@ -143,9 +149,8 @@ def _ingest_argv(ds: Dataset, root: Path) -> list[list[str]]:
     folder itself for 'local', else its parent; without it a ``run --raw DIR`` read the description
     under data/raw, so a full-scale folder's scale was not applied and ingest refused its files)."""
     files = [str(p) for p in raw_files(ds)]
-    raw_root = ds.raw if ds.name == LOCAL else ds.raw.parent
     return [["ingest", *files, "--out", str(root / ds.name / "runs"), "--dataset", ds.name,
-             "--raw", str(raw_root)]]
+             "--raw", str(raw_root(ds))]]
 
 
 def _dataset_args(ds: Dataset, root: Path) -> list[str]:
@@ -268,8 +273,7 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
         # and before ingest's key is formed, so that the next build finds it unchanged
         from pipeline.dataset import load_dataset
 
-        load_dataset(ds.name, ds.raw if ds.name == LOCAL else ds.raw.parent,
-                     notice=lambda line: say(f"[{ds.name}] {line}"))
+        load_dataset(ds.name, raw_root(ds), notice=lambda line: say(f"[{ds.name}] {line}"))
     done: list[str] = []
     failed: list[tuple[str, int]] = []
     blocked: list[str] = []

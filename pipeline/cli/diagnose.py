@@ -55,9 +55,9 @@ def roles_design(index: dict) -> tuple[list[str], list[str], list[str]] | None:
         return None
     toml = (index.get("ship") or {}).get("dataset_toml") or "dataset.toml"
     if not (given["train"] and given["validate"]):
-        missing = "validate" if given["train"] else "train"
-        raise InputError(f"[roles] gives {'train' if given['train'] else 'validate'} but not {missing}: "
-                         "the diagnosis needs both (or neither, for its own design)", file=toml)
+        has, lacks = ("train", "validate") if given["train"] else ("validate", "train")
+        raise InputError(f"[roles] gives {has} but not {lacks}: the diagnosis needs both (or neither, for "
+                         "its own design)", file=toml)
     known = {e["run_id"] for e in index.get("runs", [])}
     seen: dict[str, str] = {}
     for role, ids in given.items():
