@@ -102,6 +102,25 @@ def test_stage_code_dependencies_follow_imports():
     assert "identify/srukf.py" in ident and "indices/stage.py" not in ident
 
 
+def _fake_stages(root: Path, ran: list[str], fail: tuple[str, ...] = ()):
+    """A stand-in for the stage commands of dataset 'mine': records each stage in ``ran``, exits 2 for
+    the stages in ``fail``, else writes the stage's outputs (its name and a counter)."""
+    outputs = {s.name: s.outputs for s in build.STAGES}
+
+    def fake(argv):
+        stage = argv[0]
+        ran.append(stage)
+        if stage in fail:
+            return 2
+        for o in outputs[stage]:
+            p = root / "mine" / o
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_text(f"{stage} {len(ran)}")
+        return 0
+
+    return fake
+
+
 def test_only_stale_stages_rerun(tmp_path, monkeypatch):
     """Fake stage commands (they write a counter into their outputs): nothing reruns when nothing
     changed; a changed raw file reruns everything; a changed module of one stage reruns that stage
@@ -110,17 +129,8 @@ def test_only_stale_stages_rerun(tmp_path, monkeypatch):
     (raw / "mine").mkdir(parents=True)
     (raw / "mine" / "a.csv").write_text("time,psi,r,delta\n0,0,0,0\n")
     ds = build.Dataset("mine", raw / "mine")
-    outputs = {s.name: s.outputs for s in build.STAGES}
     ran: list[str] = []
-
-    def fake(argv):
-        stage = argv[0]
-        ran.append(stage)
-        for o in outputs[stage]:
-            p = root / "mine" / o
-            p.parent.mkdir(parents=True, exist_ok=True)
-            p.write_text(f"{stage} {len(ran)}")
-        return 0
+    fake = _fake_stages(root, ran)
 
     everything = ["ingest", "identify", "validate", "indices", "control", "diagnose"]
     assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == everything
@@ -179,18 +189,8 @@ def test_a_failing_stage_stops_only_what_reads_its_outputs(tmp_path):
     (raw / "mine").mkdir(parents=True)
     (raw / "mine" / "a.csv").write_text("time,psi,r,delta\n0,0,0,0\n")
     (raw / "mine" / "dataset.toml").write_text("[data]\nscale = 1\n")
-    outputs = {s.name: s.outputs for s in build.STAGES}
     ran: list[str] = []
-
-    def fake(argv):
-        ran.append(argv[0])
-        if argv[0] == "identify":
-            return 2
-        for o in outputs[argv[0]]:
-            p = root / "mine" / o
-            p.parent.mkdir(parents=True, exist_ok=True)
-            p.write_text(argv[0])
-        return 0
+    fake = _fake_stages(root, ran, fail=("identify",))
 
     ds = build.Dataset("mine", raw / "mine")
     with pytest.raises(PipelineError) as err:
@@ -234,15 +234,7 @@ def test_a_folder_without_description_is_told_and_given_one_once(tmp_path):
     raw, root = tmp_path / "raw", tmp_path / "proc"
     (raw / "mine").mkdir(parents=True)
     (raw / "mine" / "a.csv").write_text("time,psi,r,delta\n0,0,0,0\n")
-    outputs = {s.name: s.outputs for s in build.STAGES}
-
-    def fake(argv):
-        for o in outputs[argv[0]]:
-            p = root / "mine" / o
-            p.parent.mkdir(parents=True, exist_ok=True)
-            p.write_text(argv[0])
-        return 0
-
+    fake = _fake_stages(root, [])
     said: list[str] = []
     ds = build.Dataset("mine", raw / "mine")
     assert build.build_dataset(ds, root, run=fake, say=said.append)[0] == "ingest"
