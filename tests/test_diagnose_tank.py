@@ -114,7 +114,48 @@ of that design names cubic damping + rudder saturation, with speed dependence at
 n = 0.00 (53 % of the speed lost).  A hull-only form (rudder force not scaled; fitted outside the method
 for this check) gains -1 % / 15 % on 20/20 + 10/10 (n = 1.11 / -2.4) and 41 % / -49 % on 35/35 +
 20/20 (n = 5.1 / 0.4): no fold-stable, physical exponent.  So speed loss is not material on this ship
-at constant rps on any design tried; the xfail below stays, with these figures as its reason.
+at constant rps on any zigzag design tried (nor a turning circle beside a zigzag); the xfail below
+stays for the zigzag design, with these figures as its reason.  A pull-out is where it is found.
+
+A pull-out (the tank's turning circle with ``pull_out_s``: the rudder returned to midships once the
+turn is steady), measured 2026-11-26.  Designs are written train / validate, the validation runs the
+mirror image ("po a S" = an a deg turning circle to starboard, pulled out at 40 s of 80 s; "z10 S" =
+10/10 zigzag); oracle gains per fold at the default noise seed, then at noise seeds 11, 12, 13:
+
+  design              effect, oracle base         gains (default seed)  at seeds 11 / 12 / 13
+  po10 S + po20 P     dead time, own cubic        +3 % / -4 % (0.16 s)  -
+  po5 S + po10 P      dead time, own cubic        0 % / -12 % (0.28 s)  -
+  po20 S + po35 P     dead time, own cubic        +1 % / -4 % (0.10 s)  (50 deg/s rudder: -1 / -8 %)
+  z10 S + po10 P      dead time, own cubic        -44 % / -4 %          -
+  z10 S + po10 P      dead time, all hull terms   +46 % / +54 %         -104/+11, -9/-63, +21/-39 %
+  po10 S + po20 P     dead time, all hull terms   +32 % / -27 %         -18/-19, +37/+71, -21/-11 %
+  po20 S + po35 P     dead time, all hull terms   +35 % / +26 %         +15/+1, +57/+60, -11/+40 %
+  z10 S + z5 P        dead time, all hull terms   +48 % / +37 %         +6/+1, -16/-14, +26/+15 %
+  po20 S + po35 P     speed, own cubic            +70 % / +67 % (n .58) +64/+62, +69/+64, +64/+62 %
+  z10 S + po10 P      speed, own cubic            +28 % / +41 % (n .69) +23/+47, +18/+19, +24/+47 %
+  z10 S + po10 P      speed, all hull terms       +71 % / +54 % (n .50) +40/+22, +31/+36, +28/+35 %
+
+(own cubic: the base of the tables above; all hull terms: v|v|, v^2 r / v r^2 and r^3 together, the
+hull as far as the catalogue can write it.  With that base the dead time is worth 30 % on the current
+zigzag design too, at the default seed only: which noise seed the fit sees decides it.)
+
+Pulling out of a steady turn is where the KCS's speed matters: it turns at 77 % of its approach
+speed in the 10 deg circle and 42 % in the 35 deg one, then accelerates, so hull forces that scale
+with u separate from the rudder's, which the slipstream holds.  The full diagnosis of z10 S + po10 P
+(the design of the tests below, PULL_OUT) names speed dependence beside hull terms at all four seeds:
+
+  seed      speed free: extended model, speed gain per fold (n)     speed held      dead time 0.6 s
+  default   sway damping + speed, +75 % / +79 % (0.60)              sway damping    named, +49 / +67 %
+  11        cross terms + speed, +43 % / +54 % (0.40)               sway damping    named, +53 / +43 %
+  12        cross terms + speed, +53 % / +54 % (0.42)               sway damping    not named
+  13        cross terms + speed, +47 % / +44 % (0.42)               sway damping    not named
+
+The dead time, alone on the linear baseline, is worth +43 % to +68 % in both folds at every seed,
+estimated 0.54-0.56 s; but at seeds 12 and 13, added to the final model, it makes the held-out 10/10
+zigzags significantly worse (seed 12: 0.45 -> 0.86 deg, block t = -6.2) while it cuts the pull-outs,
+and the diagnosis names nothing that worsens a held-out manoeuvre.  So on the pull-out design speed
+loss is found (test_tank_speed_loss_is_found_with_a_pull_out) and the dead time is seen at every seed
+but named at two of four (test_tank_dead_time_is_seen_on_a_pull_out, and a strict xfail at seed 12).
 """
 
 from __future__ import annotations
@@ -293,23 +334,48 @@ def test_tank_dead_time_is_measured_not_claimed():
 
 
 #: the best faster-rudder design for the dead time (module docstring's table): the current 10/10 + 5/5
-#: design with a 50 deg/s servo; legs (rudder deg, heading deg, side)
+#: design with a 50 deg/s servo; manoeuvres to train on and to validate on (their mirror images)
+def _zigzags(legs):
+    return tuple(tank.zigzag(a, h, s, duration=80.0) for a, h, s in legs)
+
+
 _LEGS = {
-    "train": ((10, 10, "starboard"), (5, 5, "port")),
-    "validate": ((10, 10, "port"), (5, 5, "starboard")),
+    "train": _zigzags(((10, 10, "starboard"), (5, 5, "port"))),
+    "validate": _zigzags(((10, 10, "port"), (5, 5, "starboard"))),
 }
 FAST = {**_LEGS, "rudder_rate": 50.0}
 CURRENT = {**_LEGS, "rudder_rate": TankConfig().rudder_rate}
+#: the pull-out design (issue 11 item 6 names the manoeuvre; module docstring's last table): a 10/10
+#: zigzag to one side and a 10 deg turning circle to the other, its rudder returned to midships after
+#: 40 s, validated on the mirror image; the current rudder
+PULL_OUT = {
+    "train": (tank.zigzag(10, 10, "starboard", duration=80.0),
+              tank.turning_circle(10, "port", duration=80.0, pull_out_s=40.0)),
+    "validate": (tank.zigzag(10, 10, "port", duration=80.0),
+                 tank.turning_circle(10, "starboard", duration=80.0, pull_out_s=40.0)),
+    "rudder_rate": TankConfig().rudder_rate,
+}
 
 
 def _design_runs(design, **kw):
     cfg = dc.replace(TankConfig(), **{"hold_speed": True, "rudder_rate": design["rudder_rate"], **kw})
 
-    def make(legs):
+    def make(manoeuvres):
         coeffs = _symmetric()
-        return [tank.simulate(tank.zigzag(a, h, s, duration=80.0), cfg, coeffs=coeffs) for a, h, s in legs]
+        return [tank.simulate(m, cfg, coeffs=coeffs) for m in manoeuvres]
 
     return make(design["train"]), make(design["validate"])
+
+
+_DESIGN_CACHE: dict = {}
+
+
+def _design_diagnosis(name: str, **kw):
+    """The diagnosis (selection only) of design ``name`` (a module constant) with the tank's ``kw``."""
+    key = (name, tuple(sorted(kw.items())))
+    if key not in _DESIGN_CACHE:
+        _DESIGN_CACHE[key] = diagnose(*_design_runs(globals()[name], **kw), SELECTION_ONLY).report
+    return _DESIGN_CACHE[key]
 
 
 def _oracle(train, validate, base: tuple, effect: str):
@@ -356,6 +422,70 @@ def test_tank_dead_time_is_found_with_a_fast_rudder():
     assert min(finding["validation_gain_in_extended_folds"]) >= 0.30, _summary(rep)
     est = rep["extended"]["effect_estimates"]["rudder_delay"]["estimate"]["delay_s"]
     assert abs(est - 0.6) <= 0.25 * 0.6, est
+
+
+#: a noise seed of the tank at which the pull-out design's dead time is seen but not named (measured
+#: 2026-11-26 at four seeds: named at the default seed and at 11, not at 12 and 13; docstring)
+NOT_NAMED_SEED = 12
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [TankConfig().seed, NOT_NAMED_SEED], ids=["seed_default", "seed_12"])
+def test_tank_dead_time_is_seen_on_a_pull_out(seed):
+    """On the pull-out design the 0.6 s dead time is worth >= 30 % held-out in both folds when it is
+    added alone to the linear baseline, and its estimate is within 25 %: what the zigzag designs never
+    showed (module docstring).  Asserted at a seed where it is named and at one where it is not."""
+    rep = _design_diagnosis("PULL_OUT", rudder_delay=0.6, seed=seed)
+    finding = next(f for f in rep["findings"] if f["effect"] == "rudder_delay")
+    assert min(finding["validation_gain_folds"]) >= 0.30, _summary(rep)
+    assert abs(finding["estimate"]["delay_s"] - 0.6) <= 0.25 * 0.6, finding["estimate"]
+    sig = {f["effect"] for f in rep["findings"] if f["significant"]}
+    assert sig <= {"rudder_delay", *HULL_NL}, _summary(rep)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured 2026-11-26: alone +52 % / +50 % held-out (0.54 s), but "
+                   "added to the final model (sway damping) it makes the held-out 10/10 zigzags "
+                   "significantly worse (0.45 -> 0.86 deg, block t = -6.2), so it is not named; named at 2 "
+                   "of 4 noise seeds (docstring)")
+def test_tank_dead_time_is_found_with_a_pull_out():
+    rep = _design_diagnosis("PULL_OUT", rudder_delay=0.6, seed=NOT_NAMED_SEED)
+    finding = next(f for f in rep["findings"] if f["effect"] == "rudder_delay")
+    assert "rudder_delay" in rep["extended"]["effects"], _summary(rep)
+    assert finding["significant"], finding["evidence"]
+    assert min(finding["validation_gain_in_extended_folds"]) >= 0.30, _summary(rep)
+
+
+@pytest.mark.slow
+def test_tank_speed_loss_is_found_with_a_pull_out():
+    """Speed free, the pull-out design: the KCS loses 23 % of its speed in the 10 deg turn, and speed
+    dependence is found on top of the ship's own hull nonlinearity by the criteria of the injected
+    effects (in the extended model beside nothing but hull terms, significant, worth >= 30 % in both
+    folds).  Estimates: the speed loss the diagnosis reports is within 25 % of the truth's (its
+    noise-free surge speed); the exponent has no truth to match (the tank is MMG at constant rps, not
+    the power form), but physics bounds it: hull forces scale as u (n = 1 for the dimensional
+    derivatives) while the slipstream holds the rudder's inflow up (n near 0 for the rudder terms),
+    so a blend lies in (0, 1].  Speed held, the same design: speed dependence is not tried and only
+    hull terms are named."""
+    rep = _design_diagnosis("PULL_OUT", hold_speed=False)
+    kind, summary = "speed_loss", _summary(rep)
+    assert kind in rep["extended"]["effects"], summary
+    assert set(rep["extended"]["effects"]) <= {kind, *HULL_NL}, summary
+    finding = next(f for f in rep["findings"] if f["effect"] == kind)
+    assert finding["significant"], finding["evidence"]
+    assert min(finding["validation_gain_in_extended_folds"]) >= 0.30, summary
+    clean = dc.replace(TankConfig(), hold_speed=False, noise=False)
+    u = np.concatenate([tank.simulate(m, clean, coeffs=_symmetric()).col("u") for m in PULL_OUT["train"]])
+    truth = 1.0 - u.min() / u[0]
+    est = finding["estimate"]
+    assert est["max_speed_loss"] == pytest.approx(truth, rel=0.25), (est, truth)
+    assert 0.0 < rep["extended"]["effect_estimates"][kind]["estimate"]["speed_exponent"] <= 1.0, summary
+    sig = {f["effect"] for f in rep["findings"] if f["significant"]}
+    assert sig <= {kind, *HULL_NL}, summary
+    held = _design_diagnosis("PULL_OUT")
+    assert set(held["extended"]["effects"]) <= set(HULL_NL) and held["extended"]["effects"], _summary(held)
+    sl = next(f for f in held["findings"] if f["effect"] == kind)
+    assert sl["validation_gain"] is None and sl["evidence"].startswith("Not tried"), sl
 
 
 @pytest.mark.slow

@@ -347,10 +347,42 @@ def test_csv_note_names_injected_effects(tmp_path):
     assert "injected effects: rudder_offset=1.5" in text and "noise-free" in text
 
 
+def test_pull_out_returns_the_rudder_and_the_turn_decays():
+    """A turning circle with a pull-out (IMO MSC/Circ.1053): the rudder is commanded back to midships
+    at pull_out_s, the servo gets there at its rate, and the yaw rate decays.  Decay: the KCS's slow yaw
+    pole is about -0.05 1/s, so 60 s after a starboard pull-out a linear decay leaves e^-3 = 5 % of the
+    steady rate; less than 10 % is asserted.  (To port the default KCS decays more slowly, -0.42 deg/s
+    left 160 s after a 20 deg pull-out, measured: its propeller asymmetry, the residual turn the
+    pull-out test is made to show.)  The title still parses as a turning circle of its rudder angle,
+    and the indices find the pull-out where it was made."""
+    m = tank.turning_circle(20, "starboard", duration=100.0, pull_out_s=40.0)
+    assert m.test_name == "turning circle 20 starboard with pull-out"
+    assert m.file_stem == "kcs_turning_20_S_pullout40"
+    assert parse_test_name(m.test_name) == {"kind": "turning", "rudder_deg": 20.0, "heading_deg": None,
+                                            "first_side": "starboard"}
+    run = tank.simulate(m, CLEAN)
+    t, d, r = run.col("time"), run.col("delta"), run.col("r")
+    assert run.meta["pull_out_s"] == 40.0
+    ramp = 20.0 / CLEAN.rudder_rate                                   # s, the servo from 20 deg to 0
+    assert np.all(np.abs(d[(t > 10.0) & (t < 40.0)] - 20.0) < 1e-6)    # held until the pull-out
+    assert abs(d[np.searchsorted(t, 40.0 + ramp + 0.2)]) < 1e-6        # amidships after the ramp
+    steady = float(np.mean(r[(t > 30.0) & (t < 40.0)]))
+    assert steady > 3.0                                                # turning to starboard (deg/s)
+    assert abs(r[-1]) < 0.1 * steady
+    from pipeline.indices.turning import turning_metrics
+    # the indices date the pull-out where the rudder has left half its plateau: half the ramp later
+    assert turning_metrics(run)["pull_out_s"] == pytest.approx(40.0 + ramp / 2, abs=2 * CLEAN.log_dt)
+    # without a pull-out the rudder stays where it was put
+    plain = tank.simulate(tank.turning_circle(20, "starboard", duration=100.0), CLEAN)
+    assert "pull_out_s" not in plain.meta and plain.frame["delta"].iloc[-1] == pytest.approx(20.0)
+
+
 def test_bad_manoeuvres_are_refused():
     for call in (lambda: tank.zigzag(-10, 10), lambda: tank.zigzag(10, 0),
                  lambda: tank.zigzag(10, 10, "left"), lambda: tank.turning_circle(35, duration=-1),
-                 lambda: tank.turning_circle(float("nan"))):
+                 lambda: tank.turning_circle(float("nan")),
+                 lambda: tank.turning_circle(35, duration=60.0, pull_out_s=60.0),
+                 lambda: tank.turning_circle(35, duration=60.0, pull_out_s=-1.0)):
         with pytest.raises(InputError):
             call()
     for bad in ({"rudder_delay": -0.1}, {"rudder_rate": 0.0}, {"approach_speed": -2.0}, {"rudder_lag": -1.0},

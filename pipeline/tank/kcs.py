@@ -258,12 +258,13 @@ def _servo_effects(d_in, lag_state, h, lag, asym, stall):
 
 @njit(cache=True)
 def _run(p, s0, zigzag, rudder, trigger, side, n_log, substeps, h, rate, dmax,
-         delay_steps, offset, psi_noise, lag=0.0, asym=0.0, stall=0.0):
+         delay_steps, offset, psi_noise, lag=0.0, asym=0.0, stall=0.0, release=-1):
     """Simulate a manoeuvre; returns (n_log, 7): u, v, r, x0, y0, psi, servo rudder (SI, rad).
 
     Row k is the state at t = k * substeps * h.  The rudder command is decided at each logging
     instant from the MEASURED heading psi + psi_noise[k] (zigzag: counter-rudder when the measured
-    heading reaches +-trigger; otherwise a constant command side * rudder).  The servo moves toward
+    heading reaches +-trigger; otherwise a constant command side * rudder, returned to 0 from logging
+    row ``release`` on when release >= 0: a pull-out).  The servo moves toward
     the command at ``rate`` (rad/s) within +-dmax; the force model sees the servo angle
     ``delay_steps`` integration steps earlier, through :func:`_servo_effects` (``lag`` s, ``asym``,
     ``stall`` rad), plus ``offset``.
@@ -287,6 +288,8 @@ def _run(p, s0, zigzag, rudder, trigger, side, n_log, substeps, h, rate, dmax,
             elif sign < 0 and psi_m <= -trigger:
                 sign = 1.0
         cmd = sign * rudder
+        if release >= 0 and k >= release:
+            cmd = 0.0
         for _ in range(substeps):
             step = cmd - delta
             lim = rate * h

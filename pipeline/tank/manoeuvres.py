@@ -1,4 +1,6 @@
-"""Manoeuvre definitions for the virtual tank: zigzags and turning circles (ITTC 7.5-04-02-01).
+"""Manoeuvre definitions for the virtual tank: zigzags and turning circles (ITTC 7.5-04-02-01), the
+latter optionally ending in a pull-out (the rudder returned to midships once the turn is steady;
+IMO MSC/Circ.1053's test of course stability).
 
 The first execute is at t = 0 from a steady straight approach (the identification window of the
 paper, the first 585 samples of the 20/20 zigzag, then starts at the execute).  Angles in degrees,
@@ -32,7 +34,8 @@ class Manoeuvre:
 
     rudder_deg : rudder amplitude (> 0), deg.  heading_deg : zigzag heading trigger (> 0), deg
     (None for turning).  side : first execute side, 'starboard' (rudder positive, psi increasing)
-    or 'port'.  duration : record length, s.
+    or 'port'.  duration : record length, s.  pull_out_s : turning only, the time (s after the
+    execute) at which the rudder is commanded back to midships; None for none.
     """
 
     kind: str
@@ -40,6 +43,7 @@ class Manoeuvre:
     heading_deg: float | None
     side: str
     duration: float
+    pull_out_s: float | None = None
 
     @property
     def sign(self) -> float:
@@ -53,7 +57,10 @@ class Manoeuvre:
             return f"zigzag {_num(self.rudder_deg)}/{_num(self.heading_deg)} {self.side}"
         if self.kind == "straight":
             return "straight run"
-        return f"turning circle {_num(self.rudder_deg)} {self.side}"
+        # the pull-out's time stays out of the title (a title's last standalone number is read as
+        # the rudder angle, pipeline.runinfo); it is in the file stem and the metadata
+        pull = " with pull-out" if self.pull_out_s is not None else ""
+        return f"turning circle {_num(self.rudder_deg)} {self.side}{pull}"
 
     @property
     def file_stem(self) -> str:
@@ -67,7 +74,8 @@ class Manoeuvre:
             return f"kcs_zigzag_{tok(self.rudder_deg)}_{tok(self.heading_deg)}_{s}"
         if self.kind == "straight":
             return "kcs_straight"
-        return f"kcs_turning_{tok(self.rudder_deg)}_{s}"
+        pull = f"_pullout{tok(self.pull_out_s)}" if self.pull_out_s is not None else ""
+        return f"kcs_turning_{tok(self.rudder_deg)}_{s}{pull}"
 
 
 def _check(rudder_deg, side, duration, what):
@@ -90,11 +98,18 @@ def zigzag(rudder_deg: float, heading_deg: float, first_side: str = "starboard",
 
 
 def turning_circle(rudder_deg: float = 35.0, side: str = "starboard",
-                   duration: float | None = None) -> Manoeuvre:
-    """A turning circle at constant rudder to ``side`` (default length 90 s, > 400 deg of heading)."""
+                   duration: float | None = None, pull_out_s: float | None = None) -> Manoeuvre:
+    """A turning circle at constant rudder to ``side`` (default length 90 s, > 400 deg of heading);
+    with ``pull_out_s`` (s after the execute, inside the record) the rudder is commanded back to
+    midships then, and the rest of the record is the pull-out."""
     _check(rudder_deg, side, duration, "turning circle")
-    return Manoeuvre("turning", float(rudder_deg), None, side,
-                     float(duration) if duration is not None else TURNING_DURATION)
+    dur = float(duration) if duration is not None else TURNING_DURATION
+    if pull_out_s is not None and not (isinstance(pull_out_s, (int, float)) and math.isfinite(pull_out_s)
+                                       and 0 < pull_out_s < dur):
+        raise InputError(f"turning circle: pull-out time must be inside the record (0, {dur:g}) s, "
+                         f"got {pull_out_s!r}")
+    return Manoeuvre("turning", float(rudder_deg), None, side, dur,
+                     float(pull_out_s) if pull_out_s is not None else None)
 
 
 def straight(duration: float = 60.0) -> Manoeuvre:

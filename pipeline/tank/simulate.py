@@ -85,7 +85,8 @@ def simulate(manoeuvre: Manoeuvre, cfg: TankConfig = DEFAULT_TANK,
                deg2rad(manoeuvre.heading_deg or 0.0), manoeuvre.sign, n_log, sub, h,
                deg2rad(cfg.rudder_rate), deg2rad(cfg.rudder_max), int(round(cfg.rudder_delay / h)),
                deg2rad(cfg.rudder_offset), deg2rad(noise["psi"]), float(cfg.rudder_lag),
-               float(cfg.rudder_asymmetry), deg2rad(cfg.rudder_stall_deg))
+               float(cfg.rudder_asymmetry), deg2rad(cfg.rudder_stall_deg),
+               int(round(manoeuvre.pull_out_s / cfg.log_dt)) if manoeuvre.pull_out_s is not None else -1)
     time = np.arange(n_log) * cfg.log_dt
     eps = deg2rad(cfg.heading_misalignment)     # 0: the readings are the ship's, bit for bit
     u_read, v_read = read_through_heading(out[:, 0], out[:, 1], eps)
@@ -118,6 +119,7 @@ def simulate(manoeuvre: Manoeuvre, cfg: TankConfig = DEFAULT_TANK,
         "rpm": 60.0 * rps,
         "rudder_rate": cfg.rudder_rate,
         "rudder_max": cfg.rudder_max,
+        **({"pull_out_s": manoeuvre.pull_out_s} if manoeuvre.pull_out_s is not None else {}),
         "effects": {k: getattr(cfg, k) for k in EFFECT_FIELDS}
         | {k: getattr(cfg, k) for k in SERVO_FIELDS if getattr(cfg, k)},
         "model": "3-DOF MMG (Yasukawa & Yoshimura 2015), Yoshimura's KCS coefficients",
