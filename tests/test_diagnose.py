@@ -952,3 +952,14 @@ def test_the_honest_gain_is_flagged_when_it_fails_its_check():
     worse = {**ok, "mae_psi_relative_reduction": -0.05, "interval_95": [-0.11, 0.03]}
     flag = _gain_flag(worse, ["rudder_offset"])
     assert "WORSE" in flag and "worse on b:" in flag and "a," not in flag, flag
+    # a verdict of none: no flag when every nested selection chose nothing (the gain is 0 by
+    # construction), a flag when some did: the gain is then theirs, not the linear model's
+    quiet = [{"effects": [], "cause": "none"}] * 3
+    assert _gain_flag({**ok, "mae_psi_relative_reduction": 0.0, "nested": quiet}, []) is None
+    chose = [{"effects": ["rudder_offset", "sway_yaw_coupling"]}, {"effects": []},
+             {"effects": ["rudder_offset", "sway_yaw_coupling"]}, {"effects": ["rudder_asymmetry"]}]
+    flag = _gain_flag({**ok, "mae_psi_relative_reduction": 0.45, "interval_95": [0.23, 0.65],
+                       "nested": chose}, [])
+    assert flag.startswith("no effect is named on all the runs") and "in 3 of 4" in flag, flag
+    assert "rudder_offset + sway_yaw_coupling (2 of 4); rudder_asymmetry (1 of 4)" in flag, flag
+    assert "(+45%, 95 % interval [+23%, +65%])" in flag, flag
