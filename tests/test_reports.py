@@ -327,6 +327,36 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     (concl,) = re.findall(r"class=.conclusion.[^>]*>(.*?)</div>", page, flags=re.S)
     assert "Flagged: the extended model is not shown better" in concl, concl
 
+    # a verdict of none measured by nested leave-one-run-out, some of whose selections named effects:
+    # the gain is theirs, not the linear model's, and the page says so (the stage's own flag,
+    # pipeline.diagnose.core._gain_flag), never "the extended model cuts ..." under "Cause: none"
+    from pipeline.diagnose.core import _gain_flag
+
+    none = json.loads(path.read_text())
+    nested = [{"fold": f"hold out {r}", "effects": eff, "cause": eff[0] if eff else "none",
+               "measured_on": [r], "gain": g}
+              for r, eff, g in (("zz20", ["rudder_offset", "sway_yaw_coupling"], 0.85), ("zz10", [], 0.0))]
+    none["gain"].update(mae_psi_relative_reduction=0.45, interval_95=[0.23, 0.65],
+                        measured_on=["zz20", "zz10"], method="nested leave-one-run-out", nested=nested,
+                        per_run=[{"run_id": n["measured_on"][0], "baseline_mae_psi_deg": 10.0,
+                                  "extended_mae_psi_deg": 10.0 * (1 - n["gain"]), "gain": n["gain"]}
+                                 for n in nested])
+    none["gain"]["flag"] = _gain_flag(none["gain"], [])
+    none.update(cause="none", ladder=none["ladder"][:1])
+    none["extended"].update(effects=[], effect_estimates={})
+    for f in none["findings"]:
+        f["significant"] = False
+    path.write_text(json.dumps(none))
+    page, v, text = _render_diagnosis(root, out)
+    assert "Cause: none" in text
+    assert ("Flag: no effect is named on all the runs, but the selection repeated without each run named "
+            "effects in 1 of 2") in text
+    assert "the model each round chose cuts the heading error by 45 % (95 % interval [23 %, 65 %])" in text
+    assert "the extended model cuts" not in text
+    rows = {r[0]: r[-1] for r in v.table("The runs the honest gain")}
+    assert rows == {"zz20": "+85 %", "zz10": "+0 %"}, rows
+    assert "chosen without it, MAE psi (deg)" in text and "extended MAE psi (deg)" not in text
+
 
 def test_diagnosis_words_and_verdicts():
     """The report's reading of diagnosis.json: known answers, without rendering."""
