@@ -63,7 +63,7 @@ display(HTML(f"<div style='font-size:1.3em;margin:6px 0'>{head}</div>"))
 # the honest gain's own check (diagnosis.json gain.flag): said beside the number it qualifies
 if gain_block.get("flag"):
     display(HTML("<div style='border:2px solid #b00020;padding:6px 10px;margin:8px 0'><b>Flag: "
-                 + nb.esc(str(gain_block["flag"])) + "</b></div>"))
+                 + nb.esc(dt.effect_words(gain_block["flag"])) + "</b></div>"))
 nb.note(f"Ship and scale: {ship}. Every number below is at {scale_words}, in the units of the logged "
         "data (deg, deg/s, m/s, s). Residuals are measured minus model.")
 # a check of the data's own set-up (pipeline.diagnose.datacheck): said before any result it may bend
@@ -469,7 +469,7 @@ if named and has_gain:
         + f"on the runs no choice has seen, adding it {dt.gain_sentence(gain, gain_block.get('interval_95'))}"
         + f", measured on {len(measured_on)} run{'s' if len(measured_on) != 1 else ''} no choice has seen ("
         + ", ".join(data.short_label(r) for r in measured_on) + ")"
-        + (f". Flagged: {gain_block['flag']}." if gain_block.get("flag") else "."))
+        + (f". Flagged: {dt.effect_words(gain_block['flag'])}." if gain_block.get("flag") else "."))
     f0 = by_eff.get(cause, {})
     if f0.get("physical"):
         points.append(f"Read physically: {dt.plain(f0['physical'], (f0.get('estimate') or {}).keys())}.")
@@ -486,7 +486,8 @@ elif named:
 else:
     points.append("No effect of the catalogue brings a real, material held-out gain: the linear model is "
                   "kept" + (f" (the nested selection's held-out change: {dt.gain_text(gain)})"
-                            if has_gain else "") + ".")
+                            if has_gain else "")
+                  + (f". Flagged: {dt.effect_words(gain_block['flag'])}." if gain_block.get("flag") else "."))
 if rejected:
     points.append(f"{len(rejected)} effects rejected (one may fail several tests): "
                   + ", ".join(f"{n} {k}" for k, n in tests.items() if n) + ".")

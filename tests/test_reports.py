@@ -350,7 +350,11 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     page, v, text = _render_diagnosis(root, out)
     assert "Cause: none" in text
     assert ("Flag: no effect is named on all the runs, but the selection repeated without each run named "
-            "effects in 1 of 2") in text
+            "effects in 1 of 2 (rudder offset + sway-yaw cross terms (1 of 2))") in text
+    (concl,) = re.findall(r"class=.conclusion.[^>]*>(.*?)</div>", page, flags=re.S)
+    assert "Flagged: no effect is named on all the runs" in concl, concl
+    for bad in ("rudder_offset", "sway_yaw_coupling"):        # the catalogue's names read as words
+        assert bad not in text, bad
     assert "the model each round chose cuts the heading error by 45 % (95 % interval [23 %, 65 %])" in text
     assert "the extended model cuts" not in text
     rows = {r[0]: r[-1] for r in v.table("The runs the honest gain")}

@@ -11,6 +11,7 @@ Residuals are measured minus model.
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 import numpy as np
@@ -261,6 +262,15 @@ def floor_reason(floor: Any) -> str:
     """The stated physical reason of a finding's floor (the bracketed part of ``floor``)."""
     text = str(floor or "")
     return text.split(" [", 1)[1].rstrip("]") if " [" in text else ""
+
+
+def effect_words(text: Any) -> str:
+    """A stage sentence with the catalogue's effect names as words: 'rudder_offset + sway_yaw_coupling'
+    -> 'rudder offset + sway-yaw cross terms' (whole names only, longest first)."""
+    out = str(text or "")
+    for name in sorted(EFFECT_WORDS, key=len, reverse=True):
+        out = re.sub(rf"(?<![\w]){re.escape(name)}(?![\w])", EFFECT_WORDS[name], out)
+    return out
 
 
 def plain(text: Any, keys: Any = ()) -> str:
