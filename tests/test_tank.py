@@ -391,6 +391,24 @@ def test_bad_manoeuvres_are_refused():
             tank.simulate(tank.straight(1.0), dataclasses.replace(CLEAN, **bad))
 
 
+def test_cli_writes_pull_outs_and_refuses_one_outside_the_record(tmp_path, capsys):
+    out = tmp_path / "raw"
+    assert main(["tank", "--out", str(out), "--no-noise", "--pull-out", "45"]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert "kcs_turning_35_S_pullout45.csv" in names and "kcs_turning_35_P_pullout45.csv" in names
+    assert "kcs_zigzag_20_20_S.csv" in names and len(names) == 6
+    text = (out / "kcs_turning_35_S_pullout45.csv").read_text()
+    assert "# test: turning circle 35 starboard with pull-out" in text
+    delta = np.loadtxt([ln for ln in text.splitlines() if ln and ln[0].isdigit()], delimiter=",")[:, 7]
+    assert delta[-1] == pytest.approx(0.0, abs=1e-3) and delta.max() == pytest.approx(35.0, abs=1e-3)
+    bad = tmp_path / "bad"
+    capsys.readouterr()
+    assert main(["tank", "--out", str(bad), "--pull-out", "120"]) != 0
+    err = capsys.readouterr().err
+    assert "pull-out time must be inside the record (0, 90) s" in err and len(err.strip().splitlines()) == 1, err
+    assert not bad.exists() or not any(bad.iterdir())       # refused before anything is written
+
+
 def test_cli_writes_the_default_set(tmp_path, capsys):
     out = tmp_path / "raw"
     assert main(["tank", "--out", str(out), "--no-noise", "--seed", "5"]) == 0
