@@ -405,7 +405,8 @@ def test_cli_writes_pull_outs_and_refuses_one_outside_the_record(tmp_path, capsy
     capsys.readouterr()
     assert main(["tank", "--out", str(bad), "--pull-out", "120"]) != 0
     err = capsys.readouterr().err
-    assert "pull-out time must be inside the record (0, 90) s" in err and len(err.strip().splitlines()) == 1, err
+    assert "pull-out time must be inside the record (0, 90) s" in err, err
+    assert len(err.strip().splitlines()) == 1, err
     assert not bad.exists() or not any(bad.iterdir())       # refused before anything is written
 
 
