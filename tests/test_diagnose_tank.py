@@ -250,6 +250,22 @@ def _estimate(rep, effect, name):
     return rep["extended"]["effect_estimates"][effect]["estimate"][name]
 
 
+def _found_on_top_of_the_ship(rep, kind: str) -> dict:
+    """The criteria of an effect injected into the tank (module docstring), asserted: ``kind`` is in
+    the extended model beside nothing but the ship's own hull terms, significant, worth >= 30 % in
+    both folds inside the extended model, and nothing else significant (no false effect).  Returns
+    its finding."""
+    summary = _summary(rep)
+    assert kind in rep["extended"]["effects"], summary
+    assert set(rep["extended"]["effects"]) <= {kind, *HULL_NL}, summary
+    finding = next(f for f in rep["findings"] if f["effect"] == kind)
+    assert finding["significant"], finding["evidence"]
+    assert min(finding["validation_gain_in_extended_folds"]) >= 0.30, summary
+    sig = {f["effect"] for f in rep["findings"] if f["significant"]}
+    assert sig <= {kind, *HULL_NL}, summary
+    return finding
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("case", CASES, ids=[f"{c[0]:02d}-{c[1]}" for c in CASES])
 def test_tank_hidden_effect_is_found_on_top_of_the_ship(case):
@@ -283,18 +299,11 @@ def test_tank_hidden_effect_is_found_on_top_of_the_ship(case):
         # the increment over the clean ship's fit of the same structure (linear + cubic yaw damping,
         # fold 1, as the search fitted it in its first round)
         est = _estimate(rep, kind, name) - _clean_own_n_rrr()
-    summary = _summary(rep)
-    assert kind in rep["extended"]["effects"], summary
-    assert set(rep["extended"]["effects"]) <= {kind, *HULL_NL}, summary
-    assert rep["cause"] in (kind, *HULL_NL), summary
-    finding = next(f for f in rep["findings"] if f["effect"] == kind)
-    assert finding["significant"], finding["evidence"]
-    assert min(finding["validation_gain_in_extended_folds"]) >= 0.30, summary
+    # found, and no false effect: offset / dead time / speed are absent unless injected
+    _found_on_top_of_the_ship(rep, kind)
+    assert rep["cause"] in (kind, *HULL_NL), _summary(rep)
     assert abs(est - truth) <= 0.25 * abs(truth), (name, est, truth)
     assert rep["extended"]["effect_estimates"][kind]["uncertainty"][name] > 0
-    # and no false effect: offset / dead time / speed are absent unless injected
-    sig = {f["effect"] for f in rep["findings"] if f["significant"]}
-    assert sig <= {kind, *HULL_NL}, summary
 
 
 @pytest.mark.slow
@@ -468,20 +477,14 @@ def test_tank_speed_loss_is_found_with_a_pull_out():
     so a blend lies in (0, 1].  Speed held, the same design: speed dependence is not tried and only
     hull terms are named."""
     rep = _design_diagnosis("PULL_OUT", hold_speed=False)
-    kind, summary = "speed_loss", _summary(rep)
-    assert kind in rep["extended"]["effects"], summary
-    assert set(rep["extended"]["effects"]) <= {kind, *HULL_NL}, summary
-    finding = next(f for f in rep["findings"] if f["effect"] == kind)
-    assert finding["significant"], finding["evidence"]
-    assert min(finding["validation_gain_in_extended_folds"]) >= 0.30, summary
+    kind = "speed_loss"
+    finding = _found_on_top_of_the_ship(rep, kind)
     clean = dc.replace(TankConfig(), hold_speed=False, noise=False)
     u = np.concatenate([tank.simulate(m, clean, coeffs=_symmetric()).col("u") for m in PULL_OUT["train"]])
     truth = 1.0 - u.min() / u[0]
     est = finding["estimate"]
     assert est["max_speed_loss"] == pytest.approx(truth, rel=0.25), (est, truth)
-    assert 0.0 < rep["extended"]["effect_estimates"][kind]["estimate"]["speed_exponent"] <= 1.0, summary
-    sig = {f["effect"] for f in rep["findings"] if f["significant"]}
-    assert sig <= {kind, *HULL_NL}, summary
+    assert 0.0 < rep["extended"]["effect_estimates"][kind]["estimate"]["speed_exponent"] <= 1.0, _summary(rep)
     held = _design_diagnosis("PULL_OUT")
     assert set(held["extended"]["effects"]) <= set(HULL_NL) and held["extended"]["effects"], _summary(held)
     sl = next(f for f in held["findings"] if f["effect"] == kind)
@@ -527,12 +530,5 @@ def test_tank_heading_misalignment_is_found_on_top_of_the_ship(eps):
     fitted 0.62 deg predicts the held-out runs 19 % worse, and the honest gain is +0.5 % [-4 %, +4 %]
     (flagged), the virtual KCS's circles again (README, "turning circles are in the design")."""
     rep = _diagnosis(heading_misalignment=eps)
-    kind, summary = "heading_misalignment", _summary(rep)
-    assert kind in rep["extended"]["effects"], summary
-    assert set(rep["extended"]["effects"]) <= {kind, *HULL_NL}, summary
-    finding = next(f for f in rep["findings"] if f["effect"] == kind)
-    assert finding["significant"], finding["evidence"]
-    assert min(finding["validation_gain_in_extended_folds"]) >= 0.30, summary
+    finding = _found_on_top_of_the_ship(rep, "heading_misalignment")
     assert finding["estimate"]["misalignment_deg"] == pytest.approx(eps, rel=0.25), finding["estimate"]
-    sig = {f["effect"] for f in rep["findings"] if f["significant"]}
-    assert sig <= {kind, *HULL_NL}, summary
