@@ -1018,8 +1018,9 @@ def test_tanker_heading_misalignment(tk_root, form, eps, fold):
     -0.509 and 0.31 / 0.30 at 0.3 deg; published model at 0.3 deg offset + cross terms + misalignment
     0.28 / 0.24 deg, 12.11 -> 1.03 and 6.00 -> 1.21 deg (fold 2 was 23 %); at 1 deg missed
     (TK_MISALIGN_KNOWN_WRONG) until 2026-11-26, right in both folds by this test's statement since the
-    pair pool ranks by the mean training cut (select._pair_pool).  Aligned files never name it (test_tanker_side_swap: TK_WRONG; the
-    published model's fit gives -0.04 / -0.06 deg, under the floor).
+    pair pool ranks by the mean training cut (select._pair_pool).  Aligned files never name it
+    (test_tanker_side_swap: TK_WRONG; the published model's fit gives -0.04 / -0.06 deg, under the
+    floor).
 
     Before the sensor effect (measured 2026-11-25): linear none at both (baseline held-out 3.14 / 3.57 deg
     at 1 deg, 0.09 / 0.08 aligned: the biased v bends the fit, no effect takes it up); offset right at 0.3
