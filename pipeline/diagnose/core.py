@@ -949,9 +949,9 @@ def _gain_flag(honest: dict, chosen: list[str]) -> str | None:
     g, iv = honest.get("mae_psi_relative_reduction"), honest.get("interval_95")
     if g is None:
         return None
-    if not chosen:
-        return _none_but_nested_chose(honest)
     ci = f", 95 % interval [{iv[0]:+.0%}, {iv[1]:+.0%}]" if iv else ""
+    if not chosen:
+        return _none_but_nested_chose(honest, f"{g:+.0%}{ci}")
     if g >= 0 and (iv is None or iv[1] >= 0):
         if iv is None or iv[0] > 0:
             return None
@@ -967,7 +967,7 @@ def _gain_flag(honest: dict, chosen: list[str]) -> str | None:
     )
 
 
-def _none_but_nested_chose(honest: dict) -> str | None:
+def _none_but_nested_chose(honest: dict, gain_text: str) -> str | None:
     """The flag of a verdict of none whose honest gain is not the linear model's: with nested
     leave-one-run-out, each held-out run is predicted by the structure chosen WITHOUT it, so when some
     of those selections named effects the gain measures their choices, not the linear model kept, and
@@ -976,13 +976,12 @@ def _none_but_nested_chose(honest: dict) -> str | None:
     selections without one run named effects in five of six, an offset with a hull term in four, and
     the report printed "the extended model cuts the heading error by 45 % [23 %, 65 %]" under
     "Cause: none").  None when every nested selection chose nothing (the gain is then 0 by
-    construction) or the gain is measured on test runs (the model kept, the baseline, on both sides)."""
+    construction) or the gain is measured on test runs (the model kept, the baseline, on both sides).
+    ``gain_text``: the honest gain and its interval as :func:`_gain_flag` words them."""
     nested = honest.get("nested") or []
     named = [n for n in nested if n.get("effects")]
     if not named:
         return None
-    g, iv = honest.get("mae_psi_relative_reduction"), honest.get("interval_95")
-    ci = f", 95 % interval [{iv[0]:+.0%}, {iv[1]:+.0%}]" if iv else ""
     kinds: dict[str, int] = {}
     for n in named:
         key = " + ".join(n["effects"])
@@ -990,7 +989,7 @@ def _none_but_nested_chose(honest: dict) -> str | None:
     chose = "; ".join(f"{k} ({c} of {len(nested)})" for k, c in sorted(kinds.items(), key=lambda kc: -kc[1]))
     return (
         f"no effect is named on all the runs, but the selection repeated without each run named effects "
-        f"in {len(named)} of {len(nested)} ({chose}): the honest gain ({g:+.0%}{ci}) is the worth of "
+        f"in {len(named)} of {len(nested)} ({chose}): the honest gain ({gain_text}) is the worth of "
         f"those choices on the runs they did not see, not of the linear model kept, and the verdict "
         f"depends on which runs choose it"
     )
