@@ -72,6 +72,28 @@ def test_null_values_give_the_baseline_exactly(effect):
         )
 
 
+@pytest.mark.parametrize("y_vv,drag", [(-2.0, True), (+1.24, False)])
+def test_sway_damping_reading_follows_the_sign_of_its_estimate(y_vv, drag):
+    """Cross-flow drag opposes the drift (y_vv < 0): only then is the term read as damping.  A fitted
+    y_vv > 0 (measured 2026-11-26 on a user's two 20/20 KCS zigzags: +1.24 1/m, named at +92 % on one
+    validation run) pushes the drift further and must not be read as "drift limited more"."""
+    eff = BY_NAME["nonlinear_sway_damping"]
+    text = eff.physical(eff.form(), {"y_vv_per_m": y_vv, "n_vv_deg_per_m2": 14.1}, CTX)
+    assert ("cross-flow drag:" in text and "limited more" in text) is drag, text
+    assert ("opposite to cross-flow drag" in text) is not drag, text
+    # the magnitudes at the largest sway velocity: |y_vv| v_max^2 m/s^2, n_vv v_max^2 deg/s^2
+    assert f"{abs(y_vv) * CTX.v_max**2:.3g} m/s^2" in text and f"{14.1 * CTX.v_max**2:+.3g} deg/s^2" in text
+
+
+@pytest.mark.parametrize("cubic,stall", [(-2e-4, True), (+2e-4, False)])
+def test_saturation_reading_names_stall_only_for_less_force(cubic, stall):
+    eff = BY_NAME["rudder_saturation"]
+    text = eff.physical(eff.form(), {"rudder_cubic_per_deg2": cubic}, CTX)
+    # at d_max = 20 deg: c d_max^2 = 8 % less (stall) or more force than linear
+    assert ("8% less force" in text) is stall and ("8% more force" in text) is not stall, text
+    assert ("stall or saturation" in text) is stall, text
+
+
 def test_kernel_features_are_the_definition():
     from pipeline.diagnose.extended import _feature
 

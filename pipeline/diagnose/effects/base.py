@@ -121,8 +121,8 @@ class Context:
 
     t_ship s: the ship's own time scale (first-order Nomoto |T| from equation error); h s: sample step;
     d_max deg, r_max deg/s, v_max m/s: largest |delta|, |r|, |v| (99.5th percentile); u_ref m/s:
-    approach speed (None without u); u_min_ratio: lowest u/u_ref; b21 (deg/s^2)/deg: rudder yaw
-    effectiveness of the fitted model (for moments); lpp_m: model length if the metadata has it.
+    approach speed (None without u); u_min_ratio: lowest u/u_ref; lpp_m: model length if the metadata
+    has it.
     """
 
     t_ship: float

@@ -28,11 +28,24 @@ class NonlinearSwayDamping(Effect):
         return bool(response_change >= MIN_RESPONSE), response_floor_text(response_change, MIN_RESPONSE)
 
     def physical(self, form, values, ctx):
+        """One sentence, read by the sign of y_vv: cross-flow drag opposes the drift (y_vv < 0 in SPEC
+        signs, dv/dt = ... + y_vv v|v|); a fitted y_vv > 0 pushes the drift further, which no hull's
+        drag does, and is said to stand in for something else.  n_vv's sign depends on where along the
+        hull the cross-flow acts, so it is given, not judged."""
         y, n = values["y_vv_per_m"], values["n_vv_deg_per_m2"]
+        dv, dr = y * ctx.v_max**2, n * ctx.v_max**2
+        yaw = f"its yaw part adds {dr:+.3g} deg/s^2 to the yaw acceleration"
+        if y < 0.0:
+            return (
+                f"cross-flow drag: at the largest sway velocity {ctx.v_max:.3f} m/s it opposes the drift "
+                f"with {abs(dv):.3g} m/s^2 of sway acceleration beyond the linear damping and {yaw}, so "
+                f"the drift angle of large manoeuvres is limited more than a linear hull predicts"
+            )
         return (
-            f"cross-flow drag: at the largest sway velocity {ctx.v_max:.3f} m/s the sway force adds "
-            f"{y * ctx.v_max**2:+.3g} m/s^2 and the yaw moment {n * ctx.v_max**2:+.3g} deg/s^2, so the "
-            f"drift angle of large manoeuvres is limited more than a linear hull predicts"
+            f"at the largest sway velocity {ctx.v_max:.3f} m/s the fitted sway term pushes the drift "
+            f"further, by {abs(dv):.3g} m/s^2 of sway acceleration, and {yaw}: the sign opposite to "
+            f"cross-flow drag, which opposes the drift on every hull, so the term stands in for another "
+            f"nonlinearity of the sway-yaw motion, not for damping"
         )
 
     def signature_series(self, v, r, delta, ddelta, u_ratio):

@@ -28,10 +28,15 @@ class RudderSaturation(Effect):
 
     def physical(self, form, values, ctx):
         ch = values["rudder_cubic_per_deg2"] * ctx.d_max**2
-        what = "less" if ch < 0 else "more"
+        if ch < 0:
+            return (
+                f"at {ctx.d_max:.0f} deg the rudder gives {abs(ch):.0%} less force than a linear rudder "
+                f"(stall or saturation of the lift at large angles)"
+            )
+        # c > 0 is not stall: the force grows faster than the angle over the range the runs cover
         return (
-            f"at {ctx.d_max:.0f} deg the rudder gives {abs(ch):.0%} {what} force than a linear rudder "
-            f"(stall or saturation of the lift at large angles)"
+            f"at {ctx.d_max:.0f} deg the rudder gives {ch:.0%} more force than a linear rudder: its "
+            f"force grows faster than the angle over the runs' range (not stall, which gives less)"
         )
 
     def extra_estimate(self, form, values, ctx):
