@@ -81,7 +81,8 @@ def choose_runs(runs: list[dict[str, Any]], identification: str | None = None) -
         ident = identification
     else:
         if not zig:
-            raise ValueError("no zigzag run to identify from")
+            raise ValueError("no zigzag run to identify from (the default rule takes a zigzag; name "
+                             "another run in dataset.toml [roles] identify, or identify --run-id)")
 
         def key(r):
             return (abs((r.get("rudder_deg") or 0) - 20.0), -(r.get("heading_deg") or 0),

@@ -90,5 +90,6 @@ def test_choose_runs_prefers_20_20_starboard():
     assert choose_runs(runs, "z10p")[0] == "z10p"
     with pytest.raises(ValueError):
         choose_runs(runs, "nope")
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"no zigzag run to identify from .*\[roles\] identify"):
         choose_runs(runs[3:])
+    assert choose_runs(runs[3:], "tc") == ("tc", [])      # a named run is taken whatever its kind

@@ -144,11 +144,11 @@ def test_bad_covariance_is_refused():
 
 # ------------------------------------------------------------------------------ the stage
 
-def _dataset(tmp_path, srukf_params=None):
+def _dataset(tmp_path, srukf_params=None, ident="z20s", zigzags=True):
     root = tmp_path / "processed"
     runs_dir = root / "t" / "runs"
     entries = []
-    specs = [("z20s", 20, 1), ("z20p", 20, -1), ("z10s", 10, 1)]
+    specs = [("z20s", 20, 1), ("z20p", 20, -1), ("z10s", 10, 1)] if zigzags else []
     for rid, amp, side in specs:
         run, _ = simulate_zigzag(K=0.5, T=6.0, rudder=amp, trigger=amp, first_side=side, rate=5.0,
                                  noise=0.05, seed=amp + side, duration=100)
@@ -164,7 +164,7 @@ def _dataset(tmp_path, srukf_params=None):
     theta = np.array([PAPER_TABLE4[n] for n in PARAM_NAMES])
     for alg, p in (("srukf-ffm", srukf_params or PAPER_TABLE4), ("ffm-ukf", PAPER_TABLE4)):
         write_json(root / "t" / "identify" / alg / "estimates.json",
-                   {"algorithm": alg, "samples": 585, "run_id": "z20s", "parameters": p,
+                   {"algorithm": alg, "samples": 585, "run_id": ident, "parameters": p,
                     "covariance": _cov(theta, rel=0.02).tolist()})
     return root
 
@@ -215,6 +215,42 @@ def test_stage_writes_the_catalog_schema(tmp_path):
     assert np.isnan(row.loc["T1", "graphical_standard"])
     assert row.loc["K", "graphical_standard"] == pytest.approx(gm["K"], rel=1e-5)
     assert row.loc["T3", "srukf-ffm"] == pytest.approx(0.6951, rel=1e-3)
+
+
+def test_stage_takes_the_identification_run_the_filter_ran_on(tmp_path):
+    """The run identify used ([roles] identify, identify --run) is the one the indices name and compare
+    with the graphical method, as validate reads it from estimates.json.  Found 2026-11-26: the stage
+    re-chose by the default rule, so a dataset identified on its 10/10 zigzag was labelled and compared
+    on the 20/20 (and one identified on a turning circle failed: "no zigzag run")."""
+    root = _dataset(tmp_path, ident="z10s")
+    assert main(["indices", "--dataset", "t", "--root", str(root)]) == 0
+    ind = read_json(root / "t" / "indices" / "indices.json")
+    assert ind["identification_run"] == "z10s"
+    assert ind["graphical_model"]["run_id"] == "z10s" and "z10s" in ind["graphical_model"]["source"]
+    by_run = {g["run_id"]: g for g in ind["graphical"] if g["method"] == "standard"}
+    assert ind["graphical_model"]["K"] == by_run["z10s"]["K"] != by_run["z20s"]["K"]
+    table = pd.read_csv(root / "t" / "indices" / "table7.csv").set_index("index")
+    assert table.loc["K", "graphical_standard"] == pytest.approx(by_run["z10s"]["K"], rel=1e-5)
+
+
+def test_stage_identified_on_a_turning_circle_compares_with_a_zigzag(tmp_path):
+    root = _dataset(tmp_path, ident="turn")
+    assert main(["indices", "--dataset", "t", "--root", str(root)]) == 0
+    ind = read_json(root / "t" / "indices" / "indices.json")
+    assert ind["identification_run"] == "turn"
+    gm = ind["graphical_model"]
+    # the default rule's zigzag (20/20 to starboard), and the source says why
+    assert gm["run_id"] == "z20s" and "turn is a turning run" in gm["source"], gm["source"]
+    assert gm["K"] == pytest.approx(0.5, rel=0.03)
+    assert ind["nondimensional"]["srukf-ffm"]["run_id"] == "turn"
+
+
+def test_stage_without_any_zigzag_refuses_in_one_line(tmp_path, capsys):
+    root = _dataset(tmp_path, ident="turn", zigzags=False)
+    assert main(["indices", "--dataset", "t", "--root", str(root)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "identification run turn is a turning run" in err and "no zigzag" in err, err
+    assert not (root / "t" / "indices").exists()
 
 
 def test_stage_falls_back_when_identified_model_is_unusable(tmp_path):

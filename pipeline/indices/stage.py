@@ -171,6 +171,10 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
     """
     cfg = config or IndicesConfig()
     entries = index.get("runs", [])
+    if identification is None:
+        # the run the filter was run on (estimates.json's run_id, as the validate stage reads it), so
+        # that a dataset.toml's [roles] identify or identify --run is honoured here too
+        identification = (estimates.get("srukf-ffm") or {}).get("run_id")
     try:
         ident, _ = choose_runs(entries, identification)
     except ValueError as exc:
@@ -184,12 +188,27 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
     by_id = {r["run_id"]: r for r in results}
 
     ident_res = by_id.get(ident)
-    if ident_res is None or "standard" not in ident_res["kt"]:
-        why = "; ".join(ident_res["errors"]) if ident_res else "run missing"
-        raise InputError(f"identification run {ident}: standard-method K, T unavailable ({why})")
-    gm = ident_res["kt"]["standard"]
-    graphical_model = {"source": f"standard (graphical) method on identification run {ident}",
-                       "run_id": ident, "K": gm["K"], "T": gm["T"]}
+    if ident_res is None:
+        raise InputError(f"identification run {ident}: not among the runs", file="runs/index.json")
+    # the graphical reference: the identification run's own standard-method K, T; where that run is
+    # no zigzag (a turning circle named in [roles] identify), the zigzag the default rule picks
+    graph_id, graph_res, source = ident, ident_res, f"identification run {ident}"
+    if "standard" not in ident_res["kt"] and ident_res["kind"] != "zigzag":
+        try:
+            graph_id, _ = choose_runs(entries, None)
+        except ValueError:
+            raise InputError(
+                f"identification run {ident} is a {ident_res['kind']} run and the dataset has no zigzag: "
+                "the graphical (Nomoto standard-method) K, T the indices are compared with, and the "
+                "control stage designs on, need one", file="runs/index.json") from None
+        graph_res = by_id[graph_id]
+        source = f"zigzag {graph_id} (the identification run {ident} is a {ident_res['kind']} run)"
+    if "standard" not in graph_res["kt"]:
+        why = "; ".join(graph_res["errors"]) or "no standard-method result"
+        raise InputError(f"run {graph_id}: standard-method K, T unavailable ({why})")
+    gm = graph_res["kt"]["standard"]
+    graphical_model = {"source": f"standard (graphical) method on {source}",
+                       "run_id": graph_id, "K": gm["K"], "T": gm["T"]}
 
     ident_out: dict[str, Any] = {}
     methods: dict[str, str] = {}
@@ -220,12 +239,13 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
         nondim[alg] = {"run_id": rid, "lpp_m": lpp, "approach_speed_m_s": u}
 
     period = {r["run_id"]: (r["metrics"] or {}).get("period_s") for r in results}
-    lpp_g, u_g, why_g = trust.length_and_speed(entry_by_id.get(ident, {}), index)
-    gm_flags = trust.graphical_flags(gm, period.get(ident)) + trust.prime_flags(why_g)
+    lpp_g, u_g, why_g = trust.length_and_speed(entry_by_id.get(graph_id, {}), index)
+    gm_flags = trust.graphical_flags(gm, period.get(graph_id)) + trust.prime_flags(why_g)
     graphical_model = {**graphical_model, **trust.primes({"K": gm["K"], "T": gm["T"]}, lpp_g, u_g),
                        "flags": gm_flags}
+    lpp_i, u_i, _ = trust.length_and_speed(entry_by_id.get(ident, {}), index)
     control_model = choose_control_model(ident_out, ident_flags, failures, graphical_model, estimates,
-                                         ident, lpp_g, u_g)
+                                         ident, lpp_i, u_i)
 
     graphical = []
     for r in results:
@@ -271,7 +291,7 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
                "runs": [{"run_id": r["run_id"], "test_name": r["test_name"], "kind": r["kind"],
                          "metrics": r["metrics"], "imo": r["imo"], "errors": r["errors"]} for r in results]}
 
-    ident_kt = ident_res["kt"]
+    ident_kt = graph_res["kt"]
     rows = []
     for n in INDEX_NAMES:
         row = {"index": n}
