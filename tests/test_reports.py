@@ -105,6 +105,29 @@ def test_missing_dataset_names_runs_index(tmp_path):
         check_inputs("identification", Catalog(root=tmp_path, dataset="nothing"))
 
 
+@pytest.mark.parametrize("roles,notebook,why", [
+    ({}, "identification", "has no zigzag run and its dataset.toml names no [roles] identify, so the "
+                           "identify stage does not run"),
+    ({"identify": "c35s"}, "indices", "has no zigzag run, so the indices stage does not run"),
+])
+def test_a_stage_that_cannot_run_on_the_data_is_named(tmp_path, roles, notebook, why):
+    """A dataset of turning circles only: the report says the stage cannot run on it (not "run it
+    first", which repeats the stage's own refusal; found 2026-11-26 on a user's circles-only set)."""
+    from pipeline.io import write_json
+    from pipeline.report import check_inputs
+
+    cat = Catalog(root=tmp_path, dataset="circles")
+    write_json(cat.runs_index, {"dataset": "circles", "roles": roles,
+                                "runs": [{"run_id": "c35s", "kind": "turning"}]})
+    with pytest.raises(InputError) as exc:
+        check_inputs(notebook, cat)
+    assert why in str(exc.value) and "--notebooks diagnosis" in str(exc.value), exc.value
+    # with a zigzag among the runs the stage could run: the old hint stands
+    write_json(cat.runs_index, {"dataset": "circles", "runs": [{"run_id": "z", "kind": "zigzag"}]})
+    with pytest.raises(InputError, match=r"run `python -m pipeline \w+ --dataset circles` first"):
+        check_inputs(notebook, cat)
+
+
 def test_kernel_points_at_this_python():
     from jupyter_client.kernelspec import KernelSpecManager
 

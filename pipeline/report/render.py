@@ -89,15 +89,34 @@ def required_inputs(notebook: str, cat: Catalog) -> list[Path]:
     return table[notebook]
 
 
+def _cannot_run(stage: str, cat: Catalog) -> str | None:
+    """Why ``stage`` cannot have run on this dataset, where its runs index says so, else None: the
+    identification and the stages built on it need a zigzag (pipeline.runinfo.choose_runs,
+    pipeline.indices.stage.build) unless ``[roles] identify`` names another run (identify and
+    validate then run; the indices still need a zigzag)."""
+    if stage not in ("identify", "validate", "indices", "control") or not Path(cat.runs_index).is_file():
+        return None
+    index = read_json(cat.runs_index)
+    if any(e.get("kind") == "zigzag" for e in index.get("runs") or []):
+        return None
+    named = (index.get("roles") or {}).get("identify")
+    if named and stage in ("identify", "validate"):
+        return None
+    return ("it has no zigzag run" + ("" if named else " and its dataset.toml names no [roles] identify")
+            + f", so the {stage} stage does not run on it; its diagnosis report does (--notebooks diagnosis)")
+
+
 def check_inputs(notebook: str, cat: Catalog) -> None:
-    """Raise InputError naming the first stage output of ``notebook`` that is missing."""
+    """Raise InputError naming the first stage output of ``notebook`` that is missing, and why the stage
+    cannot run where the data say so."""
     for path in required_inputs(notebook, cat):
         if not Path(path).is_file():
             stage = Path(path).relative_to(cat.base).parts[0] if cat.base in Path(path).parents else "?"
             stage = {"runs": "ingest", "diagnose": "diagnose"}.get(stage, stage)
-            raise InputError(f"stage output missing for the {notebook} report of dataset "
-                             f"'{cat.dataset}' (run `python -m pipeline {stage} --dataset {cat.dataset}` "
-                             "first)", file=path)
+            why = _cannot_run(stage, cat)
+            raise InputError(f"stage output missing for the {notebook} report of dataset '{cat.dataset}'"
+                             + (f": {why}" if why else f" (run `python -m pipeline {stage} --dataset "
+                                                      f"{cat.dataset}` first)"), file=path)
 
 
 # ----------------------------------------------------------------------------------------- kernel
