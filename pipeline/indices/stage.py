@@ -173,7 +173,7 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
     entries = index.get("runs", [])
     if identification is None:
         # the run the filter was run on (estimates.json's run_id, as the validate stage reads it), so
-        # that a dataset.toml's [roles] identify or identify --run is honoured here too
+        # that a dataset.toml's [roles] identify or identify --run-id is honoured here too
         identification = (estimates.get("srukf-ffm") or {}).get("run_id")
     try:
         ident, _ = choose_runs(entries, identification)
