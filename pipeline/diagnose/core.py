@@ -28,6 +28,7 @@ import contextlib
 import multiprocessing
 import os
 import threading
+from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
@@ -982,11 +983,8 @@ def _none_but_nested_chose(honest: dict, gain_text: str) -> str | None:
     named = [n for n in nested if n.get("effects")]
     if not named:
         return None
-    kinds: dict[str, int] = {}
-    for n in named:
-        key = " + ".join(n["effects"])
-        kinds[key] = kinds.get(key, 0) + 1
-    chose = "; ".join(f"{k} ({c} of {len(nested)})" for k, c in sorted(kinds.items(), key=lambda kc: -kc[1]))
+    kinds = Counter(" + ".join(n["effects"]) for n in named)     # most_common: ties in first-seen order
+    chose = "; ".join(f"{k} ({c} of {len(nested)})" for k, c in kinds.most_common())
     return (
         f"no effect is named on all the runs, but the selection repeated without each run named effects "
         f"in {len(named)} of {len(nested)} ({chose}): the honest gain ({gain_text}) is the worth of "
