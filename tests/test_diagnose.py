@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from scipy import stats
 from selection_only import SELECTION_ONLY  # the setting, and its reason, of selection-only tests
 
 from pipeline.cli import main
@@ -963,3 +964,85 @@ def test_the_honest_gain_is_flagged_when_it_fails_its_check():
     assert flag.startswith("no effect is named on all the runs") and "in 3 of 4" in flag, flag
     assert "rudder_offset + sway_yaw_coupling (2 of 4); rudder_asymmetry (1 of 4)" in flag, flag
     assert "(+45%, 95 % interval [+23%, +65%])" in flag, flag
+
+
+def test_harm_from_the_common_start_carries_the_start_uncertainty(monkeypatch):
+    """The per-run no-harm test (select.py, Search._start_sd): every block of a free run shares the
+    run's start, known only to the approach's standard deviations.  Known answer: a model whose
+    heading error grows as (r0_true - r0) t (a ship near its margin drifting from a start error) has
+    a per-run difference D linear in r0, so the propagated standard deviation is exactly
+    drift * sd_r0 * mean block time, and from a start 1 sd off the 'harm' it shows is one draw of
+    the start, not significant.  A model worse by the same amount whatever the start (a constant
+    heading error) keeps its harm: the start's share is 0 there.  With no start uncertainty recorded
+    the test is the block t-test alone (previous test)."""
+    import pipeline.diagnose.select as sel
+    from pipeline.diagnose.effects import BY_NAME, Context
+    from pipeline.diagnose.fit import Series
+
+    t = np.arange(0.0, 200.0, 0.1)
+    r_true, sd_r0, drift = 0.05, 0.05, 0.1  # deg/s, deg/s, deg per (deg/s) per s
+    runs = [Series(n, t, 5 * np.sign(np.sin(t / 10)), a * np.sin(t / 10), 0.1 * np.cos(t / 10))
+            for n, a in (("big", 20.0), ("small", 1.0))]
+    for s in runs:  # the approach's estimate: r0 = 0, one sd below the truth
+        s.__dict__["_x0_est"], s.__dict__["_x0_std"] = np.zeros(3), np.array([0.0, sd_r0, 0.0])
+    ctx = Context(t_ship=10.0, h=0.1, d_max=20.0, r_max=2.0, v_max=0.1)
+    noise = {s.name: np.random.default_rng(j).normal(0, 1, t.size) for j, s in enumerate(runs)}
+
+    class FakeFit:
+        values = {"nonlinear_yaw_damping": {"n_rrr_s_per_deg2": -0.01}}
+
+        def __init__(self, bias, drift=0.0, scatter=0.0):
+            self.bias, self.drift, self.scatter = bias, drift, scatter
+
+        def form(self, effect):
+            return BY_NAME[effect].forms[0]
+
+    def fake_sim(fit, s, x0=None):
+        x = s.x0 if x0 is None else x0
+        e = fit.bias[s.name] + fit.drift * (r_true - x[1]) * (s.t - s.t[0]) + fit.scatter * noise[s.name]
+        return np.column_stack([np.zeros_like(t), s.r, s.psi + e])
+
+    monkeypatch.setattr(sel, "simulate_fit", fake_sim)
+
+    class Fake(sel.Search):
+        def __init__(self, before, after):
+            super().__init__([sel.Fold(runs[:1], runs)], ctx, DiagnoseConfig())
+            self.fits = {False: before, True: after}
+
+        def fit(self, k, structure, start=None):
+            return self.fits[bool(structure)]
+
+        def response_change(self, k, structure, effect):
+            return 0.5
+
+        def short(self, k, structure):
+            return [(1.0, [1.0], [0]) for _ in runs]
+
+        def eval(self, k, structure):
+            f = self.fit(k, structure)
+            per = []
+            for s in runs:
+                x = fake_sim(f, s)
+                per.append({"sim": x, "mae_psi_deg": float(np.mean(np.abs(x[:, 2] - s.psi)))})
+            return {"mae_psi_deg": float(np.mean([p["mae_psi_deg"] for p in per]))}, per
+
+    after = (("nonlinear_yaw_damping", "cubic"),)
+    before = FakeFit({"big": 10.0, "small": 3.0})  # errors of one sign throughout: |e| is linear
+    drifting = Fake(before, FakeFit({"big": 1.0, "small": 3.0}, drift=drift, scatter=0.3))
+    edges = np.arange(0.0, 200.0, drifting.block_s)
+    block_means = [t[(t >= b) & (t < b + drifting.block_s)].mean() for b in edges]
+    sd = drifting._start_sd(0, runs[1], (), after)
+    assert sd == pytest.approx(drift * sd_r0 * np.mean(block_means), rel=1e-6)
+    assert drifting._start_sd(0, runs[1], (), ()) == 0.0  # the same model twice: no difference to carry
+    # from the common start the small run is worse on every block (3 -> 3.5 deg on average) ...
+    d = drifting._block_diffs(runs[1], fake_sim(before, runs[1]), fake_sim(drifting.fits[True], runs[1]))
+    crit = stats.t.ppf(1.0 - DiagnoseConfig().alpha / len(runs), len(d) - 1)  # the test's Bonferroni level
+    assert np.mean(d) / (np.std(d, ddof=1) / np.sqrt(len(d))) < -crit
+    # ... but by one draw of its start: no harm found
+    st = drifting.step([0], (), after, "nonlinear_yaw_damping", 0.01)
+    assert not any("significantly worse" in w for w in st.why), st.why
+    # worse by 0.5 deg whatever the start: the harm stays
+    constant = Fake(before, FakeFit({"big": 1.0, "small": 3.5}, scatter=0.3))
+    assert constant._start_sd(0, runs[1], (), after) == 0.0
+    st = constant.step([0], (), after, "nonlinear_yaw_damping", 0.01)
+    assert any("significantly worse" in w and "small" in w for w in st.why), st.why

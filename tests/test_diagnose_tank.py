@@ -151,11 +151,41 @@ with u separate from the rudder's, which the slipstream holds.  The full diagnos
   13        cross terms + speed, +47 % / +44 % (0.42)               sway damping    not named
 
 The dead time, alone on the linear baseline, is worth +43 % to +68 % in both folds at every seed,
-estimated 0.54-0.56 s; but at seeds 12 and 13, added to the final model, it makes the held-out 10/10
-zigzags significantly worse (seed 12: 0.45 -> 0.86 deg, block t = -6.2) while it cuts the pull-outs,
-and the diagnosis names nothing that worsens a held-out manoeuvre.  So on the pull-out design speed
-loss is found (test_tank_speed_loss_is_found_with_a_pull_out) and the dead time is seen at every seed
-but named at two of four (test_tank_dead_time_is_seen_on_a_pull_out, and a strict xfail at seed 12).
+estimated 0.54-0.56 s; but at seeds 12 and 13, added to the final model, it made the held-out 10/10
+zigzags significantly worse (seed 12: 0.45 -> 0.86 deg, block t = -6.2) while it cut the pull-outs,
+and the diagnosis names nothing that worsens a held-out manoeuvre.
+
+Why, measured 2026-11-26: the tank's runs execute at their first sample, so a run's start is one
+sample's noise (r0 +- 0.07 deg/s, v0 +- 0.005 m/s), and the per-run no-harm test compares the models
+from that one start.  On this ship near its margin the start error grows into a drift that differs
+from model to model, the same in every block of the run.  Fold 1, seed 12, held-out 10/10 zigzag
+(sway damping -> + dead time): from the common start 0.455 -> 0.862 deg; from the noise-free start
+(noise off) 0.542 -> 0.316; with only the v noise removed 0.179 -> 0.104; from each model's own
+start in the approach's box 0.179 -> 0.103, and 0.18-0.19 -> 0.10-0.11 at every seed.  With the
+dead time applied exactly (the logged rudder shifted 0.6 s, nothing fitted) the same zigzag goes
+0.45 -> 0.89 deg from the common start: the harm was the start's, not the dead time's.  So the
+per-run harm t-test now carries the start's uncertainty, propagated through both models
+(pipeline.diagnose.select, Search._start_sd; test_diagnose.py's known answer).  Then, on the 10 deg
+design:
+
+  seed      final model                   dead time
+  default   dead time + cross terms       named, +49 % / +67 % inside
+  11        cross terms                   not named: held-out cut 0.098 deg under the 0.1 deg floor
+  12        dead time + cross terms       named, +64 % / +66 % inside
+  13        cross terms                   not named: held-out cut 0.092 deg under the 0.1 deg floor
+
+The final model already predicts the held-out runs within about 0.1 deg, and a 0.6 s dead time at
+a 10 deg turn's yaw rate moves them by about as much as the gyro's repeatability.  Twice the rudder
+(PULL_OUT_20: a 20/20 zigzag and a 20 deg circle pulled out, the mirror image held out) doubles the
+yaw rate and so the r tau a dead time costs; named at the four seeds above and at four drawn after
+the design was chosen (21-24), per-fold worth inside the final model +39 % to +71 %, cut 0.11-0.27
+deg, estimate 0.47-0.54 s; without the dead time (seeds default, 12, 21, 22) only hull terms.  A 15
+deg design named it at all four first seeds but at +19 % in one fold at seed 12.  Other designs
+measured with the new test (default, 11, 12, 13): the 10 deg design + a 15 deg pull-out (three runs
+a side) named it at default and 13; 10/10 + 20 deg pull-out at none (the zigzag's small rates beside
+the circle's large ones).  Asserted: test_tank_dead_time_is_found_with_a_pull_out (20 deg,
+two seeds), test_tank_clean_pull_out_has_no_dead_time, test_tank_dead_time_is_seen_on_a_pull_out
+(10 deg) and a strict xfail for the 10 deg design at seed 13.
 """
 
 from __future__ import annotations
@@ -364,6 +394,16 @@ PULL_OUT = {
                  tank.turning_circle(10, "starboard", duration=80.0, pull_out_s=40.0)),
     "rudder_rate": TankConfig().rudder_rate,
 }
+#: the same at 20 deg (a 20/20 zigzag and a 20 deg turning circle pulled out at 40 s): twice the yaw
+#: rate, so a dead time's heading error (r tau after each rudder step) twice the 10 deg design's, above
+#: the 0.1 deg heading floor where the 10 deg design's sits on it (module docstring's last table)
+PULL_OUT_20 = {
+    "train": (tank.zigzag(20, 20, "starboard", duration=80.0),
+              tank.turning_circle(20, "port", duration=80.0, pull_out_s=40.0)),
+    "validate": (tank.zigzag(20, 20, "port", duration=80.0),
+                 tank.turning_circle(20, "starboard", duration=80.0, pull_out_s=40.0)),
+    "rudder_rate": TankConfig().rudder_rate,
+}
 
 
 def _design_runs(design, **kw):
@@ -433,13 +473,14 @@ def test_tank_dead_time_is_found_with_a_fast_rudder():
     assert abs(est - 0.6) <= 0.25 * 0.6, est
 
 
-#: a noise seed of the tank at which the pull-out design's dead time is seen but not named (measured
-#: 2026-11-26 at four seeds: named at the default seed and at 11, not at 12 and 13; docstring)
-NOT_NAMED_SEED = 12
+#: a noise seed of the tank at which the 10 deg pull-out design's dead time is seen but not named
+#: (measured 2026-11-26 at four seeds: named at the default seed and at 12, not at 11 and 13, where its
+#: held-out cut, 0.098 / 0.092 deg, is under the 0.1 deg heading floor; docstring)
+NOT_NAMED_SEED = 13
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [TankConfig().seed, NOT_NAMED_SEED], ids=["seed_default", "seed_12"])
+@pytest.mark.parametrize("seed", [TankConfig().seed, NOT_NAMED_SEED], ids=["seed_default", "seed_13"])
 def test_tank_dead_time_is_seen_on_a_pull_out(seed):
     """On the pull-out design the 0.6 s dead time is worth >= 30 % held-out in both folds when it is
     added alone to the linear baseline, and its estimate is within 25 %: what the zigzag designs never
@@ -453,16 +494,38 @@ def test_tank_dead_time_is_seen_on_a_pull_out(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="measured 2026-11-26: alone +52 % / +50 % held-out (0.54 s), but "
-                   "added to the final model (sway damping) it makes the held-out 10/10 zigzags "
-                   "significantly worse (0.45 -> 0.86 deg, block t = -6.2), so it is not named; named at 2 "
-                   "of 4 noise seeds (docstring)")
-def test_tank_dead_time_is_found_with_a_pull_out():
+@pytest.mark.xfail(strict=True, reason="measured 2026-11-26: on the 10 deg pull-out design the dead time "
+                   "is worth +45 % / +68 % added to the final model (cross terms) but its held-out heading "
+                   "cut, 0.092 deg, is under the 0.1 deg heading floor (twice the 0.05 deg heading noise); "
+                   "named at 2 of 4 seeds, at 8 of 8 on the 20 deg design (docstring)")
+def test_tank_dead_time_is_found_with_a_10_deg_pull_out():
     rep = _design_diagnosis("PULL_OUT", rudder_delay=0.6, seed=NOT_NAMED_SEED)
-    finding = next(f for f in rep["findings"] if f["effect"] == "rudder_delay")
-    assert "rudder_delay" in rep["extended"]["effects"], _summary(rep)
-    assert finding["significant"], finding["evidence"]
-    assert min(finding["validation_gain_in_extended_folds"]) >= 0.30, _summary(rep)
+    _found_on_top_of_the_ship(rep, "rudder_delay")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [TankConfig().seed, 12], ids=["seed_default", "seed_12"])
+def test_tank_dead_time_is_found_with_a_pull_out(seed):
+    """Issue 11 item 6, the dead time on the virtual KCS, found where the manoeuvre lets it matter: the
+    20 deg pull-out design (PULL_OUT_20), 0.6 s injected.  By the criteria of the injected effects: in
+    the extended model beside nothing but the ship's own hull terms, significant, worth >= 30 % in
+    both folds inside it, nothing else significant; its estimate within 25 %.  Seed 12 is the seed at
+    which the 10 deg design's no-harm test refused it before the start's uncertainty was carried
+    (select.py, Search._start_sd).  Measured 2026-11-26 at eight seeds (default, 11-13, 21-24, the
+    last four drawn after the design was chosen): named at all eight, per-fold worth +39 % to +71 %,
+    estimate 0.47-0.54 s; without the dead time (default, 12, 21, 22) it is not named at any."""
+    rep = _design_diagnosis("PULL_OUT_20", rudder_delay=0.6, seed=seed)
+    finding = _found_on_top_of_the_ship(rep, "rudder_delay")
+    assert abs(finding["estimate"]["delay_s"] - 0.6) <= 0.25 * 0.6, finding["estimate"]
+
+
+@pytest.mark.slow
+def test_tank_clean_pull_out_has_no_dead_time():
+    """The same design without a dead time: no rudder_delay, only the ship's own hull terms."""
+    rep = _design_diagnosis("PULL_OUT_20")
+    assert rep["extended"]["effects"] and set(rep["extended"]["effects"]) <= set(HULL_NL), _summary(rep)
+    sig = {f["effect"] for f in rep["findings"] if f["significant"]}
+    assert sig <= set(HULL_NL), _summary(rep)
 
 
 @pytest.mark.slow

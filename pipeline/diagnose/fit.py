@@ -139,7 +139,8 @@ def initial_state_with_std(s: Series, window_s: float) -> tuple[np.ndarray, np.n
     Model-free: every training fit, of the baseline and of each extension, starts from this state,
     so no effect is credited with the estimate; a held-out free run may take its own start within the
     returned standard deviations (:func:`boxed_initial_state`), while the per-run harm test compares
-    models from this one common start (:meth:`pipeline.diagnose.select.Search.step`)."""
+    models from this one common start, its standard deviations carried into the test
+    (:meth:`pipeline.diagnose.select.Search._start_sd`)."""
     n = int(min(s.t.size, max(8, round(window_s / s.h) + 1)))
     # the window ends where the rudder first moves: the response to a rudder execution is no
     # polynomial (measured: a window across the execution biased r0 by 0.1 deg/s on the slow truth
