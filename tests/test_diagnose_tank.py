@@ -384,26 +384,23 @@ _LEGS = {
 }
 FAST = {**_LEGS, "rudder_rate": 50.0}
 CURRENT = {**_LEGS, "rudder_rate": TankConfig().rudder_rate}
-#: the pull-out design (issue 11 item 6 names the manoeuvre; module docstring's last table): a 10/10
-#: zigzag to one side and a 10 deg turning circle to the other, its rudder returned to midships after
-#: 40 s, validated on the mirror image; the current rudder
-PULL_OUT = {
-    "train": (tank.zigzag(10, 10, "starboard", duration=80.0),
-              tank.turning_circle(10, "port", duration=80.0, pull_out_s=40.0)),
-    "validate": (tank.zigzag(10, 10, "port", duration=80.0),
-                 tank.turning_circle(10, "starboard", duration=80.0, pull_out_s=40.0)),
-    "rudder_rate": TankConfig().rudder_rate,
-}
-#: the same at 20 deg (a 20/20 zigzag and a 20 deg turning circle pulled out at 40 s): twice the yaw
-#: rate, so a dead time's heading error (r tau after each rudder step) twice the 10 deg design's, above
-#: the 0.1 deg heading floor where the 10 deg design's sits on it (module docstring's last table)
-PULL_OUT_20 = {
-    "train": (tank.zigzag(20, 20, "starboard", duration=80.0),
-              tank.turning_circle(20, "port", duration=80.0, pull_out_s=40.0)),
-    "validate": (tank.zigzag(20, 20, "port", duration=80.0),
-                 tank.turning_circle(20, "starboard", duration=80.0, pull_out_s=40.0)),
-    "rudder_rate": TankConfig().rudder_rate,
-}
+def _pull_out_design(deg: int) -> dict:
+    """A deg/deg zigzag to starboard and a deg turning circle to port, its rudder returned to midships
+    after 40 s, validated on the mirror image; the current rudder."""
+    return {
+        "train": (tank.zigzag(deg, deg, "starboard", duration=80.0),
+                  tank.turning_circle(deg, "port", duration=80.0, pull_out_s=40.0)),
+        "validate": (tank.zigzag(deg, deg, "port", duration=80.0),
+                     tank.turning_circle(deg, "starboard", duration=80.0, pull_out_s=40.0)),
+        "rudder_rate": TankConfig().rudder_rate,
+    }
+
+
+#: the pull-out design (issue 11 item 6 names the manoeuvre; module docstring's last tables) at 10 deg
+PULL_OUT = _pull_out_design(10)
+#: the same at 20 deg: twice the yaw rate, so a dead time's heading error (r tau after each rudder
+#: step) twice the 10 deg design's, above the 0.1 deg heading floor where the 10 deg design's sits on it
+PULL_OUT_20 = _pull_out_design(20)
 
 
 def _design_runs(design, **kw):
