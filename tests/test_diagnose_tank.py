@@ -164,9 +164,10 @@ from model to model, the same in every block of the run.  Fold 1, seed 12, held-
 start in the approach's box 0.179 -> 0.103, and 0.18-0.19 -> 0.10-0.11 at every seed.  With the
 dead time applied exactly (the logged rudder shifted 0.6 s, nothing fitted) the same zigzag goes
 0.45 -> 0.89 deg from the common start: the harm was the start's, not the dead time's.  So the
-per-run harm t-test now carries the start's uncertainty, propagated through both models
-(pipeline.diagnose.select, Search._start_sd; test_diagnose.py's known answer).  Then, on the 10 deg
-design:
+per-run harm t-test now carries the start's uncertainty, propagated through both models, for a
+start that is one sample as here (pipeline.diagnose.select, Search._start_sd; test_diagnose.py's
+known answer; a start fitted over a quiet approach keeps the plain block test, measured on the
+disturbed Mariner of test_diagnose_generalise.py).  Then, on the 10 deg design:
 
   seed      final model                   dead time
   default   dead time + cross terms       named, +49 % / +67 % inside

@@ -110,6 +110,27 @@ def initial_state(s: Series, window_s: float) -> np.ndarray:
     return initial_state_with_std(s, window_s)[0]
 
 
+#: fewest quiet samples the start is fitted over (three coefficients, psi0, r0 and the rate's slope, from
+#: two channels: eight samples leave the fit ten degrees of freedom); fewer, and the start is the first
+#: sample itself
+MIN_APPROACH_SAMPLES = 8
+
+
+def quiet_approach_samples(s: Series, window_s: float) -> int:
+    """Number of samples of ``s`` in its first ``window_s`` seconds (s) before the rudder first moves:
+    the approach the start is fitted over (:func:`initial_state_with_std`).
+
+    The window ends where the rudder first moves: the response to a rudder execution is no
+    polynomial (measured: a window across the execution biased r0 by 0.1 deg/s on the slow truth
+    ship, which an extension then "explained" as a servo lag); a change above the excitation floor
+    (MIN_RUDDER_EXCITATION_DEG) counts as a movement, the rudder noise stays below it.  A run that
+    executes at its first sample (the virtual tank's) has 0."""
+    n = int(min(s.t.size, max(MIN_APPROACH_SAMPLES, round(window_s / s.h) + 1)))
+    d0 = float(np.median(s.delta[: min(5, s.t.size)]))
+    moved = np.flatnonzero(np.abs(s.delta[:n] - d0) > MIN_RUDDER_EXCITATION_DEG)
+    return int(moved[0]) if moved.size else n
+
+
 def initial_state_with_std(s: Series, window_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Estimate of the state (v m/s, r deg/s, psi deg) at the first sample of ``s`` from the samples
     in the first ``window_s`` seconds, using the kinematic relation psi' = r.
@@ -141,19 +162,11 @@ def initial_state_with_std(s: Series, window_s: float) -> tuple[np.ndarray, np.n
     returned standard deviations (:func:`boxed_initial_state`), while the per-run harm test compares
     models from this one common start, its standard deviations carried into the test
     (:meth:`pipeline.diagnose.select.Search._start_sd`)."""
-    n = int(min(s.t.size, max(8, round(window_s / s.h) + 1)))
-    # the window ends where the rudder first moves: the response to a rudder execution is no
-    # polynomial (measured: a window across the execution biased r0 by 0.1 deg/s on the slow truth
-    # ship, which an extension then "explained" as a servo lag); a change above the excitation
-    # floor (MIN_RUDDER_EXCITATION_DEG) counts as a movement, the rudder noise stays below it
-    d0 = float(np.median(s.delta[: min(5, s.t.size)]))
-    moved = np.flatnonzero(np.abs(s.delta[:n] - d0) > MIN_RUDDER_EXCITATION_DEG)
-    if moved.size:
-        n = int(moved[0])
+    n = quiet_approach_samples(s, window_s)
     noise = {
         k: _ar1_noise(getattr(s, k), window_s, s.h) for k in ("psi", "r", "v") if getattr(s, k) is not None
     }
-    if n < 8:  # too few quiet samples for the fit: the first sample, with one sample's noise
+    if n < MIN_APPROACH_SAMPLES:  # too few quiet samples for the fit: the first sample, one sample's noise
         one_sample = [noise["v"][0] if "v" in noise else 0.0, noise["r"][0], noise["psi"][0]]
         return s.first_state(), np.array(one_sample)
     tt = s.t[:n] - s.t[0]
@@ -223,8 +236,10 @@ def set_initial_states(
     for s in series:
         if window_s is None:
             s.__dict__["_x0_est"], s.__dict__["_x0_std"] = None, None
+            s.__dict__["_x0_one_sample"] = False
         else:
             s.__dict__["_x0_est"], s.__dict__["_x0_std"] = initial_state_with_std(s, window_s)
+            s.__dict__["_x0_one_sample"] = quiet_approach_samples(s, window_s) < MIN_APPROACH_SAMPLES
         s.__dict__["_x0_model_window"] = model_window_s
         s.__dict__["_x0_box_sigma"] = box_sigma
 
