@@ -1062,8 +1062,13 @@ def test_quiet_approach_samples_end_where_the_rudder_first_moves():
     first movement above the excitation floor; 0 for a run executed at its first sample (the virtual
     tank's), the whole window for a rudder that stays put; rudder noise below the floor is no movement.
     set_initial_states records whether the start is that one sample."""
-    from pipeline.diagnose.fit import (MIN_APPROACH_SAMPLES, MIN_RUDDER_EXCITATION_DEG, Series,
-                                       quiet_approach_samples, set_initial_states)
+    from pipeline.diagnose.fit import (
+        MIN_APPROACH_SAMPLES,
+        MIN_RUDDER_EXCITATION_DEG,
+        Series,
+        quiet_approach_samples,
+        set_initial_states,
+    )
 
     t = np.arange(0.0, 60.0, 0.1)
     wiggle = 0.4 * MIN_RUDDER_EXCITATION_DEG * np.sin(7.0 * t)   # under the floor

@@ -160,8 +160,8 @@ def initial_state_with_std(s: Series, window_s: float) -> tuple[np.ndarray, np.n
     Model-free: every training fit, of the baseline and of each extension, starts from this state,
     so no effect is credited with the estimate; a held-out free run may take its own start within the
     returned standard deviations (:func:`boxed_initial_state`), while the per-run harm test compares
-    models from this one common start, its standard deviations carried into the test
-    (:meth:`pipeline.diagnose.select.Search._start_sd`)."""
+    models from this one common start, its standard deviations carried into the test where the start
+    is the first sample (:meth:`pipeline.diagnose.select.Search._start_sd`)."""
     n = quiet_approach_samples(s, window_s)
     noise = {
         k: _ar1_noise(getattr(s, k), window_s, s.h) for k in ("psi", "r", "v") if getattr(s, k) is not None

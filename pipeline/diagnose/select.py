@@ -59,8 +59,9 @@ A step S -> S' passes when ALL hold (:func:`step_passes`):
 - no harm: NO held-out run is made significantly worse (one-sided t-test of that run's per-block MAE
   differences, level ``alpha`` / N over the N held-out runs, Bonferroni; both models from the
   common start, the approach's estimate, not each from its own best start in the approach's box;
-  the t divides by the blocks' standard error and the start's own, propagated through both models,
-  in quadrature: every block shares the start, :meth:`Search._start_sd`).
+  where the start is one sample (no quiet approach), the t divides by the blocks' standard error and
+  the start's own, propagated through both models, in quadrature: every block shares the start,
+  :meth:`Search._start_sd`).
   An effect that cuts the error of some manoeuvres and significantly raises it on another is not
   the cause of the error (a compromise of the linear part moved, typically large zigzags bought
   with small ones);
