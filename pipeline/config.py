@@ -29,11 +29,12 @@ class TankConfig:
     noise_u: float = 0.005               # m/s
     noise_xy: float = 0.005              # m
     noise_delta: float = 0.05            # deg
-    # Effect injection (issue 6): all off by default.
+    # Effect injection (docs/virtual-tank.md#injected-effects): all off by default.
     rudder_offset: float = 0.0           # deg, effective rudder = logged + offset
     rudder_delay: float = 0.0            # s, effective rudder lags the logged one
     extra_yaw_damping: float = 0.0       # non-dimensional N'_rrr added (negative adds damping)
-    # applied in this order to the (delayed) servo angle, before the offset (issue 12's power study):
+    # applied in this order to the (delayed) servo angle, before the offset (the detection-power study's
+    # injections, docs/studies.md):
     rudder_lag: float = 0.0              # s, first-order servo lag (explicit Euler at sim_dt)
     rudder_asymmetry: float = 0.0        # a: effective angle x (1 + a sign(angle)); a > 0: starboard stronger
     rudder_stall_deg: float = 0.0        # deg, effective angle = stall tanh(angle / stall); 0 = off
@@ -45,7 +46,7 @@ class TankConfig:
 
 @dataclass(frozen=True)
 class IngestConfig:
-    """Reading and resampling raw tank files (SPEC sections 3, 4, 8)."""
+    """Reading and resampling raw tank files (docs/contract.md: raw formats, resampling, bad input)."""
 
     dt: float = 0.08                     # s, uniform output step
     max_gap: float = 1.0                 # s, longest tolerated gap in the time column
@@ -69,20 +70,20 @@ class FuzzyConfig:
 
 @dataclass(frozen=True)
 class FilterConfig:
-    """Online identification of the sway-yaw model (SPEC section 5).
+    """Online identification of the sway-yaw model (docs/identification.md).
 
-    The model works in the data units of SPEC section 2 (v m/s, r deg/s, psi deg, delta deg);
-    the paper's Table 4 parameters are in these units.
+    The model works in the data units of docs/contract.md#run-data (v m/s, r deg/s, psi deg, delta
+    deg); the paper's Table 4 parameters are in these units.
     """
 
     algorithm: str = "srukf-ffm"         # 'srukf-ffm' or 'ffm-ukf'
     samples: int = 585                   # identification window (first N samples): the paper's setting
-    # Scale-free identification window (issue 13): when set, it replaces ``samples``.  A duration in
+    # Scale-free identification window: when set, it replaces ``samples``.  A duration in
     # seconds at the run's (model) scale, or a number of zigzag half-periods (intervals between
     # rudder executes) counted from the first execute; 585 samples at 0.08 s (46.8 s) is the paper case.
     window_s: float | None = None
     window_half_periods: float | None = None
-    # What identify refuses or flags (issue 14 item 6):
+    # What identify refuses or flags (docs/identification.md#the-identification-window):
     min_samples: int = 50                # fewer cannot fix 9 unknowns (3 states, 6 parameters) with
                                          # several samples each; the filter would return its prior
     min_rudder_range: float = 1.0        # deg; a rudder moving less than this within the window gives
@@ -146,7 +147,7 @@ class IndicesConfig:
 
 @dataclass(frozen=True)
 class ControlConfig:
-    """CGSA course keeping (paper section 4, ALGORITHMS.md)."""
+    """CGSA course keeping (paper section 4; docs/control.md)."""
 
     tw: float = 3.0                      # s, closed-loop time constant Tw
     # A design whose loop on the Nomoto plant has less phase margin than this is flagged: below
@@ -177,7 +178,7 @@ class ControlConfig:
 
 @dataclass(frozen=True)
 class DiagnoseConfig:
-    """Model diagnosis (SPEC section 7).  Every threshold's reason is stated beside it."""
+    """Model diagnosis (docs/diagnosis.md).  Every threshold's reason is stated beside it."""
 
     # a step of the stepwise search (pipeline.diagnose.select) must cut the pooled held-out MAE psi by
     # this share: below 10 % a naval architect would not change the model (and with 9 effects tried
@@ -195,9 +196,8 @@ class DiagnoseConfig:
     # the measured state"): every held-out run cut into pieces of this length, each a prediction from
     # the measured (v, r, psi) at its start.  One T: the response has forgotten its start by 63 % and
     # taken its shape from the model's dynamics, and the drift that a random disturbance puts into a
-    # free run of a course-unstable hull has not yet grown (measured 2026-11-24: a disturbed linear
-    # Mariner's nonlinear sway damping cut the whole-run error 3.64 -> 2.09 deg and raised this one
-    # 0.83 -> 0.96 deg; the true servo lag of truth case 12 cut both, 0.46 -> 0.04 and 0.38 -> 0.06)
+    # free run of a course-unstable hull has not yet grown, so an effect that only absorbs that drift
+    # over a whole run is caught predicting the ship worse from where it really is
     short_horizon_T: float = 1.0
     # pairs are tried (when no single effect passes), then triples (when no pair passes), among this
     # many single candidates, those that cut the training cost most (pipeline.diagnose.select.
@@ -216,17 +216,11 @@ class DiagnoseConfig:
     inner_folds: int = 3
     # a step that passes everything else must not hinge on one training run (pipeline.diagnose.select.
     # Search.hinges): refitted without any one training run, the model must still make that run (no
-    # run-away on it).  A fold's verdict must not depend on which runs happened to train: measured
-    # 2026-11-25 on the HSVA KVLCC2, the fold that trains on the 1 deg zigzags named the cross terms
-    # (+42 % on its validation runs) and the other fold named nothing, because every nonlinear damping
-    # fitted without 10/1 runs away on it (6.46 -> 17-36 deg, heading swing 7.1 deg).  Only folds of at
+    # run-away on it).  A fold's verdict must not depend on which runs happened to train (the HSVA
+    # KVLCC2's fold that trains on its 1 deg zigzags is the case: docs/diagnosis.md).  Only folds of at
     # least this many training runs: with two, one left out leaves a single manoeuvre, one amplitude,
-    # whose extrapolation to the other is no fair test of a nonlinear term.  Measured (make generalise,
-    # 2026-11-25) at 2: the disturbed linear Mariner's false cross terms (seed 700, both folds) are
-    # refused, but five cases with real effects lose them (KVLCC2 disturbed, seed 3000 fold 2: 48 %
-    # held-out, under the 50 % bar; the published tanker disturbed, seed 1300, and with a rate-gyro
-    # bias: the cross terms named without the offset, one 6.19 -> 13.23 deg held-out): 188 passed and 7
-    # failed against 193 and 12 strict xfails at 3.  0 = off
+    # whose extrapolation to the other is no fair test of a nonlinear term (at 2, real effects of the
+    # generalisation cases are lost: make generalise).  0 = off
     jackknife_min_train: int = 3
     # relative: runs whose approach speeds differ by more than this are refused together (Froude
     # number, hence the dimensional coefficients, would differ by as much: 15 % of U is ~30 % of the
@@ -239,9 +233,8 @@ class DiagnoseConfig:
     x0_window_T: float = 0.25
     # > 0: held-out free runs start instead from the state that best fits this many ship time scales
     # of the run's start under the model judged (pipeline.diagnose.fit.model_initial_state).  Off:
-    # measured, its freedom lets the baseline absorb a real effect (a 2.8 deg rudder offset on the
-    # virtual KCS lost its held-out gain, 52 % -> 4 % in one fold, at 0.25 T), although it helps on
-    # runs without a quiet approach (27/32 truth cases against 26/32 without)
+    # its freedom lets the baseline absorb a real effect (a rudder offset on the virtual KCS loses
+    # most of its held-out gain), although it helps on runs without a quiet approach
     x0_model_window_T: float = 0.0
     # > 0 (and no model window): held-out free runs start from the state within this many standard
     # deviations of the approach's estimate (v0, r0; AR(1)-aware, pipeline.diagnose.fit.
@@ -253,23 +246,22 @@ class DiagnoseConfig:
     # also fitted cold (equation-error + prediction-error start), and the fit that predicts the
     # fold's VALIDATION runs better is kept (round one only: pipeline.diagnose.select.Search).
     # On a hull near the stability margin the output-error cost has several optima.  Warm, the
-    # smaller model's linear part can hold the new effect in a poor one (measured, truth case 25,
-    # rudder asymmetry: training cost 0.065 warm against 0.00053 cold, held-out 3.90 against
-    # 0.11 deg).  Cold, the lowest training cost can be the one that generalises worse (KVLCC2
-    # fold 2, cubic damping alone: training cost 0.235 cold against 0.360 warm, held-out 17.8
-    # against 7.7 deg).  The start is part of the model choice, so it is chosen on the data that
-    # choose (validation), never on the runs the reported gain is measured on (test / nested).
+    # smaller model's linear part can hold the new effect in a poor one (truth case 25, a rudder
+    # asymmetry).  Cold, the lowest training cost can be the one that generalises worse (the KVLCC2
+    # stand-in's fold 2, cubic damping alone).  The start is part of the model choice, so it is
+    # chosen on the data that choose (validation), never on the runs the reported gain is measured on
+    # (test / nested).
     cold_start: bool = True
     # worker processes of the nested leave-one-run-out (its selections are independent of the main
     # one and of each other): 0 = one per core of this process, 1 = in this process.  Used only where
     # a fork is safe (a single-threaded, non-daemon process; pipeline.diagnose.core._nested_workers),
     # so never inside a Dask worker or a threaded host.  The report is the same bytes for any value
     nested_workers: int = 0
-    # the honest gain by nested leave-one-run-out when no --test runs are given (SPEC: ``gain`` is the
-    # figure on runs no choice has seen).  Off, ``gain`` is none with that reason; nothing else of the
-    # report changes (the main selection does not depend on it: tests/test_diagnose.py), and the
-    # diagnosis takes about a third of the time.  For a study that counts detections only (the
-    # detection-power study's spec), never for a user's verdict
+    # the honest gain by nested leave-one-run-out when no --test runs are given (docs/diagnosis.md:
+    # ``gain`` is the figure on runs no choice has seen).  Off, ``gain`` is none with that reason;
+    # nothing else of the report changes (the main selection does not depend on it:
+    # tests/test_diagnose.py), and the diagnosis takes about a third of the time.  For a study that
+    # counts detections only (the detection-power study's spec), never for a user's verdict
     nested_gain: bool = True
 
 
@@ -322,9 +314,8 @@ class DetectionPowerConfig:
     #                                      1: train on R/R starboard, validate on R/R port (one fold, cheaper)
     # the KCS has these itself: its hull nonlinearity (MMG Y'vvv, Y'vrr, N'vvr, N'rrr, ...), which in a
     # zigzag may be named by any hull effect, since the drift follows the turn (v ~ -c r, so v|v|,
-    # v^2 r and r^3 carry the same signal; tests/truths/cases.py HULL_NL).  Measured 2026-11-24 with
-    # the boxed held-out start: the clean symmetric KCS is named nonlinear_sway_damping
-    # (tests/test_diagnose_tank.py), which is the ship, not a false positive
+    # v^2 r and r^3 carry the same signal; tests/truths/cases.py HULL_NL): the clean symmetric KCS is
+    # named nonlinear_sway_damping (tests/test_diagnose_tank.py), which is the ship, not a false positive
     tank_own_effects: tuple[str, ...] = (
         "nonlinear_yaw_damping", "nonlinear_sway_damping", "sway_yaw_coupling"
     )
@@ -361,7 +352,7 @@ class BatchIdentifyConfig:
 
     inputs: tuple[str, ...] = ()         # files or folders (a folder: every file in it, sorted)
     pattern: str = "*"                   # glob inside folders
-    format: str | None = None            # raw format override (SPEC section 3), None: recognised
+    format: str | None = None            # format override (docs/contract.md#raw-formats); None: by content
     scale: float | None = None           # full/model scale of the files, None: model scale / metadata
     samples: int = 585                   # identification window
     algorithm: str = "srukf-ffm"
