@@ -4,10 +4,11 @@ A *dataset* is one collection of runs (``virtual`` for the built-in tank, ``hsva
 KVLCC2 zigzags, or any name a user gives their own folder).  Everything a stage makes for it lives
 under ``data/processed/<dataset>/<stage>/``.
 
-The contracts between stages (what each file holds; JSON written with :func:`pipeline.io.write_json`,
-Parquet with :func:`pipeline.io.write_frame`, both atomic):
+The contracts between stages (what each file holds, in full in docs/contract.md#output-files; JSON
+written with :func:`pipeline.io.write_json`, Parquet with :func:`pipeline.io.write_frame`, both
+atomic):
 
-``runs/<run_id>.parquet``  processed run, SPEC section 2 (``pipeline.io.Run``).
+``runs/<run_id>.parquet``  processed run, docs/contract.md#run-data (``pipeline.io.Run``).
 ``runs/index.json``        ``{"dataset", "provenance": "virtual"|"measured"|"mixed", "ship", "roles",
                            "runs": [entry...]}``; ``ship`` (when the dataset has a description,
                            pipeline.dataset.Dataset.particulars): ship, lpp_m, beam_m, draught_m,
@@ -19,7 +20,8 @@ Parquet with :func:`pipeline.io.write_frame`, both atomic):
                            lpp_source, froude_number, rudder_sign, ingest_notes, the particulars, ...).
 Every stage directory is written as one set (pipeline.io.atomic_dir); its manifest is
 ``.<dir>.set.json`` beside it.
-``identify/<alg>/estimates.json``  SPEC section 5, plus ``run_id``, ``dataset``, ``provenance``.
+``identify/<alg>/estimates.json``  the model's parameters, covariance, indices, ``run_id``, ``dataset``,
+                           ``provenance``, settings, consistency, flags.
 ``identify/<alg>/trace.parquet``   per step: time, delta, v, r, psi (measured); v_pred, r_pred, psi_pred
                            (one-step prediction made before the sample); v_est, r_est, psi_est (posterior);
                            a11..b21 and a11_std..b21_std; f (forgetting factor); innov_v, innov_r, innov_psi;
@@ -37,7 +39,7 @@ Every stage directory is written as one set (pipeline.io.atomic_dir); its manife
 ``control/metrics.json``   design (gains, margins, bandwidth, sensitivity peak) and per (plant, design)
                            statistics over wave seeds (mean, std, worst), with the paper's figures.
 ``control/timeseries.parquet``     plant, design, seed, time, psi_ref, psi, r, delta_cmd, delta, wave, wind.
-``diagnose/diagnosis.json``        SPEC section 7; ``diagnose/series.parquet`` measured/baseline/extended
+``diagnose/diagnosis.json``        docs/diagnosis.md; ``diagnose/series.parquet`` measured/baseline/extended
                            free-run series per validation run; PNG plots beside them.
 """
 

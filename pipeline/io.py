@@ -1,7 +1,7 @@
 """File input/output shared by every stage: atomic writes, runs as Parquet, JSON.
 
 Every output is written to a temporary name in the destination directory and renamed into place,
-so a failed stage leaves no partial file and earlier outputs stay intact (SPEC section 8).
+so a failed stage leaves no partial file and earlier outputs stay intact (docs/contract.md#bad-input).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ COLUMN_UNITS = {
 
 @dataclass
 class Run:
-    """One manoeuvre at model scale on a uniform time grid (SPEC section 2).
+    """One manoeuvre at model scale on a uniform time grid (docs/contract.md#run-data).
 
     ``frame`` has the canonical columns (time s, x0/y0 m, psi deg, u/v m/s, r deg/s, delta deg,
     rpm 1/min, plus optional ones); ``meta`` holds the provenance (source_file, source_sha256,
@@ -220,8 +220,8 @@ def _owned(dest: Path) -> bool:
 def atomic_dir(dest: str | Path) -> Iterator[Path]:
     """Yield a temporary directory beside ``dest``; its files become ``dest`` as one set, or nothing.
 
-    SPEC section 8: a stage's outputs appear together or not at all, earlier outputs stay intact when
-    the block fails, and no file of an earlier run is left beside the new ones.
+    docs/contract.md#bad-input: a stage's outputs appear together or not at all, earlier outputs stay
+    intact when the block fails, and no file of an earlier run is left beside the new ones.
 
     - The block writes into ``.<name>.out.<pid>.*`` beside ``dest``.  If it raises, that directory is
       removed and ``dest`` is untouched.
@@ -355,7 +355,7 @@ def read_frame(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
 
 
 def write_run(path: str | Path, run: Run) -> Path:
-    """Write a processed run (SPEC section 2) atomically."""
+    """Write a processed run (docs/contract.md#run-data) atomically."""
     return write_frame(path, run.frame, run.meta)
 
 

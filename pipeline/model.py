@@ -1,6 +1,8 @@
-"""The sway-yaw identification model of SPEC section 5 and its Nomoto indices (paper Eq. 6).
+"""The sway-yaw identification model and its Nomoto indices (paper Eq. 6).
 
-Units (the paper's and SPEC's, in which Table 4 is given): v m/s, r deg/s, psi deg, delta deg,
+Contract: docs/contract.md#the-identification-model; method: docs/identification.md#the-model.
+
+Units (the paper's and docs/contract.md's, in which Table 4 is given): v m/s, r deg/s, psi deg, delta deg,
 step h s.  Parameters theta = (a11, a12, a21, a22, b11, b21).
 
 The equations of motion are defined ONCE, in continuous time, by :func:`rhs`:
@@ -9,7 +11,7 @@ The equations of motion are defined ONCE, in continuous time, by :func:`rhs`:
     dr/dt   = a21 v + a22 r + b21 delta
     dpsi/dt = r
 
-SPEC section 5's discrete step (:func:`step`, :func:`simulate`) is the explicit Euler step of it,
+The paper's discrete step (:func:`step`, :func:`simulate`) is the explicit Euler step of it,
 x(k+1) = x(k) + h rhs(x(k), delta(k)).  :func:`simulate_zoh` integrates the same right-hand side
 exactly with the rudder held over each step (zero-order hold, matrix exponential): the simulation of
 the diagnosis, which must add no discretisation error of its own.  Copies (numba kernels elsewhere)
@@ -72,7 +74,7 @@ def state_matrices(theta) -> tuple[np.ndarray, np.ndarray]:
 
 
 def step(x, delta, theta, h: float):
-    """One step of SPEC section 5's model: the Euler step of :func:`rhs`.
+    """One step of the paper's discrete model: the Euler step of :func:`rhs`.
     ``x`` (..., 3) = (v m/s, r deg/s, psi deg); ``delta`` deg; ``h`` s."""
     x = np.asarray(x, dtype=float)
     return x + h * rhs(x, delta, theta)
@@ -135,8 +137,8 @@ def nomoto_indices(params) -> dict[str, float]:
     With D = a11 a22 - a12 a21: K = (a21 b11 - a11 b21)/D, T1 T2 = 1/D,
     T1 + T2 = -(a11 + a22)/D, K T3 = b21/D, T = T1 + T2 - T3.  T1 >= T2.
 
-    Units: with the model in SPEC units, K is in 1/s (deg/s of yaw rate per deg of rudder),
-    T1, T2, T3, T in s.  Raises :class:`ModelError` when the time constants are not real and
+    Units: with the model in its units (docs/contract.md#run-data), K is in 1/s (deg/s of yaw rate per
+    deg of rudder), T1, T2, T3, T in s.  Raises :class:`ModelError` when the time constants are not real and
     positive (D <= 0, complex roots) or K = 0.
     """
     a11, a12, a21, a22, b11, b21 = as_theta(params)

@@ -1,6 +1,6 @@
 """Unit conversions and Froude scaling: the one place where they happen.
 
-Canonical units (SPEC section 2): s, m, m/s, deg, deg/s, 1/min.
+Canonical units (docs/contract.md#run-data): s, m, m/s, deg, deg/s, 1/min.
 """
 
 from __future__ import annotations

@@ -1,10 +1,11 @@
-"""Validation of identified models on held-out data (SPEC section 6): one-step and free-run.
+"""Validation of identified models on held-out data (docs/identification.md#validation): one-step and
+free-run.
 
 Data: the rest of the identification run after the identification window (segment
 'identification-rest', the paper's Table 5) and every other zigzag run chosen by
 :func:`pipeline.runinfo.choose_runs` (segment 'held-out'; the 10/10 one is the paper's Table 6).
 
-Definitions (units of SPEC section 2: v m/s, r deg/s, psi deg):
+Definitions (units of docs/contract.md#run-data: v m/s, r deg/s, psi deg):
 
 * **one-step** (online, what the paper's Tables 5 and 6 report): the identifying filter (the same
   algorithm, settings and fuzzy forgetting) keeps running over the validation samples, parameters
@@ -36,7 +37,7 @@ from pipeline.identify.core import _arrays, measured_indices, run_filter
 from pipeline.io import Run
 from pipeline.model import PARAM_NAMES, simulate
 
-#: SPEC section 6, the paper's Tables 5 and 6 (one-step online prediction).
+#: The paper's Tables 5 and 6 (one-step online prediction; docs/results.md).
 PAPER_TABLES = {
     "table5": {"validation": "rest of the 20/20 zigzag after 585 samples", "rows": {
         "ffm-ukf": {"mse_v": 0.0152, "mse_r": 1.28, "mae_psi": 4.43},

@@ -1,8 +1,8 @@
-"""Online identification of the sway-yaw model (SPEC section 5): pure functions on arrays and runs.
+"""Online identification of the sway-yaw model (docs/identification.md): pure functions on arrays and runs.
 
 Conventions
 -----------
-* Data units of SPEC section 2 throughout (v m/s, r deg/s, psi deg, delta deg, time s); the
+* Data units of docs/contract.md#run-data throughout (v m/s, r deg/s, psi deg, delta deg, time s); the
   parameters are those of pipeline.model in the same units (paper Table 4).
 * Sample 0 initialises the filter: x0 = (v0, r0, psi0 measured; theta0 from FilterConfig), P0 =
   diag(r_std^2 for the measured states, theta0_std^2).  Every later sample k is one time update
@@ -302,7 +302,7 @@ def trust_flags(consistency: dict[str, Any], indices: dict[str, float] | None, i
     - ``nis_mean``: mean NIS outside its chi-square band over the effectively independent steps, and
       ``innovation_whiteness``: lag-1 autocorrelation of an innovation outside its band
       (:mod:`pipeline.identify.consistency` says why each band).
-    - ``nomoto_K``: K <= 0 (SPEC section 2: positive delta makes r positive, so K > 0 for any ship
+    - ``nomoto_K``: K <= 0 (docs/contract.md#run-data: positive delta makes r positive, so K > 0 for any ship
       logged in the canonical sign): the run taught the filter nothing true about the rudder.
     - ``nomoto_indices``: no real positive time constants (indices_error).
     - ``rudder_range``: the rudder moved less than FilterConfig.min_rudder_range in the window
@@ -388,9 +388,9 @@ def make_trace(time, delta, Y3, x0, std0, out: FilterOutput) -> pd.DataFrame:
 
 def identify_run(run: Run, cfg: FilterConfig | None = None, algorithm: str | None = None,
                  samples: int | None = None) -> Identification:
-    """Identify a processed run (SPEC section 2 columns) from its identification window.
+    """Identify a processed run (docs/contract.md#run-data columns) from its identification window.
 
-    The window: :func:`identification_window`.  Refused (one line, issue 14 item 6): a window of
+    The window: :func:`identification_window`.  Refused (one line): a window of
     fewer than ``cfg.min_samples`` samples, a rudder that moves less than ``cfg.min_rudder_range``
     deg in it (nothing to learn the rudder coefficients from), a sway velocity with NaN values.
     Results that fail a check carry ``flags`` (:func:`trust_flags`).
@@ -414,7 +414,7 @@ def identify_run(run: Run, cfg: FilterConfig | None = None, algorithm: str | Non
 
 def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfig,
                    dataset: str | None = None) -> dict[str, Any]:
-    """estimates.json content: SPEC section 5 plus run_id, dataset, provenance, settings, consistency."""
+    """estimates.json content (docs/contract.md#identifyalgorithm-identify)."""
     std = np.sqrt(np.maximum(np.diag(ident.covariance), 0.0))
     doc: dict[str, Any] = {
         "algorithm": ident.algorithm,

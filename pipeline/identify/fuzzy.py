@@ -1,6 +1,7 @@
 """Fuzzy fading memory: the forgetting factor f from the innovation (paper Table 1).
 
-Decisions the paper leaves open (ALGORITHMS.md), made here and tested in tests/test_fuzzy.py:
+Decisions the paper leaves open (docs/identification.md#the-fuzzy-forgetting-factor), made here and
+tested in tests/test_fuzzy.py:
 
 * **Inputs.** e is the yaw-rate innovation (measured minus predicted r, deg/s) of the current
   step and de = e(k) - e(k-1) its change over one step (deg/s per step).  The yaw rate is the

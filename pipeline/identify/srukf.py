@@ -7,9 +7,10 @@ random walk with zero process noise (paper Q).  Measurement: (v, r, psi), or a s
 One step k (data y_k, rudder delta_{k-1} applied over the step into sample k):
 
 * time update: sigma points X = [x, x + gamma S, x - gamma S] through the model
-  (pipeline.model, SPEC section 5); x- = sum Wm_i X_i; S- = tria([sqrt(W1)(X_1..2L - x-), sqrt(Q)])
-  by QR, then a rank-one cholupdate with point 0 and the sign of Wc0 (point 0 is kept out of the QR:
-  a negative weight squared inside the QR would turn positive).
+  (pipeline.model, docs/contract.md#the-identification-model); x- = sum Wm_i X_i;
+  S- = tria([sqrt(W1)(X_1..2L - x-), sqrt(Q)]) by QR, then a rank-one cholupdate with point 0 and
+  the sign of Wc0 (point 0 is kept out of the QR: a negative weight squared inside the QR would turn
+  positive).
 * measurement update: sigma points are redrawn from (x-, S-) (as filterpy 2 does, so the
   measurement statistics include Q), Y = h(X), Sy by QR + cholupdate of point 0 as above,
   Pxy = sum Wc_i dX_i dY_i^T, gain K = (Pxy / Sy^T) / Sy by two triangular solves,
@@ -17,7 +18,8 @@ One step k (data y_k, rudder delta_{k-1} applied over the step into sample k):
 * fading memory: S <- S / sqrt(f), f from the fuzzy rule table (:mod:`.fuzzy`).  The paper writes its
   fuzzy factor F as a multiplier on the updated factor; read literally, F in [0.95, 1] would shrink
   the covariance, the opposite of forgetting, so F is treated as the forgetting factor f here
-  (P <- P / f inflates the covariance, old data weigh less), as ALGORITHMS.md explains.
+  (P <- P / f inflates the covariance, old data weigh less):
+  docs/identification.md#the-fuzzy-forgetting-factor.
 
 A failed Cholesky downdate (the downdated matrix would not be positive definite) raises
 :class:`~pipeline.errors.FilterError`; the filter never returns NaN silently.
@@ -41,7 +43,7 @@ NX = 9
 
 @dataclass(frozen=True)
 class Weights:
-    """Unscented-transform weights and spread (van der Merwe): see ALGORITHMS.md."""
+    """Unscented-transform weights and spread (van der Merwe): docs/identification.md#sr-ukf-ffm."""
 
     wm: np.ndarray
     wc: np.ndarray
@@ -62,7 +64,8 @@ def ut_weights(n: int, alpha: float, beta: float, kappa: float) -> Weights:
 
 
 def model_fx(X: np.ndarray, delta: float, h: float) -> np.ndarray:
-    """The augmented model (SPEC section 5) on sigma points X (9, npts); parameters unchanged."""
+    """The augmented model (docs/contract.md#the-identification-model) on sigma points X (9, npts);
+    parameters unchanged."""
     v, r, psi = X[0], X[1], X[2]
     a11, a12, a21, a22, b11, b21 = X[3], X[4], X[5], X[6], X[7], X[8]
     out = X.copy()

@@ -1,7 +1,8 @@
-"""Manoeuvrability indices (issue 4): Nomoto indices with uncertainty, ITTC zigzag and turning-circle
+"""Manoeuvrability indices (docs/indices.md): Nomoto indices with uncertainty, ITTC zigzag and turning-circle
 analysis with the IMO MSC.137(76) check, Nomoto K-T by the standard (graphical) and integral methods.
 
-Public API (pure functions; SPEC units: s, m, deg, deg/s; positive delta turns to starboard):
+Public API (pure functions; units of docs/contract.md#run-data: s, m, deg, deg/s; positive delta
+turns to starboard):
 
 * :func:`zigzag_metrics` (run) -> dict          ITTC 7.5-04-02-01 zigzag metrics
 * :func:`turning_metrics` (run) -> dict         advance, transfer, tactical/steady diameter, speed ratio

@@ -12,7 +12,7 @@ is (a rate-limited, non-ideal rudder is therefore no error source).
     T r(t_e) = K int_a^e delta dt - (psi_e - psi_a), with r(t_e) the tangent of the heading curve at
     the execute (local straight line over +-tangent_window s, the chart method's tangent), so
     T = sum r_e (K I_e - dpsi_e) / sum r_e^2.
-``integral_kt`` (least squares, ALGORITHMS.md)
+``integral_kt`` (least squares, docs/indices.md#k-and-t-from-the-zigzag)
     Twice integrated from the first sample (psi_s, unknown r_s):
     int (psi - psi_s) = K intint delta - T (psi - psi_s) + c0 + c1 t [+ c2 t^2],
     c1 = T r_s absorbs the initial yaw rate, c0 an error of psi_s, c2 = K delta_0 / 2 a constant

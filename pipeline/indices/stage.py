@@ -86,7 +86,7 @@ def analyse_run(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]
 
 
 def identified(estimates: dict[str, Any], config: IndicesConfig | None = None) -> dict[str, Any]:
-    """Indices with uncertainty from one estimates.json document (SPEC section 5)."""
+    """Indices with uncertainty from one estimates.json document (docs/indices.md)."""
     cfg = config or IndicesConfig()
     if "parameters" not in estimates:
         raise InputError("estimates have no 'parameters'")

@@ -1,7 +1,7 @@
 """Non-dimensional Nomoto indices and trust flags for every identified or derived index set.
 
-Non-dimensional indices (SPEC section 9), at model scale with the run's approach speed U (m/s) and
-the model's length between perpendiculars Lpp (m):
+Non-dimensional indices (docs/indices.md#non-dimensional-indices), at model scale with the run's
+approach speed U (m/s) and the model's length between perpendiculars Lpp (m):
 
     K' = K Lpp / U        (K in 1/s)          T' = T U / Lpp, also T1', T2', T3'   (T in s)
 
@@ -20,8 +20,9 @@ The checks and why each threshold (pipeline.config.IndicesConfig):
   then reaches models without these indices, so the Gaussian bounds are local only.  Two conditions
   (:func:`pipeline.indices.uncertainty.draw_validity`): real positive T1, T2 for T1, T2, T3 (subject
   "T1, T2, T3"), and K > 0, T > 0 for the first-order K, T (subject "K, T").
-* ``sign``: K <= 0 contradicts the SPEC sign convention (positive rudder gives positive yaw rate) or
-  means a reversed rudder; T <= 0 is an unstable or non-physical first-order response.
+* ``sign``: K <= 0 contradicts the sign convention of docs/contract.md#run-data (positive rudder
+  gives positive yaw rate) or means a reversed rudder; T <= 0 is an unstable or non-physical
+  first-order response.
 * ``ill_conditioned``: a graphical (standard-method) T longer than the zigzag period: the response
   never approaches steady turning within a cycle, so the fit fixes only K/T and K, T separately are
   ill-conditioned (e.g. K = 8 1/s with T = 578 s).
@@ -58,7 +59,7 @@ def _finite(x: Any) -> float | None:
 def length_and_speed(meta: dict[str, Any], index: dict[str, Any] | None = None
                      ) -> tuple[float | None, float | None, list[str]]:
     """(Lpp model m, U m/s, why-missing) from a run's metadata (``lpp``, ``approach_speed``), with
-    the dataset's particulars in runs/index.json as the fallback for Lpp (SPEC section 9)."""
+    the dataset's particulars in runs/index.json as the fallback for Lpp (docs/dataset.md)."""
     lpp = _finite(meta.get("lpp"))
     if lpp is None and index:
         part = index.get("particulars") if isinstance(index.get("particulars"), dict) else {}

@@ -1,4 +1,4 @@
-"""Turning circle analysis (ITTC 7.5-04-02-01) of a run in SPEC units (m, deg, m/s, s).
+"""Turning circle analysis (ITTC 7.5-04-02-01) of a run in the units of docs/contract.md#run-data.
 
 From the execute (start of the rudder ramp, as for zigzags), with the position and heading there as
 origin: advance = distance along the original heading when the heading has changed by 90 deg;

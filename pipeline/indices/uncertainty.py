@@ -15,7 +15,7 @@ by one of two methods:
 
 If a sigma point falls where the model has no real positive time constants, the unscented method
 falls back to the linear one (the method actually used is returned by :func:`propagate`).
-Units: the model's (SPEC section 5): K in 1/s (deg/s per deg), T1, T2, T3, T in s.
+Units: the model's (docs/contract.md#the-identification-model): K in 1/s (deg/s per deg), T1, T2, T3, T in s.
 """
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ def propagate(params, cov, method: str = "unscented") -> tuple[dict[str, dict[st
 
     Parameters
     ----------
-    params : the six parameters (mapping by name or sequence in PARAM_NAMES order), SPEC units.
+    params : the six parameters (mapping by name or sequence in PARAM_NAMES order), the model's units.
     cov : their 6x6 covariance (same order), or None (stds are then None).
     method : 'unscented' or 'linear'.
 

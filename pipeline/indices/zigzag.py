@@ -1,4 +1,5 @@
-"""ITTC 7.5-04-02-01 zigzag analysis of a run (SPEC units: s, deg, deg/s; positive delta = starboard).
+"""ITTC 7.5-04-02-01 zigzag analysis of a run (docs/indices.md; units s, deg, deg/s; positive delta =
+starboard).
 
 Definitions used (documented choices where the procedure leaves room):
 

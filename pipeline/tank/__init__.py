@@ -1,6 +1,6 @@
 """The virtual tank: a 3-DOF MMG model of the KCS at model scale 1:37.89 (SIMMAN 2020 deep water).
 
-Its runs are written as canonical CSVs (SPEC section 3) and then go through the same stages as
+Its runs are written as canonical CSVs (docs/contract.md#raw-formats) and then go through the same stages as
 measured data.  Every run says ``provenance: virtual``.
 
 Public API::
@@ -14,7 +14,8 @@ Public API::
     KCSShip(cfg=TankConfig())            # stepping simulator for closed-loop use
     linearise(cfg=TankConfig())          # Nomoto indices of the linearised model
 
-See :mod:`pipeline.tank.kcs` for the model, its sign conventions and the decisions taken.
+See :mod:`pipeline.tank.kcs` for the model, its sign conventions and the decisions taken, and
+docs/virtual-tank.md.
 """
 
 from pipeline.tank.kcs import KCSCoefficients, KCSShip, linearise, trim_rps

@@ -1,7 +1,7 @@
-"""Sizing the effects injected into the virtual tank (issue 6's test cases).
+"""Sizing the effects injected into the virtual tank (docs/virtual-tank.md#injected-effects).
 
-The issue gives the magnitudes in physical terms: extra yaw damping "that cuts the yaw-rate amplitude
-of a 20/20 zigzag by 15 to 35 %".  These functions translate that into the tank's own parameter
+An effect's size is stated in physical terms: extra yaw damping that cuts the yaw-rate amplitude of
+a 20/20 zigzag by a given share.  These functions translate that into the tank's own parameter
 (``TankConfig.extra_yaw_damping``, a non-dimensional N'_rrr) and back into the diagnosis's terms
 (``n_rrr`` in s/deg^2 of :mod:`pipeline.diagnose.extended`), so a test can check an estimate
 against what was injected.  Units: r in deg/s at the edges, radians inside the MMG model.

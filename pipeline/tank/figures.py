@@ -10,7 +10,7 @@ import numpy as np
 
 from pipeline.io import Run
 
-#: Reference behaviour of the coefficient set (ALGORITHMS.md, KCS section), first execute to starboard
+#: Reference behaviour of the coefficient set (docs/results.md#the-virtual-tank), first execute to starboard
 #: except the 'port' turning entries.
 REFERENCE = {
     "zigzag 10/10": {"overshoots": (6.3, 12.7, 9.8), "min_speed": 0.89},

@@ -2,10 +2,10 @@
 
 Model: the standard MMG method (Yasukawa & Yoshimura, J. Mar. Sci. Technol. 20 (2015) 37-52) for
 hull, propeller and rudder forces, with Yoshimura's KCS coefficient set (SIMMAN 2008 proceedings),
-as listed in ``shared/reference/ALGORITHMS.md`` ("KCS" section).  The coefficients are
+as listed in docs/virtual-tank.md#the-ship (and its sources).  The coefficients are
 non-dimensional, so the same set serves at any Froude-similar scale; here L = 6.0702 m.
 
-Axes and signs (the MMG ones coincide with SPEC section 2 here):
+Axes and signs (the MMG ones coincide with docs/contract.md#run-data here):
 
 - x forward, y to starboard, z down; psi from x0 toward y0; r > 0 turns the bow to starboard;
   v > 0 is sway to starboard.  Earth-fixed origin at the midship position at t = 0.

@@ -1,4 +1,4 @@
-"""Run a manoeuvre in the virtual tank and log it as a canonical run (SPEC sections 2 and 3).
+"""Run a manoeuvre in the virtual tank and log it as a canonical run (docs/contract.md).
 
 Measurement noise: each logged signal gets seeded white noise of the one-sigma sizes in
 :class:`pipeline.config.TankConfig`.  The run's noise seed is derived deterministically from
@@ -29,8 +29,8 @@ from pipeline.units import deg2rad, rad2deg
 
 NOTE = "virtual tank (MMG model of the KCS, SIMMAN 2020 model scale); not measured data"
 EFFECT_FIELDS = ("rudder_offset", "rudder_delay", "extra_yaw_damping", "hold_speed")
-#: the servo and sensor effects of the power study, in the metadata only when set (a clean run's metadata
-#: as before)
+#: the servo and sensor effects of the detection-power study, in the metadata only when set (a clean
+#: run's metadata names none of them)
 SERVO_FIELDS = ("rudder_lag", "rudder_asymmetry", "rudder_stall_deg", "heading_misalignment")
 #: Column formats of the CSV (decimals well below the noise sizes).
 CSV_FORMATS = {"time": "%.3f", "x0": "%.4f", "y0": "%.4f", "psi": "%.4f", "u": "%.5f", "v": "%.5f",
@@ -152,7 +152,7 @@ def _note(meta: dict) -> str:
 
 
 def write_csv(path: str | Path, run: Run) -> Path:
-    """Write ``run`` as the canonical CSV of SPEC section 3, atomically.
+    """Write ``run`` as the canonical CSV (docs/contract.md#raw-formats), atomically.
 
     Layout: ``# key: value`` lines (ship, provenance, test, lpp, scale, dt, seed, note), then the
     header ``time,x0,y0,psi,u,v,r,delta,rpm`` and one comma-separated row per sample.
