@@ -1,5 +1,5 @@
-"""identify refuses or flags data it cannot learn from (issue 14 item 6, issue 13 code review and
-item 2: scale-free identification window)."""
+"""identify refuses or flags data it cannot learn from, and takes a scale-free identification window
+(docs/identification.md#the-identification-window)."""
 
 from __future__ import annotations
 

@@ -178,7 +178,7 @@ def test_stage_writes_the_catalog_schema(tmp_path):
     assert set(ind["identified"]) == {"srukf-ffm", "ffm-ukf"}
     for alg in ind["identified"]:
         primes = {f"{n}_prime" for n in INDEX_NAMES}
-        assert set(ind["identified"][alg]) == set(INDEX_NAMES) | primes      # SPEC section 9
+        assert set(ind["identified"][alg]) == set(INDEX_NAMES) | primes      # docs/indices.md
         for n in INDEX_NAMES:
             assert set(ind["identified"][alg][n]) == {"value", "std"}
             assert ind["identified"][alg][n]["std"] > 0
@@ -219,9 +219,9 @@ def test_stage_writes_the_catalog_schema(tmp_path):
 
 def test_stage_takes_the_identification_run_the_filter_ran_on(tmp_path):
     """The run identify used ([roles] identify, identify --run) is the one the indices name and compare
-    with the graphical method, as validate reads it from estimates.json.  Found 2026-11-26: the stage
-    re-chose by the default rule, so a dataset identified on its 10/10 zigzag was labelled and compared
-    on the 20/20 (and one identified on a turning circle failed: "no zigzag run")."""
+    with the graphical method, as validate reads it from estimates.json: not a re-choice by the default
+    rule, which would label and compare a dataset identified on its 10/10 zigzag on its 20/20 (and fail
+    one identified on a turning circle: "no zigzag run")."""
     root = _dataset(tmp_path, ident="z10s")
     assert main(["indices", "--dataset", "t", "--root", str(root)]) == 0
     ind = read_json(root / "t" / "indices" / "indices.json")

@@ -1,7 +1,7 @@
 """Virtual KCS tank: dynamics against the reference behaviour of the coefficient set, IMO criteria,
 signs, mirroring, effect injection, seeded noise, the CSV layout and the command line.
 
-Reference figures (ALGORITHMS.md, KCS section) come from an independent RK4 simulation of the same
+Reference figures (docs/results.md#the-virtual-tank) come from an independent RK4 simulation of the same
 coefficient set with the full-scale rpm (115.5 rpm x sqrt(37.89) = 710.96 rpm at model scale) and
 the full-scale rudder rate 2.32 deg/s.  Both are Froude-equivalent to ours: the MMG model is
 non-dimensional, our trimmed rpm is 711.03 (0.01 % away; checked below) and 2.32 x sqrt(37.89) =
@@ -11,8 +11,8 @@ switches gamma_R, the folding of the mass terms into the surge equation, x_G) an
 zigzag logic acting on the 12.5 Hz logged heading (a counter-rudder up to 0.08 s late, about 0.4 deg
 of heading at 5 deg/s).  Tolerances: overshoots +-2 deg, lowest zigzag speed +-0.06 of the approach
 speed (surge is the least constrained part of the set), turning advance/transfer/tactical diameter
-+-8 %.  The steady turning speed is NOT within a reference tolerance (0.44 vs 0.56; see README):
-it is only checked for plausibility.
++-8 %.  The steady turning speed is NOT within a reference tolerance (0.44 vs 0.56;
+docs/results.md#the-virtual-tank): it is only checked for plausibility.
 """
 
 from __future__ import annotations
@@ -420,7 +420,7 @@ def test_cli_writes_the_default_set(tmp_path, capsys):
     assert "# test: turning circle 35 port" in text and "# seed: 5" in text and "noise-free" in text
 
 
-# ---------------------------------------------------------------- sizing injected effects (issue 6)
+# ---------------------------------------------------------------- sizing injected effects
 
 
 def test_extra_damping_for_cut_gives_that_cut():

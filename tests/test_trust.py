@@ -1,4 +1,4 @@
-"""Non-dimensional indices and trust flags (issue 13 items 3 and 5).
+"""Non-dimensional indices and trust flags (docs/indices.md#trust-flags).
 
 The scale test runs the real stages twice on the same virtual-tank runs: once as model-scale files,
 once Froude-scaled to full scale (a truth not written with the indices' own formulas: the raw files

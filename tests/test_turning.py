@@ -1,4 +1,4 @@
-"""Turning circle by ITTC 7.5-04-02-01 (issue 13 item 4): steady phase, pull-out excluded, titles,
+"""Turning circle by ITTC 7.5-04-02-01 (docs/indices.md): steady phase, pull-out excluded, titles,
 IMO check from every format."""
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ def turning_truth(pull_out_after_deg: float | None = 540.0, side: float = 1.0, h
                   dt: float = 0.1, duration: float = 260.0):
     """A 35 deg turning circle with speed loss to 70 % and an optional pull-out (rudder back to 0 once
     the heading has turned ``pull_out_after_deg``).  Continuous integration at step h, logged at dt.
-    Returns the frame (SPEC units) and the true steady yaw rate (deg/s) and diameter (m)."""
+    Returns the frame (docs/contract.md units) and the true steady yaw rate (deg/s) and diameter (m)."""
     n = int(round(duration / h)) + 1
     psi = r = delta = 0.0
     x = y = 0.0
