@@ -37,7 +37,7 @@ class PipelineError(Exception):
 
 
 class InputError(PipelineError):
-    """Bad input data (SPEC section 8)."""
+    """Bad input data (docs/contract.md#bad-input)."""
 
 
 class ModelError(PipelineError):

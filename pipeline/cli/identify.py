@@ -1,4 +1,4 @@
-"""``python -m pipeline identify``: online identification (SPEC section 5).
+"""``python -m pipeline identify``: online identification (docs/identification.md).
 
 Single run:   python -m pipeline identify RUN --out DIR [--algorithm srukf-ffm|ffm-ukf] [--samples N]
 Catalog mode: python -m pipeline identify --dataset D [--algorithm A]   (both algorithms by default)

@@ -2,10 +2,11 @@
 tank's default runs.
 
 Writes kcs_zigzag_20_20_S.csv, kcs_zigzag_20_20_P.csv, kcs_zigzag_10_10_S.csv,
-kcs_zigzag_10_10_P.csv, kcs_turning_35_S.csv, kcs_turning_35_P.csv (canonical CSV, SPEC section 3),
-each atomically.  With ``--pull-out S`` the turning circles end in a pull-out: the rudder is returned
-to midships S seconds after the execute (kcs_turning_35_S_pulloutS.csv, ...), the manoeuvre in which
-the KCS's speed dependence shows (README, "A pull-out is where the tank's speed loss shows").
+kcs_zigzag_10_10_P.csv, kcs_turning_35_S.csv, kcs_turning_35_P.csv (canonical CSV,
+docs/contract.md#raw-formats), each atomically.  With ``--pull-out S`` the turning circles end in a
+pull-out: the rudder is returned to midships S seconds after the execute
+(kcs_turning_35_S_pulloutS.csv, ...), the manoeuvre in which the KCS's speed dependence shows
+(docs/diagnosis.md, docs/virtual-tank.md).
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""``python -m pipeline validate --dataset D``: one-step and free-run validation (SPEC section 6).
+"""``python -m pipeline validate --dataset D``: one-step and free-run validation
+(docs/identification.md#validation).
 
 Reads runs/index.json, the runs and identify/<alg>/estimates.json (every algorithm that has been
 identified); writes validate/metrics.json and validate/predictions.parquet (pipeline/catalog.py).
