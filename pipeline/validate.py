@@ -26,11 +26,14 @@ Metrics: MSE of v (null when the run has no v), MSE of r, MAE of psi, number of 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from pipeline.catalog import data_label, is_builtin_tank
 from pipeline.config import FilterConfig
 from pipeline.errors import InputError
 from pipeline.identify.core import _arrays, measured_indices, run_filter
@@ -46,6 +49,112 @@ PAPER_TABLES = {
         "ffm-ukf": {"mse_v": 0.0046, "mse_r": 0.83, "mae_psi": 3.69},
         "srukf-ffm": {"mse_v": 0.0016, "mse_r": 0.49, "mae_psi": 1.95}}},
 }
+
+
+#: What the two validation modes mean and the units of the scores (``definitions`` of metrics.json).
+DEFINITIONS = {
+    "one-step": "prior prediction of each sample by the identifying filter continued over the "
+                "validation data (parameters still adapting); identification run: from the "
+                "window's final posterior; held-out runs: states from their first sample, "
+                "parameters and covariance from the identification",
+    "free-run": "pipeline.model.simulate with the identified parameters from the measured "
+                "initial state, driven by the measured rudder alone",
+    "units": "mse_v (m/s)^2, mse_r (deg/s)^2, mae_psi deg"}
+
+
+@dataclass(frozen=True)
+class ValidationRow:
+    """The scores of one algorithm on one segment of one run in one mode.
+
+    ``segment`` is 'identification-rest' or 'held-out', ``mode`` 'one-step' or 'free-run';
+    ``mse_v`` (m/s)^2 (None when the run has no v), ``mse_r`` (deg/s)^2, ``mae_psi`` deg over
+    ``samples`` scored samples.
+    """
+
+    algorithm: str
+    run_id: str
+    segment: str
+    mode: str
+    test_name: str | None
+    mse_v: float | None
+    mse_r: float
+    mae_psi: float
+    samples: int
+
+    def to_json(self) -> dict[str, Any]:
+        return {"algorithm": self.algorithm, "run_id": self.run_id, "segment": self.segment,
+                "mode": self.mode, "test_name": self.test_name, "mse_v": self.mse_v, "mse_r": self.mse_r,
+                "mae_psi": self.mae_psi, "samples": self.samples}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> ValidationRow:
+        return cls(**{k: doc[k] for k in cls.__dataclass_fields__})
+
+
+@dataclass(frozen=True)
+class ValidationMetrics:
+    """``validate/metrics.json``: every row's scores, the paper's Tables 5 and 6, the definitions,
+    the identify-side trust flags of each algorithm's estimates and the data label
+    (:func:`pipeline.catalog.data_label`: what simulated data the scores come from)."""
+
+    dataset: str | None
+    provenance: str | None
+    ident_run: str
+    validation_runs: tuple[str, ...]
+    rows: tuple[ValidationRow, ...]
+    paper: Mapping[str, Any]
+    definitions: Mapping[str, str]
+    flags: Mapping[str, tuple[Mapping[str, Any], ...]]
+    label: Mapping[str, str]
+
+    def to_json(self) -> dict[str, Any]:
+        return {"dataset": self.dataset, "provenance": self.provenance, "ident_run": self.ident_run,
+                "validation_runs": list(self.validation_runs), "rows": [r.to_json() for r in self.rows],
+                "paper": self.paper, "definitions": dict(self.definitions),
+                "flags": {a: [dict(f) for f in fl] for a, fl in self.flags.items()}, **self.label}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> ValidationMetrics:
+        fixed = {"dataset", "provenance", "ident_run", "validation_runs", "rows", "paper", "definitions",
+                 "flags"}
+        return cls(dataset=doc["dataset"], provenance=doc["provenance"], ident_run=doc["ident_run"],
+                   validation_runs=tuple(doc["validation_runs"]),
+                   rows=tuple(ValidationRow.from_json(r) for r in doc["rows"]), paper=doc["paper"],
+                   definitions=dict(doc["definitions"]),
+                   flags={a: tuple(dict(f) for f in fl) for a, fl in doc["flags"].items()},
+                   label={k: v for k, v in doc.items() if k not in fixed})
+
+
+def metrics_document(dataset: str | None, index: Mapping[str, Any], *, ident_run: str,
+                     validation_runs: list[str], rows: list[dict[str, Any]],
+                     flags: Mapping[str, list[dict[str, Any]]]) -> ValidationMetrics:
+    """The validate stage's metrics.json as a typed object.
+
+    Parameters
+    ----------
+    dataset : str or None
+        The dataset's name.
+    index : mapping
+        runs/index.json (its "provenance" and what :func:`pipeline.catalog.is_builtin_tank` reads).
+    ident_run : str
+        The identification run's id.
+    validation_runs : list of str
+        The held-out runs' ids.
+    rows : list of dict
+        The metric rows of :func:`validate`.
+    flags : mapping
+        Algorithm -> the identify-side trust flags of its estimates.
+
+    Returns
+    -------
+    ValidationMetrics
+        ``to_json()`` is the content of validate/metrics.json.
+    """
+    return ValidationMetrics(
+        dataset=dataset, provenance=index.get("provenance"), ident_run=ident_run,
+        validation_runs=tuple(validation_runs), rows=tuple(ValidationRow.from_json(r) for r in rows),
+        paper=PAPER_TABLES, definitions=DEFINITIONS, flags={a: tuple(f) for a, f in flags.items()},
+        label=data_label(is_builtin_tank(index), index.get("provenance")))
 
 
 def scores(meas: np.ndarray, pred: np.ndarray) -> dict[str, Any]:

@@ -274,3 +274,70 @@ def test_missing_estimates_fail_cleanly_and_leave_old_outputs(tmp_path, capsys):
     assert (root / "t" / "indices" / "indices.json").read_bytes() == before
     assert sorted(p.name for p in (root / "t" / "indices").iterdir()) == [
         "indices.json", "table7.csv", "zigzag.json"]
+
+
+def _stage_inputs(root):
+    """What the indices command reads for dataset "t" under ``root`` (index, runs, estimates)."""
+    from pipeline.io import read_run
+    base = root / "t"
+    index = read_json(base / "runs" / "index.json")
+    runs = {e["run_id"]: read_run(base / "runs" / e["file"]) for e in index["runs"]}
+    est = {alg: read_json(base / "identify" / alg / "estimates.json") for alg in ("srukf-ffm", "ffm-ukf")}
+    return index, runs, est
+
+
+@pytest.mark.parametrize("case", ["identified", "srukf-unusable"])
+def test_stage_results_are_typed_and_serialise_to_the_written_files(tmp_path, case):
+    """The typed documents of build_documents are what the command writes, byte for byte, and
+    from_json(to_json(x)) gives x back; with SR-UKF-FFM's parameters unusable (no real positive time
+    constants) the failure and the FFM-UKF control model travel the same way."""
+    from pipeline.indices.result import ControlModel, IndicesDocument, ZigzagDocument
+    from pipeline.indices.stage import build_documents
+
+    bad = {"a11": -1.0, "a12": 1.0, "a21": 1.0, "a22": -0.5, "b11": 0.01, "b21": 0.1}
+    root = _dataset(tmp_path, srukf_params=bad if case == "srukf-unusable" else None)
+    assert main(["indices", "--dataset", "t", "--root", str(root)]) == 0
+    written = {n: (root / "t" / "indices" / n).read_text() for n in ("indices.json", "zigzag.json")}
+    index, runs, est = _stage_inputs(root)
+    ind, zz, _ = build_documents(index, runs, est, progress=False)
+    assert isinstance(ind, IndicesDocument) and isinstance(ind.control_model, ControlModel)
+    assert IndicesDocument.from_json(ind.to_json()) == ind
+    assert ZigzagDocument.from_json(zz.to_json()) == zz
+    for name, doc in (("indices.json", ind), ("zigzag.json", zz)):
+        got = json.loads(json.dumps(doc.to_json(), allow_nan=False, default=float))
+        assert json.dumps(got, indent=2) + "\n" == written[name]              # same bytes
+        # the file read back through the typed object gives the file again
+        cls = IndicesDocument if name == "indices.json" else ZigzagDocument
+        assert cls.from_json(json.loads(written[name])).to_json() == json.loads(written[name])
+    cm = ind.control_model
+    assert not cm.refused and "refused" not in cm.to_json()
+    assert [r.method for r in ind.graphical].count("integral") == 3
+    assert all("K_std" in r.to_json() for r in ind.graphical if r.method == "integral")
+    assert not any("K_std" in r.to_json() for r in ind.graphical if r.method == "standard")
+    if case == "srukf-unusable":
+        assert set(ind.identified_failures) == {"srukf-ffm"} and set(ind.identified) == {"ffm-ukf"}
+        assert cm.source.startswith("identified ffm-ukf") and "srukf-ffm" in cm.basis
+    else:
+        assert cm.indices["K"] == pytest.approx(0.38729, rel=1e-4)
+
+
+def test_refused_control_model_keeps_its_own_keys():
+    """Every candidate flagged: the typed model is refused, its JSON carries "refused" and "reason"
+    right after "source" and no primed indices (the keys the control stage reads), and it round-trips."""
+    from pipeline.indices import trust
+    from pipeline.indices.result import ControlModel
+    from pipeline.indices.stage import choose_control_model, control_model
+
+    sign = trust.flag("sign", "K", -0.3, "> 0", "K negative")
+    ident = {a: {n: {"value": v, "std": 0.01} for n, v in PAPER_TABLE7.items()}
+             for a in ("srukf-ffm", "ffm-ukf")}
+    gm = {"source": "standard", "run_id": "z20", "K": -0.3, "T": 14.0, "flags": [sign]}
+    args = (ident, {"srukf-ffm": [sign], "ffm-ukf": [sign]}, {}, gm, {"srukf-ffm": {}, "ffm-ukf": {}},
+            "z20", 7.0, 1.18)
+    cm = control_model(*args)
+    assert cm.refused and cm.source == "refused" and cm.reason.count("K negative") == 3
+    assert cm.indices == PAPER_TABLE7 and cm.primes == {}          # the best identified set, shown only
+    doc = choose_control_model(*args)
+    assert doc == cm.to_json() and ControlModel.from_json(doc) == cm
+    assert list(doc) == ["source", "refused", "reason", *INDEX_NAMES, "basis", "rejected", "flags",
+                         "second_order"]

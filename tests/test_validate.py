@@ -12,7 +12,14 @@ from pipeline.config import FilterConfig
 from pipeline.identify import identify_run, synthetic
 from pipeline.io import read_frame, write_json, write_run
 from pipeline.model import PAPER_TABLE4, simulate
-from pipeline.validate import PAPER_TABLES, free_run, scores
+from pipeline.validate import (
+    PAPER_TABLES,
+    ValidationMetrics,
+    free_run,
+    metrics_document,
+    scores,
+    validate,
+)
 
 
 def _dataset(root, with_v=True):
@@ -44,6 +51,28 @@ def test_free_run_with_true_parameters_reproduces_clean_run():
     assert np.allclose(pred, simulate(PAPER_TABLE4, (0, 0, 0), d, 0.08)[1:])
 
 
+def test_validation_metrics_typed_round_trip():
+    """validate() on a held-out run with the true parameters as the estimate: the typed metrics
+    document carries its rows (free-run of the truth on noise-free data: zero error), the paper's
+    tables, the virtual-data label, and from_json(to_json(x)) == x."""
+    ident = synthetic.zigzag_run("zi", n=120, seed=0, noise=(0.0, 0.0, 0.0))
+    held = synthetic.zigzag_run("zh", rudder=10, heading=10, n=150, seed=1, noise=(0.0, 0.0, 0.0))
+    x = [0.0, 0.0, 0.0, *PAPER_TABLE4.values()]
+    est = {"algorithm": "srukf-ffm", "samples": 120, "parameters": PAPER_TABLE4,
+           "filter_state": {"x": x, "P": (np.eye(9) * 1e-8).tolist()}}
+    rows, _ = validate({"srukf-ffm": est}, ident, [held])
+    assert [(r["segment"], r["mode"]) for r in rows] == [("held-out", "one-step"), ("held-out", "free-run")]
+    doc = metrics_document("syn", {"provenance": "virtual"}, ident_run="zi", validation_runs=["zh"],
+                           rows=rows, flags={"srukf-ffm": []})
+    assert ValidationMetrics.from_json(doc.to_json()) == doc
+    out = doc.to_json()
+    assert list(out) == ["dataset", "provenance", "ident_run", "validation_runs", "rows", "paper",
+                         "definitions", "flags", "simulated"]
+    assert out["rows"] == rows and out["paper"] == PAPER_TABLES
+    free = doc.rows[1]
+    assert free.samples == 149 and free.mse_r == pytest.approx(0.0, abs=1e-20) and free.mae_psi < 1e-9
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("with_v", [True, False])
 def test_identify_then_validate_end_to_end(tmp_path, capsys, with_v):
@@ -72,6 +101,12 @@ def test_identify_then_validate_end_to_end(tmp_path, capsys, with_v):
     for key in [("held-out", "free-run"), ("identification-rest", "one-step")]:
         a, b = rows[("srukf-ffm", *key)], rows[("ffm-ukf", *key)]
         assert np.isclose(a["mse_r"], b["mse_r"], rtol=1e-5)
+    # the typed document built from the same rows is the file, key for key and in order
+    index = json.loads((tmp_path / "syn" / "runs" / "index.json").read_text())
+    typed = metrics_document("syn", index, ident_run="zz20", validation_runs=["zz10"], rows=doc["rows"],
+                             flags=doc["flags"])
+    assert json.loads(json.dumps(typed.to_json())) == doc and list(typed.to_json()) == list(doc)
+    assert ValidationMetrics.from_json(doc) == typed
     preds, _ = read_frame(tmp_path / "syn" / "validate" / "predictions.parquet")
     assert {"algorithm", "run_id", "mode", "time", "delta", "v", "r", "psi", "v_pred", "r_pred",
             "psi_pred"} <= set(preds.columns)

@@ -31,6 +31,18 @@ from pipeline.errors import InputError, PipelineError
 from pipeline.indices import trust
 from pipeline.indices.imo import imo_check
 from pipeline.indices.nomoto_kt import graphical_kt, integral_kt
+from pipeline.indices.result import (
+    AmplitudeMean,
+    ControlModel,
+    GraphicalModel,
+    IndexValue,
+    IndicesDocument,
+    KTRow,
+    Nondimensional,
+    RunMetrics,
+    UncertaintyCheck,
+    ZigzagDocument,
+)
 from pipeline.indices.turning import turning_metrics
 from pipeline.indices.uncertainty import draw_validity, monte_carlo, propagate
 from pipeline.indices.zigzag import zigzag_metrics
@@ -38,6 +50,10 @@ from pipeline.io import Run
 from pipeline.model import INDEX_NAMES, PAPER_GRAPHICAL, PAPER_TABLE4, PAPER_TABLE7
 from pipeline.runinfo import choose_runs, parse_test_name
 
+UNITS = {"K": "1/s", "T1": "s", "T2": "s", "T3": "s", "T": "s", "K_prime": "-", "T_prime": "-",
+         "T1_prime": "-", "T2_prime": "-", "T3_prime": "-"}
+NONDIMENSIONAL_DEFINITION = ("K' = K Lpp/U, T' = T U/Lpp (Lpp model m, U approach speed m/s of the run the "
+                             "indices come from)")
 PAPER = {"table4": PAPER_TABLE4, "table7": PAPER_TABLE7, "graphical": PAPER_GRAPHICAL,
          "reference": "Meng et al., Ocean Engineering 294 (2024) 116853, Tables 4 and 7",
          "units": "K 1/s (deg/s per deg), T1 T2 T3 T s"}
@@ -86,7 +102,23 @@ def analyse_run(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]
 
 
 def identified(estimates: dict[str, Any], config: IndicesConfig | None = None) -> dict[str, Any]:
-    """Indices with uncertainty from one estimates.json document (docs/indices.md)."""
+    """Indices with uncertainty from one estimates.json document (docs/indices.md).
+
+    Parameters
+    ----------
+    estimates : dict
+        An estimates.json document: "parameters" (a11 a12 a21 a22 in 1/s, b11 b21 in 1/s^2 as in
+        docs/contract.md) and optionally "covariance" (6 x 6, the parameters' units squared).
+    config : IndicesConfig, optional
+        Propagation method, Monte Carlo samples and seed.
+
+    Returns
+    -------
+    dict
+        "indices": index name -> {"value", "std"} (K 1/s, T1 T2 T3 T s, std one sigma or None);
+        "method": the propagation used; "check": the :class:`UncertaintyCheck` (None without a
+        covariance).
+    """
     cfg = config or IndicesConfig()
     if "parameters" not in estimates:
         raise InputError("estimates have no 'parameters'")
@@ -96,23 +128,48 @@ def identified(estimates: dict[str, Any], config: IndicesConfig | None = None) -
     if cov is not None:
         mc = monte_carlo(estimates["parameters"], cov, cfg.mc_samples, cfg.seed)
         valid = draw_validity(estimates["parameters"], cov, cfg.mc_samples, cfg.seed)
-        mc.pop("rejected")      # the same draws: draw_validity gives the share and its causes
-        check = {"samples": cfg.mc_samples, "seed": cfg.seed, **valid,
-                 "percentiles_16_50_84": {n: [mc[n]["p16"], mc[n]["p50"], mc[n]["p84"]] for n in INDEX_NAMES}}
+        # the same draws: draw_validity gives the share of invalid ones and its causes
+        check = UncertaintyCheck(
+            samples=cfg.mc_samples, seed=cfg.seed, invalid_fraction=valid["invalid_fraction"],
+            invalid_fraction_first_order=valid["invalid_fraction_first_order"],
+            invalid_causes=valid["invalid_causes"],
+            percentiles={n: (mc[n]["p16"], mc[n]["p50"], mc[n]["p84"]) for n in INDEX_NAMES})
     return {"indices": vals, "method": used, "check": check}
 
 
-def choose_control_model(ident_out: dict[str, Any], ident_flags: dict[str, list], failures: dict[str, str],
-                         graphical_model: dict[str, Any], estimates: dict[str, dict], ident: str,
-                         lpp: float | None, u: float | None) -> dict[str, Any]:
+def control_model(ident_out: dict[str, Any], ident_flags: dict[str, list], failures: dict[str, str],
+                  graphical_model: dict[str, Any], estimates: dict[str, dict], ident: str,
+                  lpp: float | None, u: float | None) -> ControlModel:
     """The indices the autopilot is designed from, and why (never a flagged set without saying so).
 
     Candidates in order: SR-UKF-FFM identified, FFM-UKF identified, the first-order graphical model.
     The first whose K and T (what the first-order CGSA design uses) carry no blocking flag
     (:func:`pipeline.indices.trust.blocking`) is taken; ``basis`` says which and why the others were
     not.  ``second_order`` says whether T1, T2, T3 are trustworthy enough for the second-order design.
-    When every candidate is flagged the model is ``"refused": true`` with the reasons, and the control
+    When every candidate is flagged the model is ``refused`` with the reasons, and the control
     stage designs nothing from it.
+
+    Parameters
+    ----------
+    ident_out : dict
+        Algorithm -> index name -> {"value", "std"} (K 1/s, T1 T2 T3 T s).
+    ident_flags : dict
+        Algorithm -> its trust flags.
+    failures : dict
+        Algorithm -> why its indices could not be computed.
+    graphical_model : dict
+        The standard-method K (1/s), T (s) with "run_id" and "flags".
+    estimates : dict
+        Algorithm -> its estimates.json document (for the run it was identified on).
+    ident : str
+        The identification run's id (when an estimate names none).
+    lpp, u : float or None
+        Length between perpendiculars (m) and approach speed (m/s) for K', T' (None: not computed).
+
+    Returns
+    -------
+    ControlModel
+        The chosen indices (K 1/s, T1 T2 T3 T s), their primed values and the reasons.
     """
     rejected = []
     for alg in ("srukf-ffm", "ffm-ukf"):
@@ -130,27 +187,38 @@ def choose_control_model(ident_out: dict[str, Any], ident_flags: dict[str, list]
         basis = f"identified {alg} indices (Eq. 6 on run {est_run}): K and T carry no flag"
         if rejected:
             basis += "; not used: " + "; ".join(f"{r['candidate']} ({r['reasons']})" for r in rejected)
-        return {"source": f"identified {alg}, Eq. 6 on run {est_run}", **vals,
-                **trust.primes(vals, lpp, u), "basis": basis, "rejected": rejected,
-                "flags": ident_flags.get(alg, []),
-                "second_order": {"ok": not second, "reason": trust.reasons(second) if second else None}}
+        return ControlModel(
+            source=f"identified {alg}, Eq. 6 on run {est_run}", indices=vals,
+            primes=trust.primes(vals, lpp, u), basis=basis, rejected=tuple(rejected),
+            flags=tuple(ident_flags.get(alg, [])),
+            second_order={"ok": not second, "reason": trust.reasons(second) if second else None})
     gm = graphical_model
     block = trust.blocking(gm.get("flags", []), ("K", "T"))
     vals = {"K": gm["K"], "T1": gm["T"], "T2": 0.0, "T3": 0.0, "T": gm["T"]}
     if not block:
         basis = (f"first-order graphical model (standard method on run {gm.get('run_id')}), because "
                  + "; ".join(f"{r['candidate']} is not usable: {r['reasons']}" for r in rejected))
-        return {"source": f"first-order graphical model, standard method on run {gm.get('run_id')} "
-                          "(identified indices flagged, see basis)",
-                **vals, **trust.primes(vals, lpp, u), "basis": basis, "rejected": rejected,
-                "flags": gm.get("flags", []), "second_order": {"ok": False, "reason": "first-order model"}}
+        return ControlModel(
+            source=f"first-order graphical model, standard method on run {gm.get('run_id')} "
+                   "(identified indices flagged, see basis)",
+            indices=vals, primes=trust.primes(vals, lpp, u), basis=basis, rejected=tuple(rejected),
+            flags=tuple(gm.get("flags", [])), second_order={"ok": False, "reason": "first-order model"})
     rejected.append({"candidate": "graphical (standard method)", "reasons": trust.reasons(block)})
     reason = "no trustworthy indices to design an autopilot from: " + "; ".join(
         f"{r['candidate']}: {r['reasons']}" for r in rejected)
     best = next((a for a in ("srukf-ffm", "ffm-ukf") if a in ident_out), None)
     shown = {n: ident_out[best][n]["value"] for n in INDEX_NAMES} if best else vals
-    return {"source": "refused", "refused": True, "reason": reason, **shown, "basis": reason,
-            "rejected": rejected, "flags": [], "second_order": {"ok": False, "reason": "refused"}}
+    return ControlModel(source="refused", refused=True, reason=reason, indices=shown, primes={},
+                        basis=reason, rejected=tuple(rejected), flags=(),
+                        second_order={"ok": False, "reason": "refused"})
+
+
+def choose_control_model(ident_out: dict[str, Any], ident_flags: dict[str, list], failures: dict[str, str],
+                         graphical_model: dict[str, Any], estimates: dict[str, dict], ident: str,
+                         lpp: float | None, u: float | None) -> dict[str, Any]:
+    """:func:`control_model` in its JSON form (the ``control_model`` entry of indices.json)."""
+    return control_model(ident_out, ident_flags, failures, graphical_model, estimates, ident,
+                         lpp, u).to_json()
 
 
 def _amplitude_label(res: dict[str, Any]) -> str:
@@ -162,12 +230,42 @@ def _amplitude_label(res: dict[str, Any]) -> str:
 
 
 def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict[str, Any]],
-          config: IndicesConfig | None = None, identification: str | None = None,
+          config: IndicesConfig | None = None, *, identification: str | None = None,
           progress: bool = True) -> tuple[dict, dict, pd.DataFrame]:
-    """Compute (indices.json, zigzag.json, table7 data frame) for one dataset.
+    """The indices stage's three outputs in their file form: (indices.json, zigzag.json, table7).
 
-    ``index`` is runs/index.json, ``runs`` maps run_id to Run, ``estimates`` maps algorithm to its
-    estimates.json document (srukf-ffm required).
+    :func:`build_documents` with the two documents as JSON-ready dicts (``to_json()``); the
+    parameters are the same.
+    """
+    ind, zz, table = build_documents(index, runs, estimates, config, identification=identification,
+                                     progress=progress)
+    return ind.to_json(), zz.to_json(), table
+
+
+def build_documents(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict[str, Any]],
+                    config: IndicesConfig | None = None, *, identification: str | None = None,
+                    progress: bool = True) -> tuple[IndicesDocument, ZigzagDocument, pd.DataFrame]:
+    """Compute the indices stage's results for one dataset.
+
+    Parameters
+    ----------
+    index : dict
+        runs/index.json (its "runs" entries, "dataset", "provenance").
+    runs : dict
+        run_id -> Run (units of docs/contract.md#run-data).
+    estimates : dict
+        Algorithm -> its estimates.json document ("srukf-ffm" required).
+    config : IndicesConfig, optional
+        Uncertainty propagation, Monte Carlo, K-T method and trust settings.
+    identification : str, optional
+        The identification run's id (default: the run srukf-ffm was identified on).
+    progress : bool
+        Show a progress bar over the runs.
+
+    Returns
+    -------
+    IndicesDocument, ZigzagDocument, pandas.DataFrame
+        indices.json, zigzag.json and Table 7 (one row an index: K 1/s, T1 T2 T3 T s).
     """
     cfg = config or IndicesConfig()
     entries = index.get("runs", [])
@@ -234,62 +332,62 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
         ident_out[alg] = vals
         methods[alg] = got["method"]
         checks[alg] = got["check"]
-        ident_flags[alg] = trust.identified_flags({n: vals[n] for n in INDEX_NAMES}, got["check"], est, cfg) \
+        check_doc = None if got["check"] is None else got["check"].to_json()
+        ident_flags[alg] = trust.identified_flags({n: vals[n] for n in INDEX_NAMES}, check_doc, est, cfg) \
             + trust.prime_flags(why)
-        nondim[alg] = {"run_id": rid, "lpp_m": lpp, "approach_speed_m_s": u}
+        nondim[alg] = Nondimensional(run_id=rid, lpp_m=lpp, approach_speed_m_s=u)
 
     period = {r["run_id"]: (r["metrics"] or {}).get("period_s") for r in results}
     lpp_g, u_g, why_g = trust.length_and_speed(entry_by_id.get(graph_id, {}), index)
     gm_flags = trust.graphical_flags(gm, period.get(graph_id)) + trust.prime_flags(why_g)
-    graphical_model = {**graphical_model, **trust.primes({"K": gm["K"], "T": gm["T"]}, lpp_g, u_g),
-                       "flags": gm_flags}
+    graphical_model = GraphicalModel(
+        source=graphical_model["source"], run_id=graph_id, K=gm["K"], T=gm["T"],
+        primes=trust.primes({"K": gm["K"], "T": gm["T"]}, lpp_g, u_g), flags=tuple(gm_flags))
     lpp_i, u_i, _ = trust.length_and_speed(entry_by_id.get(ident, {}), index)
-    control_model = choose_control_model(ident_out, ident_flags, failures, graphical_model, estimates,
-                                         ident, lpp_i, u_i)
+    chosen = control_model(ident_out, ident_flags, failures, graphical_model.to_json(), estimates,
+                           ident, lpp_i, u_i)
 
-    graphical = []
+    graphical: list[KTRow] = []
     for r in results:
         for meth in ("standard", "integral"):
             kt = r["kt"].get(meth)
             if kt is None:
                 continue
-            row = {"run_id": r["run_id"], "method": meth, "K": kt["K"], "T": kt["T"],
-                   "test": _amplitude_label(r), "test_name": r["test_name"],
-                   "first_side": (r["metrics"] or {}).get("first_side")}
             lpp, u, why = trust.length_and_speed(entry_by_id.get(r["run_id"], {}), index)
-            row.update(trust.primes({"K": kt["K"], "T": kt["T"]}, lpp, u))
-            flags = trust.graphical_flags(row, period.get(r["run_id"]))
+            primes = trust.primes({"K": kt["K"], "T": kt["T"]}, lpp, u)
+            flags = trust.graphical_flags({"K": kt["K"], "T": kt["T"], **primes}, period.get(r["run_id"]))
+            extra = {}
             if meth == "integral":
-                row.update({"K_std": kt["K_std"], "T_std": kt["T_std"],
-                            "rudder_offset_deg": kt["rudder_offset_deg"]})
-                flags += trust.integral_uncertainty_flags(row, cfg)
-            row["flags"] = flags + trust.prime_flags(why)
-            graphical.append(row)
+                extra = {"K_std": kt["K_std"], "T_std": kt["T_std"],
+                         "rudder_offset_deg": kt["rudder_offset_deg"]}
+                flags += trust.integral_uncertainty_flags({"K": kt["K"], "T": kt["T"], **extra}, cfg)
+            graphical.append(KTRow(run_id=r["run_id"], method=meth, K=kt["K"], T=kt["T"],
+                                   test=_amplitude_label(r), test_name=r["test_name"],
+                                   first_side=(r["metrics"] or {}).get("first_side"), primes=primes,
+                                   flags=tuple(flags + trust.prime_flags(why)), **extra))
     by_amp: dict[str, dict[str, Any]] = {}
     for g in graphical:
-        d = by_amp.setdefault(g["test"], {}).setdefault(g["method"], {"K": [], "T": []})
-        d["K"].append(g["K"])
-        d["T"].append(g["T"])
-    amp_summary = {a: {m: {"K_mean": float(np.mean(v["K"])), "T_mean": float(np.mean(v["T"])),
-                           "runs": len(v["K"])} for m, v in d.items()} for a, d in by_amp.items()}
+        d = by_amp.setdefault(g.test, {}).setdefault(g.method, {"K": [], "T": []})
+        d["K"].append(g.K)
+        d["T"].append(g.T)
+    amp_summary = {a: {m: AmplitudeMean(K_mean=float(np.mean(v["K"])), T_mean=float(np.mean(v["T"])),
+                                        runs=len(v["K"])) for m, v in d.items()} for a, d in by_amp.items()}
 
     prov = index.get("provenance")
-    indices_doc = {
-        "dataset": index.get("dataset"), "provenance": prov, "builtin_tank": is_builtin_tank(index),
-        "identification_run": ident,
-        "identified": ident_out, "identified_flags": ident_flags, "nondimensional": nondim,
-        "uncertainty_method": methods,
-        "uncertainty_check": checks, "identified_failures": failures,
-        "graphical": graphical, "graphical_by_amplitude": amp_summary,
-        "control_model": control_model, "graphical_model": graphical_model, "paper": PAPER,
-        "units": {"K": "1/s", "T1": "s", "T2": "s", "T3": "s", "T": "s", "K_prime": "-", "T_prime": "-",
-                  "T1_prime": "-", "T2_prime": "-", "T3_prime": "-"},
-        "nondimensional_definition": "K' = K Lpp/U, T' = T U/Lpp (Lpp model m, U approach speed m/s of "
-                                     "the run the indices come from)",
-    }
-    zig_doc = {"dataset": index.get("dataset"), "provenance": prov,
-               "runs": [{"run_id": r["run_id"], "test_name": r["test_name"], "kind": r["kind"],
-                         "metrics": r["metrics"], "imo": r["imo"], "errors": r["errors"]} for r in results]}
+    indices_doc = IndicesDocument(
+        dataset=index.get("dataset"), provenance=prov, builtin_tank=is_builtin_tank(index),
+        identification_run=ident,
+        identified={a: {n: IndexValue(**v) for n, v in d.items()} for a, d in ident_out.items()},
+        identified_flags={a: tuple(f) for a, f in ident_flags.items()}, nondimensional=nondim,
+        uncertainty_method=methods, uncertainty_check=checks, identified_failures=failures,
+        graphical=tuple(graphical), graphical_by_amplitude=amp_summary,
+        control_model=chosen, graphical_model=graphical_model, paper=PAPER, units=UNITS,
+        nondimensional_definition=NONDIMENSIONAL_DEFINITION)
+    zig_doc = ZigzagDocument(
+        dataset=index.get("dataset"), provenance=prov,
+        runs=tuple(RunMetrics(run_id=r["run_id"], test_name=r["test_name"], kind=r["kind"],
+                              metrics=r["metrics"], imo=r["imo"], errors=tuple(r["errors"]))
+                   for r in results))
 
     ident_kt = graph_res["kt"]
     rows = []
