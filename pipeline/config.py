@@ -112,6 +112,47 @@ class FilterConfig:
 
 
 @dataclass(frozen=True)
+class ManoeuvreConfig:
+    """Thresholds of reading a zigzag or turning circle from logged signals (pipeline/indices/
+    executes.py, turning.py, nomoto_kt.py; docs/indices.md).  Shares are of the rudder amplitude
+    or of the rudder jump unless said otherwise."""
+
+    # Rudder amplitude: the top of |delta| is this percentile (%), robust against a few logger
+    # spikes; the amplitude is the median of the samples above amplitude_share of that top (the
+    # held plateaus, not the ramps between them).
+    amplitude_percentile: float = 99.5
+    amplitude_share: float = 0.5
+    # Neutral rudder: the first neutral_head_s seconds count as neutral when they stay within
+    # neutral_share of the amplitude (a rudder held off centre before the first execute).
+    neutral_head_s: float = 1.0          # s
+    neutral_share: float = 0.25
+    # Start of a rudder move: the plateau before it is the samples within plateau_share of the
+    # jump; the move starts where the rudder leaves that plateau by more than execute_sigmas robust
+    # sigmas of its noise (4 sigma: a false start once in about 16 000 noise samples) or, on
+    # noise-free data, execute_min_share of the jump.
+    plateau_share: float = 0.1
+    execute_sigmas: float = 4.0
+    execute_min_share: float = 0.002
+    # Integral K-T method: the least-squares fit of 4-5 coefficients needs this many samples at the
+    # least (several per coefficient).
+    integral_min_samples: int = 20
+    # Turning circle: the approach speed is the mean speed over approach_s seconds before the
+    # execute; the held-rudder phase ends where the rudder leaves its plateau by more than
+    # held_off_share of it, counted after it first came within held_reached_share of it.
+    approach_s: float = 3.0              # s
+    held_off_share: float = 0.5
+    held_reached_share: float = 0.1
+    # Steady turn: heading change (deg) the steady part starts at when the run is too short for
+    # IndicesConfig.steady_from; yaw rate within steady_r_band of its final value (a turning
+    # ship's yaw rate settles within a few per cent once the speed loss is over) or within
+    # steady_noise_sigmas of its sample noise for a slow turn; at least steady_min_samples samples.
+    steady_from_short: float = 180.0     # deg
+    steady_r_band: float = 0.05
+    steady_noise_sigmas: float = 3.0
+    steady_min_samples: int = 10
+
+
+@dataclass(frozen=True)
 class IndicesConfig:
     """Zigzag/turning analysis, Nomoto K-T methods and index uncertainty."""
 
@@ -135,6 +176,8 @@ class IndicesConfig:
     # run does not turn far enough; needs at least steady_min_span deg of steady turning.
     steady_from: float = 270.0
     steady_min_span: float = 90.0
+    # thresholds of reading the manoeuvres from the logged signals
+    manoeuvre: ManoeuvreConfig = field(default_factory=ManoeuvreConfig)
     # IMO check: model scale factor by ship, used when the run's metadata does not give it
     # (L/U is a full-scale time; KVLCC2 HSVA 1:45.7 from the data README, KCS SIMMAN 1:37.89).
     ship_scales: dict[str, float] = field(default_factory=lambda: {"KVLCC2": 45.7, "KCS": 37.89})

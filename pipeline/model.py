@@ -24,17 +24,18 @@ import math
 
 import numpy as np
 
+from pipeline import paper
 from pipeline.errors import ModelError
 
 PARAM_NAMES = ("a11", "a12", "a21", "a22", "b11", "b21")
 STATE_NAMES = ("v", "r", "psi")
 INDEX_NAMES = ("K", "T1", "T2", "T3", "T")
 
-#: Paper, Table 4 (identified on the KCS 20/20 zigzag).
-PAPER_TABLE4 = {"a11": -1.882, "a12": -0.1232, "a21": -7.422, "a22": -0.8129, "b11": 0.0099, "b21": 0.1657}
-#: Paper, Table 7 (indices from Table 4) and the graphical method.
-PAPER_TABLE7 = {"K": 0.3867, "T1": 3.9688, "T2": 0.4094, "T3": 0.6960, "T": 3.6822}
-PAPER_GRAPHICAL = {"K": 0.576, "T": 4.816}
+#: Aliases of the paper's Table 4, Table 7 and graphical K, T, imported under these names across the package
+#: (the figures themselves live in :mod:`pipeline.paper`).
+PAPER_TABLE4 = paper.TABLE4
+PAPER_TABLE7 = paper.TABLE7
+PAPER_GRAPHICAL = paper.GRAPHICAL
 
 
 def as_theta(params) -> np.ndarray:

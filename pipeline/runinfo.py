@@ -10,6 +10,8 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from pipeline import paper
+
 _ZIGZAG = re.compile(
     r"(?:zig[\s-]*zag|^\s*z)(?:.*?[^\w.])??(?P<rud>\d+(?:\.\d+)?)[^\d/\n]{0,5}/\s*-?\s*(?P<head>\d+(?:\.\d+)?)",
     re.IGNORECASE,
@@ -85,7 +87,7 @@ def choose_runs(runs: list[dict[str, Any]], identification: str | None = None) -
                              "another run in dataset.toml [roles] identify, or identify --run-id)")
 
         def key(r):
-            return (abs((r.get("rudder_deg") or 0) - 20.0), -(r.get("heading_deg") or 0),
+            return (abs((r.get("rudder_deg") or 0) - paper.IDENT_ZIGZAG_DEG), -(r.get("heading_deg") or 0),
                     0 if r.get("first_side") == "starboard" else 1, r["run_id"])
 
         ident = sorted(zig, key=key)[0]["run_id"]

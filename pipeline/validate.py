@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from pipeline import paper
 from pipeline.catalog import data_label, is_builtin_tank
 from pipeline.config import FilterConfig
 from pipeline.errors import InputError
@@ -41,15 +42,7 @@ from pipeline.io import Run
 from pipeline.model import PARAM_NAMES, simulate
 
 #: The paper's Tables 5 and 6 (one-step online prediction; docs/results.md).
-PAPER_TABLES = {
-    "table5": {"validation": "rest of the 20/20 zigzag after 585 samples", "rows": {
-        "ffm-ukf": {"mse_v": 0.0152, "mse_r": 1.28, "mae_psi": 4.43},
-        "srukf-ffm": {"mse_v": 0.0037, "mse_r": 0.71, "mae_psi": 3.55}}},
-    "table6": {"validation": "10/10 zigzag", "rows": {
-        "ffm-ukf": {"mse_v": 0.0046, "mse_r": 0.83, "mae_psi": 3.69},
-        "srukf-ffm": {"mse_v": 0.0016, "mse_r": 0.49, "mae_psi": 1.95}}},
-}
-
+PAPER_TABLES = paper.TABLES_5_6
 
 #: What the two validation modes mean and the units of the scores (``definitions`` of metrics.json).
 DEFINITIONS = {

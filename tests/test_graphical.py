@@ -6,11 +6,14 @@ Truth: first-order Nomoto zigzags simulated with a rate-limited rudder and measu
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 import pytest
 from test_zigzag import simulate_zigzag
 
+from pipeline.config import IndicesConfig, ManoeuvreConfig
 from pipeline.errors import InputError
 from pipeline.indices import graphical_kt, integral_kt
 from pipeline.io import Run
@@ -63,6 +66,14 @@ def test_window_and_short_runs():
         integral_kt(run, t_start=10.0, t_end=10.5)
     part = integral_kt(run, t_start=0.0, t_end=60.0)
     assert part["K"] == pytest.approx(0.5, rel=0.01)
+    # the floor is the configured one: 2 s at 0.08 s (26 samples) passes at 20, fails at 40
+    dt = float(run.col("time")[1] - run.col("time")[0])
+    n = int(np.sum((run.col("time") >= 10.0) & (run.col("time") <= 12.0)))
+    assert dt == pytest.approx(0.08) and 20 <= n < 40
+    assert integral_kt(run, t_start=10.0, t_end=12.0)["samples"] == n
+    strict = replace(IndicesConfig(), manoeuvre=replace(ManoeuvreConfig(), integral_min_samples=40))
+    with pytest.raises(InputError, match="fewer than 40 samples"):
+        integral_kt(run, t_start=10.0, t_end=12.0, config=strict)
 
 
 def test_integral_refuses_a_run_without_first_order_response():

@@ -341,3 +341,17 @@ def test_refused_control_model_keeps_its_own_keys():
     assert doc == cm.to_json() and ControlModel.from_json(doc) == cm
     assert list(doc) == ["source", "refused", "reason", *INDEX_NAMES, "basis", "rejected", "flags",
                          "second_order"]
+
+
+def test_paper_figures_have_one_source():
+    """The names the stages import the paper's figures under are pipeline.paper's own objects, and
+    Table 7 is Eq. 6 of Table 4 as printed (to the 0.2 % the rounding of Table 4 allows)."""
+    from pipeline import model, paper, validate
+    from pipeline.indices.stage import PAPER
+
+    assert model.PAPER_TABLE4 is paper.TABLE4 and model.PAPER_TABLE7 is paper.TABLE7
+    assert model.PAPER_GRAPHICAL is paper.GRAPHICAL and validate.PAPER_TABLES is paper.TABLES_5_6
+    assert PAPER["table7"] is paper.TABLE7 and PAPER["reference"].startswith(paper.REFERENCE)
+    got = model.nomoto_indices(paper.TABLE4)
+    for n in INDEX_NAMES:
+        assert float(got[n]) == pytest.approx(paper.TABLE7[n], rel=2e-3), n

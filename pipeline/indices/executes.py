@@ -4,7 +4,8 @@ An *execute* is the instant the rudder starts moving to a new angle (ITTC 7.5-04
 rate-limited servo the logged rudder ramps; the execute is found by fitting a straight line to the
 ramp between ``ramp_band`` fractions of the transition and extrapolating it back to the previous
 level, kept within the two samples between which the rudder first leaves the previous level by
-more than max(4 sigma, 0.2 % of the jump) (sigma: plateau noise, robust); the bracket catches a
+more than max(4 sigma, 0.2 % of the jump) (sigma: plateau noise, robust; the thresholds are
+:class:`pipeline.config.ManoeuvreConfig`); the bracket catches a
 servo that accelerates before reaching its rate (the HSVA runs), for which the line alone is late.
 A step that completes between two samples is placed at their midpoint (error at most half a step).
 Transitions are found with hysteresis at +-``level_fraction`` of the rudder amplitude, so
@@ -18,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.config import ManoeuvreConfig
 from pipeline.errors import InputError
 
 
@@ -30,13 +32,30 @@ class Executes:
     neutral: float             # deg, rudder before the first execute
 
 
-def rudder_amplitude(delta: np.ndarray, neutral: float = 0.0) -> float:
-    """Robust rudder amplitude: median |delta - neutral| over the samples above half the maximum."""
+def rudder_amplitude(delta: np.ndarray, neutral: float = 0.0, *,
+                     config: ManoeuvreConfig | None = None) -> float:
+    """Robust rudder amplitude: median |delta - neutral| over the samples above a share of the top.
+
+    Parameters
+    ----------
+    delta : array
+        Logged rudder angle, deg.
+    neutral : float
+        Neutral rudder angle, deg.
+    config : ManoeuvreConfig, optional
+        ``amplitude_percentile`` (the top) and ``amplitude_share``.
+
+    Returns
+    -------
+    float
+        The amplitude, deg (positive).
+    """
+    c = config or ManoeuvreConfig()
     d = np.abs(np.asarray(delta, float) - neutral)
-    top = np.percentile(d, 99.5)
+    top = np.percentile(d, c.amplitude_percentile)
     if not top > 0:
         raise InputError("the rudder never moves: no execute to analyse", column="delta")
-    return float(np.median(d[d > 0.5 * top]))
+    return float(np.median(d[d > c.amplitude_share * top]))
 
 
 def _crossing_time(t, y, level, i0, i1) -> float | None:
@@ -50,23 +69,40 @@ def _crossing_time(t, y, level, i0, i1) -> float | None:
     return float(t[k] + (t[k + 1] - t[k]) * (y0 / (y0 - y1) if y0 != y1 else 0.0))
 
 
-def find_executes(time, delta, level_fraction: float = 0.5, ramp_band=(0.2, 0.8)) -> Executes:
+def find_executes(time, delta, *, level_fraction: float = 0.5, ramp_band=(0.2, 0.8),
+                  config: ManoeuvreConfig | None = None) -> Executes:
     """Rudder executes of a zigzag or turning run.
 
     Parameters
     ----------
-    time : s, increasing.  delta : deg, logged rudder (positive = starboard turn).
+    time : array
+        Sample times, s, increasing.
+    delta : array
+        Logged rudder angle, deg (positive = starboard turn).
+    level_fraction : float
+        Hysteresis level, share of the rudder amplitude, at which a transition is counted.
+    ramp_band : (float, float)
+        Shares of each transition between which the ramp's straight line is fitted.
+    config : ManoeuvreConfig, optional
+        The neutral-rudder, plateau-noise and start-of-move thresholds.
+
+    Returns
+    -------
+    Executes
+        Execute times (s), sides (+1 starboard), plateau levels (deg), amplitude and neutral (deg).
     """
+    c = config or ManoeuvreConfig()
     t = np.asarray(time, float)
     d = np.asarray(delta, float)
     if t.size < 10:
         raise InputError("too few samples to find rudder executes", column="delta")
     # Neutral rudder: median of the first samples if they are quiet, else 0.
-    amp0 = rudder_amplitude(d, 0.0)
-    head = d[: max(3, int(np.searchsorted(t, t[0] + 1.0)))]
-    quiet = np.all(np.abs(head - np.median(head)) < 0.25 * amp0) and abs(np.median(head)) < 0.25 * amp0
+    amp0 = rudder_amplitude(d, 0.0, config=c)
+    head = d[: max(3, int(np.searchsorted(t, t[0] + c.neutral_head_s)))]
+    quiet = np.all(np.abs(head - np.median(head)) < c.neutral_share * amp0) \
+        and abs(np.median(head)) < c.neutral_share * amp0
     neutral = float(np.median(head)) if quiet else 0.0
-    amp = rudder_amplitude(d, neutral)
+    amp = rudder_amplitude(d, neutral, config=c)
     x = d - neutral
     thr = level_fraction * amp
     state = 0
@@ -109,10 +145,10 @@ def find_executes(time, delta, level_fraction: float = 0.5, ramp_band=(0.2, 0.8)
             # its rate limit makes the line alone late)
             lo_i = k_prev if n else 0
             plat = x[lo_i:i + 1]
-            plat = plat[np.abs(plat - prev_level) < 0.1 * abs(jump)]
+            plat = plat[np.abs(plat - prev_level) < c.plateau_share * abs(jump)]
             sig = 1.4826 * np.median(np.abs(np.diff(plat) - np.median(np.diff(plat)))) / np.sqrt(2) \
                 if plat.size > 5 else 0.0
-            tol = max(4.0 * sig, 0.002 * abs(jump))
+            tol = max(c.execute_sigmas * sig, c.execute_min_share * abs(jump))
             q = i
             while q > lo_i and abs(x[q] - prev_level) > tol:
                 q -= 1

@@ -85,27 +85,37 @@ def graphical_kt(run: Run, config: IndicesConfig | None = None,
             "rudder_deg": zz["rudder_deg"], "heading_deg": zz["heading_deg"]}
 
 
-def integral_kt(run: Run, offset: bool = True, t_start: float | None = None,
-                t_end: float | None = None) -> dict[str, Any]:
+def integral_kt(run: Run, *, offset: bool = True, t_start: float | None = None,
+                t_end: float | None = None, config: IndicesConfig | None = None) -> dict[str, Any]:
     """K and T by least squares on the twice-integrated first-order model (module docstring).
 
     Parameters
     ----------
-    run : the zigzag (any manoeuvre with enough rudder activity works).
-    offset : estimate a constant rudder offset too (t^2 column).
-    t_start, t_end : window in s (default: whole run).
+    run : Run
+        The zigzag (any manoeuvre with enough rudder activity works): time s, psi deg, delta deg.
+    offset : bool
+        Estimate a constant rudder offset too (t^2 column).
+    t_start, t_end : float, optional
+        Window in s (default: the whole run).
+    config : IndicesConfig, optional
+        ``manoeuvre.integral_min_samples``: the fewest samples the window may hold.
 
-    Returns {"method": "integral", "K", "T", "K_std", "T_std", "rudder_offset_deg" (or None),
-    "rms_residual_deg_s", "samples"}.
+    Returns
+    -------
+    dict
+        {"method": "integral", "K" (1/s), "T" (s), "K_std", "T_std" (one sigma, same units),
+        "rudder_offset_deg" (deg, or None), "rms_residual_deg_s", "samples"}.
     """
+    min_samples = (config or IndicesConfig()).manoeuvre.integral_min_samples
     t, psi, delta = _signals(run)
     m = np.ones_like(t, bool)
     if t_start is not None:
         m &= t >= t_start
     if t_end is not None:
         m &= t <= t_end
-    if m.sum() < 20:
-        raise InputError("fewer than 20 samples in the integral-method window", file=run.name, column="time")
+    if m.sum() < min_samples:
+        raise InputError(f"fewer than {min_samples} samples in the integral-method window", file=run.name,
+                         column="time")
     t, psi, delta = t[m] - t[m][0], psi[m], delta[m]
     dpsi = psi - psi[0]
     y = _cum(t, dpsi)

@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from pipeline import paper
 from pipeline.catalog import is_builtin_tank
 from pipeline.config import IndicesConfig
 from pipeline.errors import InputError, PipelineError
@@ -47,15 +48,15 @@ from pipeline.indices.turning import turning_metrics
 from pipeline.indices.uncertainty import draw_validity, monte_carlo, propagate
 from pipeline.indices.zigzag import zigzag_metrics
 from pipeline.io import Run
-from pipeline.model import INDEX_NAMES, PAPER_GRAPHICAL, PAPER_TABLE4, PAPER_TABLE7
+from pipeline.model import INDEX_NAMES
 from pipeline.runinfo import choose_runs, parse_test_name
 
 UNITS = {"K": "1/s", "T1": "s", "T2": "s", "T3": "s", "T": "s", "K_prime": "-", "T_prime": "-",
          "T1_prime": "-", "T2_prime": "-", "T3_prime": "-"}
 NONDIMENSIONAL_DEFINITION = ("K' = K Lpp/U, T' = T U/Lpp (Lpp model m, U approach speed m/s of the run the "
                              "indices come from)")
-PAPER = {"table4": PAPER_TABLE4, "table7": PAPER_TABLE7, "graphical": PAPER_GRAPHICAL,
-         "reference": "Meng et al., Ocean Engineering 294 (2024) 116853, Tables 4 and 7",
+PAPER = {"table4": paper.TABLE4, "table7": paper.TABLE7, "graphical": paper.GRAPHICAL,
+         "reference": f"{paper.REFERENCE}, Tables 4 and 7",
          "units": "K 1/s (deg/s per deg), T1 T2 T3 T s"}
 
 
@@ -93,7 +94,7 @@ def analyse_run(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]
     out["imo"] = imo_check(kind, out["metrics"], meta, cfg)
     if kind == "zigzag":
         for name, fn in (("standard", lambda: graphical_kt(run, cfg, zigzag=out["metrics"])),
-                         ("integral", lambda: integral_kt(run))):
+                         ("integral", lambda: integral_kt(run, config=cfg))):
             try:
                 out["kt"][name] = fn()
             except PipelineError as exc:
@@ -399,8 +400,8 @@ def build_documents(index: dict[str, Any], runs: dict[str, Run], estimates: dict
             row[f"{alg}_std"] = v["std"] if v else None
         for meth in ("standard", "integral"):
             row[f"graphical_{meth}"] = ident_kt[meth][n] if (meth in ident_kt and n in ("K", "T")) else None
-        row["paper_identified"] = PAPER_TABLE7[n]
-        row["paper_graphical"] = PAPER_GRAPHICAL.get(n)
+        row["paper_identified"] = paper.TABLE7[n]
+        row["paper_graphical"] = paper.GRAPHICAL.get(n)
         rows.append(row)
     return indices_doc, zig_doc, pd.DataFrame(rows)
 

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.config import IndicesConfig
+from pipeline.config import IndicesConfig, ManoeuvreConfig
 from pipeline.errors import InputError
 from pipeline.indices.executes import find_executes, heading_at
 from pipeline.indices.zigzag import SIDE_NAME, _signals
@@ -42,11 +42,11 @@ def fit_circle(x, y) -> tuple[float, float, float]:
     return float(xc), float(yc), float(np.sqrt(c3 + xc * xc + yc * yc))
 
 
-def _held_end(delta: np.ndarray, i_e: int, level: float) -> int:
+def _held_end(delta: np.ndarray, i_e: int, level: float, c: ManoeuvreConfig) -> int:
     """Last sample of the held-rudder phase: before the rudder leaves its plateau (pull-out)."""
-    off = np.flatnonzero(np.abs(delta[i_e:] - level) > 0.5 * abs(level))
+    off = np.flatnonzero(np.abs(delta[i_e:] - level) > c.held_off_share * abs(level))
     # the ramp up after the execute is below the plateau too: look only after the plateau is reached
-    reached = np.flatnonzero(np.abs(delta[i_e:] - level) <= 0.1 * abs(level))
+    reached = np.flatnonzero(np.abs(delta[i_e:] - level) <= c.held_reached_share * abs(level))
     if reached.size == 0:
         return delta.size - 1
     first = int(reached[0])
@@ -59,34 +59,34 @@ def _steady_mask(t, change, r, i_e: int, held_end: int, total_held: float, cfg: 
 
     Steady: the rudder still held (pull-out excluded), the heading changed by at least ``start``
     (``cfg.steady_from``, 270 deg, or 180 deg for shorter runs), and the yaw rate settled: within
-    ``STEADY_R_BAND`` (5 %) of its median over the last third of the held phase, or within three
+    ``steady_r_band`` (5 %, :class:`pipeline.config.ManoeuvreConfig`) of its median over the last
+    third of the held phase, or within three
     times its sample-to-sample noise for a slow turn (a turning ship's yaw rate settles within a few
     per cent once the speed loss is over).  At least ``cfg.steady_min_span`` deg of it is needed.
     """
-    start = cfg.steady_from if total_held >= cfg.steady_from + cfg.steady_min_span else 180.0
+    c = cfg.manoeuvre
+    start = cfg.steady_from if total_held >= cfg.steady_from + cfg.steady_min_span else c.steady_from_short
     idx = np.arange(t.size)
     held = (idx >= i_e) & (idx <= held_end)
     steady = held & (change >= start)
-    if r is not None and steady.sum() >= 10:
+    if r is not None and steady.sum() >= c.steady_min_samples:
         tail = np.flatnonzero(held)
         tail = tail[int(2 * tail.size / 3):]
         r_ref = float(np.median(r[tail]))
         noise = float(np.median(np.abs(np.diff(r[tail])))) * 1.4826 / np.sqrt(2) if tail.size > 2 else 0.0
-        band = max(STEADY_R_BAND * abs(r_ref), 3.0 * noise)
+        band = max(c.steady_r_band * abs(r_ref), c.steady_noise_sigmas * noise)
         settled = np.abs(r - r_ref) <= band
         # steady from the first sample after which r stays settled to the end of the held phase
         bad = np.flatnonzero(steady & ~settled)
         if bad.size:
             steady &= idx > bad[-1]
-    if steady.sum() < 10:
+    if steady.sum() < c.steady_min_samples:
         return None, start
     span = float(change[steady].max() - change[steady].min())
     if span < cfg.steady_min_span:
         return None, start
     return steady, start
 
-
-STEADY_R_BAND = 0.05
 
 
 def turning_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]:
@@ -100,7 +100,8 @@ def turning_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, 
     cfg = config or IndicesConfig()
     t, psi, delta = _signals(run)
     x, y = run.col("x0"), run.col("y0")
-    ex = find_executes(t, delta, cfg.level_fraction, cfg.ramp_band)
+    ex = find_executes(t, delta, level_fraction=cfg.level_fraction, ramp_band=cfg.ramp_band,
+                       config=cfg.manoeuvre)
     te = float(ex.times[0])
     side = int(ex.sides[0])
     i_e = int(np.searchsorted(t, te))
@@ -111,7 +112,7 @@ def turning_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, 
     across = side * (-(x - xe) * np.sin(ang) + (y - ye) * np.cos(ang))
     change = side * (psi - psi_e)
     speed = _speed(run, t, x, y)
-    pre = (t >= te - 3.0) & (t < te)
+    pre = (t >= te - cfg.manoeuvre.approach_s) & (t < te)
     u0 = run.meta.get("approach_speed")
     u0 = float(u0) if u0 else float(np.mean(speed[pre] if pre.sum() >= 2 else speed[: max(i_e, 2)]))
 
@@ -125,7 +126,7 @@ def turning_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, 
         f = (level - change[j - 1]) / (change[j] - change[j - 1])
         return float(arr[j - 1] + f * (arr[j] - arr[j - 1]))
 
-    held_end = _held_end(delta, i_e, float(ex.levels[0]))
+    held_end = _held_end(delta, i_e, float(ex.levels[0]), cfg.manoeuvre)
     total = float(np.max(change[i_e:]))
     total_held = float(np.max(change[i_e:held_end + 1]))
     steady, start = _steady_mask(t, change, run.col("r") if "r" in run.frame.columns else None,

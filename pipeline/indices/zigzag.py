@@ -62,7 +62,8 @@ def zigzag_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, A
     """
     cfg = config or IndicesConfig()
     t, psi, delta = _signals(run)
-    ex = find_executes(t, delta, cfg.level_fraction, cfg.ramp_band)
+    ex = find_executes(t, delta, level_fraction=cfg.level_fraction, ramp_band=cfg.ramp_band,
+                       config=cfg.manoeuvre)
     if ex.times.size < 2:
         raise InputError("not a zigzag: no counter-rudder execute found", file=run.name, column="delta")
     psi0 = heading_at(t, psi, ex.times[0], cfg.heading_window)
