@@ -167,13 +167,14 @@ def _theta(est: dict[str, Any]) -> np.ndarray:
         raise InputError(f"estimates have no parameter {exc}") from None
 
 
-def one_step(est: dict[str, Any], run: Run, cfg: FilterConfig, start: int = 0,
+def one_step(est: dict[str, Any], run: Run, *, cfg: FilterConfig | None = None, start: int = 0,
              continue_state: bool = False) -> np.ndarray:
     """One-step (online) predictions of v, r, psi for samples start+1 .. end (see module docstring).
 
     ``continue_state``: start from the estimates' final filter posterior (identification run, with
     ``start`` = last window sample); otherwise restart the states from sample ``start``.
     """
+    cfg = cfg or FilterConfig()
     _, d, Y3 = _arrays(run)
     h = run.dt
     alg = est["algorithm"]
@@ -227,17 +228,17 @@ def validate(estimates: dict[str, dict[str, Any]], ident_run: Run, held_out: lis
             t, d, Y3 = _arrays(run)
             meas = Y3[start + 1:]
             v_start = float(est["filter_state"]["x"][0]) if cont else None
-            osa = one_step(est, run, cfg, start, continue_state=cont)       # rows start+1 ..
+            osa = one_step(est, run, cfg=cfg, start=start, continue_state=cont)       # rows start+1 ..
             if cont:
                 # free-run starts at the first validation sample (start+1): that row is the
                 # initial state itself, shown in the predictions but not scored
-                fr = free_run(est, run, start + 1, v_start)
+                fr = free_run(est, run, start=start + 1, v_start=v_start)
                 first = Y3[start + 1].copy()
                 first[0] = first[0] if np.isfinite(first[0]) else v_start
                 fr_rows = np.vstack([first, fr])
                 fr_score = scores(meas[1:], fr)
             else:
-                fr_rows = free_run(est, run, 0)
+                fr_rows = free_run(est, run, start=0)
                 fr_score = scores(meas, fr_rows)
             for mode, pred, s in (("one-step", osa, scores(meas, osa)), ("free-run", fr_rows, fr_score)):
                 rows.append({"algorithm": alg, "run_id": run.name, "segment": segment, "mode": mode,

@@ -64,7 +64,7 @@ def _cov(theta, rel=0.01, corr=0.3, seed=0):
 def test_propagation_agrees_with_monte_carlo(method):
     theta = np.array([PAPER_TABLE4[n] for n in PARAM_NAMES])
     cov = _cov(theta, rel=0.01)
-    got, used = propagate(theta, cov, method)
+    got, used = propagate(theta, cov, method=method)
     assert used == method
     mc = monte_carlo(theta, cov, samples=20000, seed=1)
     assert mc["rejected"] == 0.0
@@ -115,7 +115,7 @@ def test_sigma_points_outside_valid_region_fall_back_to_linear():
     theta = np.array([PAPER_TABLE4[n] for n in PARAM_NAMES])
     cov = np.zeros((6, 6))
     cov[1, 1] = 0.6**2                     # a12 +- sqrt(3) 0.6 makes D <= 0 at a sigma point
-    got, used = propagate(theta, cov, "unscented")
+    got, used = propagate(theta, cov, method="unscented")
     assert used.startswith("linear")
     assert np.isfinite(got["K"]["std"])
 
@@ -139,7 +139,7 @@ def test_bad_covariance_is_refused():
     with pytest.raises(ModelError, match="symmetric"):
         indices_with_uncertainty(theta, np.triu(np.ones((6, 6))))
     with pytest.raises(ModelError, match="unknown uncertainty method"):
-        propagate(theta, np.eye(6), "magic")
+        propagate(theta, np.eye(6), method="magic")
 
 
 # ------------------------------------------------------------------------------ the stage
@@ -334,7 +334,8 @@ def test_refused_control_model_keeps_its_own_keys():
     gm = {"source": "standard", "run_id": "z20", "K": -0.3, "T": 14.0, "flags": [sign]}
     args = (ident, {"srukf-ffm": [sign], "ffm-ukf": [sign]}, {}, gm, {"srukf-ffm": {}, "ffm-ukf": {}},
             "z20", 7.0, 1.18)
-    cm = control_model(*args)
+    cm = control_model(args[0], ident_flags=args[1], failures=args[2], graphical_model=args[3],
+                       estimates=args[4], ident=args[5], lpp=args[6], u=args[7])
     assert cm.refused and cm.source == "refused" and cm.reason.count("K negative") == 3
     assert cm.indices == PAPER_TABLE7 and cm.primes == {}          # the best identified set, shown only
     doc = choose_control_model(*args)

@@ -49,7 +49,7 @@ def _nominal(value, measured) -> float | None:
     return None if v is None else float(round(float(v)))
 
 
-def imo_check(kind: str, metrics: dict[str, Any], meta: dict[str, Any],
+def imo_check(kind: str, metrics: dict[str, Any], meta: dict[str, Any], *,
               config: IndicesConfig | None = None) -> dict[str, Any]:
     """IMO check of one run.  ``kind`` 'zigzag' or 'turning'; ``metrics`` from zigzag_metrics or
     turning_metrics (a zigzag's ``reach_at_trigger_m`` gives the 10/10 reach); ``meta`` the run's

@@ -38,7 +38,7 @@ def _cum(t, y) -> np.ndarray:
     return cumulative_trapezoid(y, t, initial=0.0)
 
 
-def graphical_kt(run: Run, config: IndicesConfig | None = None,
+def graphical_kt(run: Run, *, config: IndicesConfig | None = None,
                  zigzag: dict[str, Any] | None = None) -> dict[str, Any]:
     """K and T by the standard (graphical) method; see the module docstring.
 
@@ -48,7 +48,7 @@ def graphical_kt(run: Run, config: IndicesConfig | None = None,
     """
     cfg = config or IndicesConfig()
     t, psi, delta = _signals(run)
-    zz = zigzag if zigzag is not None else zigzag_metrics(run, cfg)
+    zz = zigzag if zigzag is not None else zigzag_metrics(run, config=cfg)
     ext = [(o["t_peak_s"], o["peak_dev_deg"] + zz["psi0_deg"]) for o in zz["overshoots"]]
     if len(ext) < 2:
         raise InputError("fewer than two heading extrema: the standard method needs a longer zigzag",

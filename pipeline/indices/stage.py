@@ -67,7 +67,7 @@ def run_kind(run: Run) -> str:
     return parse_test_name(str(run.meta.get("test_name", "")))["kind"]
 
 
-def analyse_run(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]:
+def analyse_run(run: Run, *, config: IndicesConfig | None = None) -> dict[str, Any]:
     """Zigzag or turning metrics, the IMO check and (zigzags) K, T by both methods for one run.
 
     Returns {"run_id", "test_name", "kind", "metrics", "imo", "kt": {"standard", "integral"},
@@ -81,9 +81,9 @@ def analyse_run(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]
                            "nominal_heading_deg": run.meta.get("heading_deg")}
     try:
         if kind == "zigzag":
-            out["metrics"] = zigzag_metrics(run, cfg)
+            out["metrics"] = zigzag_metrics(run, config=cfg)
         elif kind == "turning":
-            out["metrics"] = turning_metrics(run, cfg)
+            out["metrics"] = turning_metrics(run, config=cfg)
         else:
             out["errors"].append(f"kind {kind!r}: neither zigzag nor turning circle, not analysed")
             return out
@@ -91,9 +91,9 @@ def analyse_run(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]
         out["errors"].append(f"{kind} analysis: {exc}")
         return out
     meta = dict(run.meta)
-    out["imo"] = imo_check(kind, out["metrics"], meta, cfg)
+    out["imo"] = imo_check(kind, out["metrics"], meta, config=cfg)
     if kind == "zigzag":
-        for name, fn in (("standard", lambda: graphical_kt(run, cfg, zigzag=out["metrics"])),
+        for name, fn in (("standard", lambda: graphical_kt(run, config=cfg, zigzag=out["metrics"])),
                          ("integral", lambda: integral_kt(run, config=cfg))):
             try:
                 out["kt"][name] = fn()
@@ -102,7 +102,7 @@ def analyse_run(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]
     return out
 
 
-def identified(estimates: dict[str, Any], config: IndicesConfig | None = None) -> dict[str, Any]:
+def identified(estimates: dict[str, Any], *, config: IndicesConfig | None = None) -> dict[str, Any]:
     """Indices with uncertainty from one estimates.json document (docs/indices.md).
 
     Parameters
@@ -124,11 +124,11 @@ def identified(estimates: dict[str, Any], config: IndicesConfig | None = None) -
     if "parameters" not in estimates:
         raise InputError("estimates have no 'parameters'")
     cov = estimates.get("covariance")
-    vals, used = propagate(estimates["parameters"], cov, cfg.uncertainty)
+    vals, used = propagate(estimates["parameters"], cov, method=cfg.uncertainty)
     check = None
     if cov is not None:
-        mc = monte_carlo(estimates["parameters"], cov, cfg.mc_samples, cfg.seed)
-        valid = draw_validity(estimates["parameters"], cov, cfg.mc_samples, cfg.seed)
+        mc = monte_carlo(estimates["parameters"], cov, samples=cfg.mc_samples, seed=cfg.seed)
+        valid = draw_validity(estimates["parameters"], cov, samples=cfg.mc_samples, seed=cfg.seed)
         # the same draws: draw_validity gives the share of invalid ones and its causes
         check = UncertaintyCheck(
             samples=cfg.mc_samples, seed=cfg.seed, invalid_fraction=valid["invalid_fraction"],
@@ -138,7 +138,7 @@ def identified(estimates: dict[str, Any], config: IndicesConfig | None = None) -
     return {"indices": vals, "method": used, "check": check}
 
 
-def control_model(ident_out: dict[str, Any], ident_flags: dict[str, list], failures: dict[str, str],
+def control_model(ident_out: dict[str, Any], *, ident_flags: dict[str, list], failures: dict[str, str],
                   graphical_model: dict[str, Any], estimates: dict[str, dict], ident: str,
                   lpp: float | None, u: float | None) -> ControlModel:
     """The indices the autopilot is designed from, and why (never a flagged set without saying so).
@@ -218,8 +218,9 @@ def choose_control_model(ident_out: dict[str, Any], ident_flags: dict[str, list]
                          graphical_model: dict[str, Any], estimates: dict[str, dict], ident: str,
                          lpp: float | None, u: float | None) -> dict[str, Any]:
     """:func:`control_model` in its JSON form (the ``control_model`` entry of indices.json)."""
-    return control_model(ident_out, ident_flags, failures, graphical_model, estimates, ident,
-                         lpp, u).to_json()
+    return control_model(ident_out, ident_flags=ident_flags, failures=failures,
+                         graphical_model=graphical_model, estimates=estimates, ident=ident, lpp=lpp,
+                         u=u).to_json()
 
 
 def _amplitude_label(res: dict[str, Any]) -> str:
@@ -283,7 +284,7 @@ def build_documents(index: dict[str, Any], runs: dict[str, Run], estimates: dict
         run = runs[e["run_id"]]
         for k, v in e.items():
             run.meta.setdefault(k, v)
-        results.append(analyse_run(run, cfg))
+        results.append(analyse_run(run, config=cfg))
     by_id = {r["run_id"]: r for r in results}
 
     ident_res = by_id.get(ident)
@@ -318,7 +319,7 @@ def build_documents(index: dict[str, Any], runs: dict[str, Run], estimates: dict
     entry_by_id = {e["run_id"]: e for e in entries}
     for alg, est in estimates.items():
         try:
-            got = identified(est, cfg)
+            got = identified(est, config=cfg)
         except PipelineError as exc:
             failures[alg] = str(exc)
             continue
@@ -345,8 +346,9 @@ def build_documents(index: dict[str, Any], runs: dict[str, Run], estimates: dict
         source=graphical_model["source"], run_id=graph_id, K=gm["K"], T=gm["T"],
         primes=trust.primes({"K": gm["K"], "T": gm["T"]}, lpp_g, u_g), flags=tuple(gm_flags))
     lpp_i, u_i, _ = trust.length_and_speed(entry_by_id.get(ident, {}), index)
-    chosen = control_model(ident_out, ident_flags, failures, graphical_model.to_json(), estimates,
-                           ident, lpp_i, u_i)
+    chosen = control_model(ident_out, ident_flags=ident_flags, failures=failures,
+                           graphical_model=graphical_model.to_json(), estimates=estimates, ident=ident,
+                           lpp=lpp_i, u=u_i)
 
     graphical: list[KTRow] = []
     for r in results:

@@ -89,7 +89,7 @@ def _steady_mask(t, change, r, i_e: int, held_end: int, total_held: float, cfg: 
 
 
 
-def turning_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]:
+def turning_metrics(run: Run, *, config: IndicesConfig | None = None) -> dict[str, Any]:
     """Turning-circle metrics (module docstring).  Needs columns x0, y0; lpp from run.meta.
 
     Returns {"side", "rudder_deg", "t_execute_s", "advance_m", "transfer_m", "tactical_diameter_m",

@@ -53,7 +53,7 @@ def _sqrt_cov(cov) -> np.ndarray:
     return v * np.sqrt(np.clip(w, 0.0, None))
 
 
-def jacobian(params, rel_step: float = 1e-6) -> np.ndarray:
+def jacobian(params, *, rel_step: float = 1e-6) -> np.ndarray:
     """Central-difference Jacobian d(K, T1, T2, T3, T)/d(a11 ... b21), 5 x 6."""
     theta = as_theta(params)
     jac = np.empty((len(INDEX_NAMES), 6))
@@ -66,7 +66,7 @@ def jacobian(params, rel_step: float = 1e-6) -> np.ndarray:
     return jac
 
 
-def propagate(params, cov, method: str = "unscented") -> tuple[dict[str, dict[str, float]], str]:
+def propagate(params, cov, *, method: str = "unscented") -> tuple[dict[str, dict[str, float]], str]:
     """Indices with one-sigma bounds, and the method actually used.
 
     Parameters
@@ -107,12 +107,12 @@ def propagate(params, cov, method: str = "unscented") -> tuple[dict[str, dict[st
     return out, used
 
 
-def indices_with_uncertainty(params, cov, method: str = "unscented") -> dict[str, dict[str, float]]:
+def indices_with_uncertainty(params, cov, *, method: str = "unscented") -> dict[str, dict[str, float]]:
     """``{"K": {"value", "std"}, "T1": ..., "T2", "T3", "T"}`` (see :func:`propagate`)."""
-    return propagate(params, cov, method)[0]
+    return propagate(params, cov, method=method)[0]
 
 
-def monte_carlo(params, cov, samples: int = 20000, seed: int = 0) -> dict[str, dict[str, float]]:
+def monte_carlo(params, cov, *, samples: int = 20000, seed: int = 0) -> dict[str, dict[str, float]]:
     """Reference propagation: indices of ``samples`` Gaussian draws N(params, cov), seeded.
 
     Draws with no real positive time constants are dropped (their fraction is returned as
@@ -140,7 +140,7 @@ def monte_carlo(params, cov, samples: int = 20000, seed: int = 0) -> dict[str, d
     return out
 
 
-def draw_validity(params, cov, samples: int = 20000, seed: int = 0) -> dict[str, float]:
+def draw_validity(params, cov, *, samples: int = 20000, seed: int = 0) -> dict[str, float]:
     """Which Gaussian draws N(params, cov) give a usable model, for the first- and second-order indices.
 
     The same seeded draws as :func:`monte_carlo`.  With D = a11 a22 - a12 a21, num = a21 b11 - a11 b21:
@@ -187,7 +187,7 @@ def rounding_half_widths(printed: dict[str, str]) -> dict[str, float]:
             for k, v in printed.items()}
 
 
-def index_range_over_box(params, half_widths: dict[str, float], interior: int = 2000,
+def index_range_over_box(params, half_widths: dict[str, float], *, interior: int = 2000,
                          seed: int = 0) -> dict[str, tuple[float, float]]:
     """Range (min, max) of each index for parameters anywhere in params +- half_widths.
 

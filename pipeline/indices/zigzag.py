@@ -47,7 +47,7 @@ def _signals(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, psi, delta
 
 
-def zigzag_metrics(run: Run, config: IndicesConfig | None = None) -> dict[str, Any]:
+def zigzag_metrics(run: Run, *, config: IndicesConfig | None = None) -> dict[str, Any]:
     """Zigzag metrics of a run (see the module docstring for the definitions).
 
     Returns a dict: rudder_deg (amplitude), heading_deg (trigger), first_side, psi0_deg,

@@ -21,7 +21,7 @@ from pipeline.tank.manoeuvres import zigzag
 from pipeline.tank.simulate import simulate
 
 
-def yaw_rate_amplitude_20_20(cfg: TankConfig, coeffs: KCSCoefficients | None = None,
+def yaw_rate_amplitude_20_20(cfg: TankConfig, coeffs: KCSCoefficients | None = None, *,
                              duration: float = 60.0, skip_s: float = 10.0) -> float:
     """Largest |r| (deg/s) after ``skip_s`` s of a noise-free 20/20 starboard zigzag in the tank."""
     run = simulate(zigzag(20, 20, "starboard", duration=duration),
@@ -55,7 +55,7 @@ def extra_damping_for_cut(cut: float, cfg: TankConfig = DEFAULT_TANK,
 
 
 def n_rrr_equivalent(extra_yaw_damping: float, cfg: TankConfig = DEFAULT_TANK,
-                     coeffs: KCSCoefficients | None = None, r_deg_s: float = 1.0) -> float:
+                     coeffs: KCSCoefficients | None = None, *, r_deg_s: float = 1.0) -> float:
     """The injected N'_rrr in the diagnosis model's terms: n_rrr (s/deg^2) with dr/dt += n_rrr r^3.
 
     The MMG yaw moment gains (rho/2) L^2 d U^2 N'_rrr (r L/U)^3, which through the sway-yaw mass

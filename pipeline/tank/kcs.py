@@ -322,7 +322,7 @@ def trim_rps(cfg: TankConfig = DEFAULT_TANK, coeffs: KCSCoefficients = DEFAULT_C
         raise ModelError("cannot trim the propeller to hold the approach speed") from None
 
 
-def linearise(cfg: TankConfig = DEFAULT_TANK, coeffs: KCSCoefficients = DEFAULT_COEFFS,
+def linearise(cfg: TankConfig = DEFAULT_TANK, coeffs: KCSCoefficients = DEFAULT_COEFFS, *,
               step: float = 1e-6) -> dict[str, float]:
     """Second-order Nomoto indices of the sway-yaw dynamics linearised straight ahead.
 

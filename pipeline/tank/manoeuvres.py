@@ -87,7 +87,7 @@ def _check(rudder_deg, side, duration, what):
         raise InputError(f"{what}: duration must be a positive number of seconds, got {duration!r}")
 
 
-def zigzag(rudder_deg: float, heading_deg: float, first_side: str = "starboard",
+def zigzag(rudder_deg: float, heading_deg: float, first_side: str = "starboard", *,
            duration: float | None = None) -> Manoeuvre:
     """A rudder_deg/heading_deg zigzag, first execute to ``first_side`` (default length 150 s)."""
     _check(rudder_deg, first_side, duration, "zigzag")
@@ -98,7 +98,7 @@ def zigzag(rudder_deg: float, heading_deg: float, first_side: str = "starboard",
 
 
 def turning_circle(rudder_deg: float = 35.0, side: str = "starboard",
-                   duration: float | None = None, pull_out_s: float | None = None) -> Manoeuvre:
+                   duration: float | None = None, *, pull_out_s: float | None = None) -> Manoeuvre:
     """A turning circle at constant rudder to ``side`` (default length 90 s, > 400 deg of heading);
     with ``pull_out_s`` (s after the execute, inside the record) the rudder is commanded back to
     midships then, and the rest of the record is the pull-out."""
