@@ -98,10 +98,21 @@ TANK_NOTE_PREFIX = "virtual tank (MMG model of the KCS"
 
 
 def is_builtin_tank_run(meta: dict) -> bool:
-    """Whether a run (its metadata, or its entry of ``runs/index.json``) is the built-in virtual
-    tank's: provenance virtual, the KCS or no ship named, and no file note other than the tank's own.
-    A user's simulator writing "provenance: virtual" (or a dataset.toml declaring it) makes simulated
-    data, but not this tank's: its ship is not the KCS the tank's plant and words describe."""
+    """Whether a run is the built-in virtual tank's.
+
+    Provenance virtual, the KCS or no ship named, and no file note other than the tank's own.  A
+    user's simulator writing "provenance: virtual" (or a dataset.toml declaring it) makes simulated
+    data, but not this tank's: its ship is not the KCS the tank's plant and words describe.
+
+    Parameters
+    ----------
+    meta : dict
+        The run's metadata, or its entry of ``runs/index.json``.
+
+    Returns
+    -------
+    bool
+    """
     if meta.get("provenance") != "virtual":
         return False
     header = meta.get("header")
@@ -110,15 +121,39 @@ def is_builtin_tank_run(meta: dict) -> bool:
 
 
 def is_builtin_tank(index: dict) -> bool:
-    """Whether every run of a dataset's ``runs/index.json`` is the built-in tank's
-    (:func:`is_builtin_tank_run`), the dataset's provenance virtual and at least one run listed."""
+    """Whether a dataset is the built-in virtual tank's.
+
+    Parameters
+    ----------
+    index : dict
+        The dataset's ``runs/index.json``.
+
+    Returns
+    -------
+    bool
+        True when its provenance is virtual, at least one run is listed and every run is the tank's
+        (:func:`is_builtin_tank_run`).
+    """
     runs = index.get("runs") or []
     return index.get("provenance") == "virtual" and bool(runs) and all(is_builtin_tank_run(r) for r in runs)
 
 
 def data_label(builtin_tank: bool, provenance: str | None) -> dict[str, str]:
-    """What a stage output made from simulated runs says about them: ``{"virtual_tank": ...}`` for the
-    built-in tank's, ``{"simulated": ...}`` for a user's simulated runs, nothing for measured ones."""
+    """What a stage output made from simulated runs says about them.
+
+    Parameters
+    ----------
+    builtin_tank : bool
+        The data are the built-in tank's (:func:`is_builtin_tank`).
+    provenance : str or None
+        The dataset's provenance ('virtual' for simulated data).
+
+    Returns
+    -------
+    dict
+        ``{"virtual_tank": ...}`` for the built-in tank's, ``{"simulated": ...}`` for a user's
+        simulated runs, ``{}`` for measured ones.
+    """
     if builtin_tank:
         return {"virtual_tank": "made from virtual-tank (simulated KCS) data, not from measurements"}
     if provenance == "virtual":

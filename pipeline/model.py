@@ -39,7 +39,23 @@ PAPER_GRAPHICAL = paper.GRAPHICAL
 
 
 def as_theta(params) -> np.ndarray:
-    """Parameters as an array in PARAM_NAMES order (accepts a mapping or a sequence of 6)."""
+    """Parameters as an array in PARAM_NAMES order.
+
+    Parameters
+    ----------
+    params : mapping or sequence
+        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or a sequence of 6 in PARAM_NAMES order.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (6,), float, the same units.
+
+    Raises
+    ------
+    ModelError
+        When a parameter is missing or the sequence does not hold 6 values.
+    """
     if isinstance(params, dict):
         missing = [n for n in PARAM_NAMES if n not in params]
         if missing:
@@ -54,8 +70,19 @@ def as_theta(params) -> np.ndarray:
 def rhs(x, delta, theta):
     """Continuous-time right-hand side dx/dt of the sway-yaw model, THE definition of the equations.
 
-    ``x`` (..., 3) = (v m/s, r deg/s, psi deg); ``delta`` deg; returns (..., 3) =
-    (dv/dt m/s^2, dr/dt deg/s^2, dpsi/dt deg/s).
+    Parameters
+    ----------
+    x : array
+        (..., 3) = (v m/s, r deg/s, psi deg).
+    delta : array or float
+        Rudder angle, deg.
+    theta : mapping or sequence
+        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., 3) = (dv/dt m/s^2, dr/dt deg/s^2, dpsi/dt deg/s).
     """
     a11, a12, a21, a22, b11, b21 = as_theta(theta)
     x = np.asarray(x, dtype=float)
@@ -68,7 +95,19 @@ def rhs(x, delta, theta):
 
 
 def state_matrices(theta) -> tuple[np.ndarray, np.ndarray]:
-    """(A (3, 3), B (3,)) of :func:`rhs` written as dx/dt = A x + B delta (read off the definition)."""
+    """:func:`rhs` written as dx/dt = A x + B delta (read off the definition).
+
+    Parameters
+    ----------
+    theta : mapping or sequence
+        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        A (3, 3) and B (3,), in the units that map (v m/s, r deg/s, psi deg) and delta (deg) to their
+        rates.
+    """
     A = np.column_stack([rhs(e, 0.0, theta) for e in np.eye(3)])
     B = rhs(np.zeros(3), 1.0, theta)
     return A, B
@@ -76,14 +115,43 @@ def state_matrices(theta) -> tuple[np.ndarray, np.ndarray]:
 
 def step(x, delta, theta, h: float):
     """One step of the paper's discrete model: the Euler step of :func:`rhs`.
-    ``x`` (..., 3) = (v m/s, r deg/s, psi deg); ``delta`` deg; ``h`` s."""
+
+    Parameters
+    ----------
+    x : array
+        (..., 3) = (v m/s, r deg/s, psi deg).
+    delta : array or float
+        Rudder angle over the step, deg.
+    theta : mapping or sequence
+        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+    h : float
+        Step, s.
+
+    Returns
+    -------
+    numpy.ndarray
+        The state one step later, same shape and units as ``x``.
+    """
     x = np.asarray(x, dtype=float)
     return x + h * rhs(x, delta, theta)
 
 
 def zoh_matrices(theta, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretisation (Ad, Bd) of :func:`rhs` at step ``h`` s: the matrix
-    exponential of the augmented [[A, B], [0, 0]] h."""
+    """Exact zero-order-hold discretisation of :func:`rhs` at step ``h``: the matrix
+    exponential of the augmented [[A, B], [0, 0]] h.
+
+    Parameters
+    ----------
+    theta : mapping or sequence
+        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+    h : float
+        Step, s.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        Ad (3, 3) and Bd (3,): x[k+1] = Ad x[k] + Bd delta[k] (x in m/s, deg/s, deg; delta deg).
+    """
     from scipy.linalg import expm
 
     A, B = state_matrices(theta)
@@ -96,7 +164,24 @@ def zoh_matrices(theta, h: float) -> tuple[np.ndarray, np.ndarray]:
 
 def simulate_zoh(theta, x0, delta, h: float) -> np.ndarray:
     """Free-run of the continuous-time model with the rudder held over each step (exact, no
-    discretisation error).  Same arguments and row convention as :func:`simulate`."""
+    discretisation error).
+
+    Parameters
+    ----------
+    theta : mapping or sequence
+        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+    x0 : sequence
+        Initial (v m/s, r deg/s, psi deg).
+    delta : array
+        Rudder angle sequence, deg, length N.
+    h : float
+        Step, s.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 3) of (v, r, psi); row 0 is ``x0``, row k+1 follows from row k and delta[k].
+    """
     Ad, Bd = zoh_matrices(theta, h)
     d = np.asarray(delta, dtype=float)
     out = np.empty((d.size, 3))
@@ -138,9 +223,20 @@ def nomoto_indices(params) -> dict[str, float]:
     With D = a11 a22 - a12 a21: K = (a21 b11 - a11 b21)/D, T1 T2 = 1/D,
     T1 + T2 = -(a11 + a22)/D, K T3 = b21/D, T = T1 + T2 - T3.  T1 >= T2.
 
-    Units: with the model in its units (docs/contract.md#run-data), K is in 1/s (deg/s of yaw rate per
-    deg of rudder), T1, T2, T3, T in s.  Raises :class:`ModelError` when the time constants are not real and
-    positive (D <= 0, complex roots) or K = 0.
+    Parameters
+    ----------
+    params : mapping or sequence
+        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2) (docs/contract.md#run-data units).
+
+    Returns
+    -------
+    dict
+        {"K" (1/s: deg/s of yaw rate per deg of rudder), "T1", "T2", "T3", "T" (s)}.
+
+    Raises
+    ------
+    ModelError
+        When the time constants are not real and positive (D <= 0, complex roots) or K = 0.
     """
     a11, a12, a21, a22, b11, b21 = as_theta(params)
     det = a11 * a22 - a12 * a21

@@ -47,12 +47,21 @@ def _side(text: str) -> str | None:
 
 
 def parse_test_name(text: str) -> dict[str, Any]:
-    """Parse a test description.
+    """Parse a test description (module docstring for the spellings read).
 
-    Returns ``{"kind": "zigzag"|"turning"|"other", "rudder_deg": float|None,
-    "heading_deg": float|None, "first_side": "port"|"starboard"|None}``.  ``rudder_deg`` is the
-    magnitude (deg); the side comes from words (port, starboard, ps, sb, ...), not from a sign,
-    whose convention differs between tanks.
+    ``rudder_deg`` is the magnitude; the side comes from words (port, starboard, ps, sb, ...), not from
+    a sign, whose convention differs between tanks.
+
+    Parameters
+    ----------
+    text : str
+        The test name or file header line.
+
+    Returns
+    -------
+    dict
+        {"kind": "zigzag"|"turning"|"other", "rudder_deg": float|None (deg), "heading_deg":
+        float|None (deg), "first_side": "port"|"starboard"|None}.
     """
     text = text or ""
     m = _ZIGZAG.search(text)
@@ -69,11 +78,27 @@ def parse_test_name(text: str) -> dict[str, Any]:
 def choose_runs(runs: list[dict[str, Any]], identification: str | None = None) -> tuple[str, list[str]]:
     """Pick the identification run and the validation runs from a runs index.
 
-    ``runs`` are the entries of ``runs/index.json`` (each with ``run_id``, ``kind``,
-    ``rudder_deg``, ``heading_deg``, ``first_side``).  ``identification`` names a run_id to use.
     Default rule (the paper's): the 20/20 zigzag starting to starboard; failing that, the zigzag
     with rudder closest to 20 deg and the largest heading trigger (starboard first, then name).
-    Validation: every other zigzag.  Raises ``ValueError`` when there is no zigzag.
+    Validation: every other zigzag.
+
+    Parameters
+    ----------
+    runs : list of dict
+        The entries of ``runs/index.json`` (each with ``run_id``, ``kind``, ``rudder_deg`` and
+        ``heading_deg`` in deg, ``first_side``).
+    identification : str, optional
+        A run_id to use instead of the default rule.
+
+    Returns
+    -------
+    tuple of (str, list of str)
+        The identification run_id and the validation run_ids.
+
+    Raises
+    ------
+    ValueError
+        When there is no zigzag, or ``identification`` names no listed run.
     """
     zig = [r for r in runs if r.get("kind") == "zigzag"]
     if identification is not None:

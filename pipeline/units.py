@@ -12,12 +12,34 @@ DEG = np.pi / 180.0
 
 
 def deg2rad(x):
-    """Degrees (or deg/s) to radians (or rad/s)."""
+    """Degrees (or deg/s) to radians (or rad/s).
+
+    Parameters
+    ----------
+    x : float or array
+        Angle in deg (or rate in deg/s).
+
+    Returns
+    -------
+    float or array
+        The same in rad (rad/s).
+    """
     return np.asarray(x, dtype=float) * DEG if np.ndim(x) else float(x) * DEG
 
 
 def rad2deg(x):
-    """Radians (or rad/s) to degrees (or deg/s)."""
+    """Radians (or rad/s) to degrees (or deg/s).
+
+    Parameters
+    ----------
+    x : float or array
+        Angle in rad (or rate in rad/s).
+
+    Returns
+    -------
+    float or array
+        The same in deg (deg/s).
+    """
     return np.asarray(x, dtype=float) / DEG if np.ndim(x) else float(x) / DEG
 
 
@@ -46,10 +68,23 @@ def froude_to_model(value, kind: str, scale: float):
 
     Parameters
     ----------
-    value : full-scale value(s).
-    kind : one of ``FROUDE_EXPONENT`` ('length', 'time', 'velocity', 'angle', 'rate',
-        'frequency', 'force', 'moment').
-    scale : geometric scale factor lambda = L_full / L_model (> 0), e.g. 37.89.
+    value : float or array
+        Full-scale value(s), SI units (angles deg, rates deg/s).
+    kind : str
+        One of ``FROUDE_EXPONENT`` ('length', 'time', 'velocity', 'angle', 'rate', 'frequency',
+        'force', 'moment').
+    scale : float
+        Geometric scale factor lambda = L_full / L_model (> 0), e.g. 37.89.
+
+    Returns
+    -------
+    float or array
+        ``value * scale ** FROUDE_EXPONENT[kind]``, the model-scale value in the same units.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``kind`` or a scale that is not positive.
     """
     if kind not in FROUDE_EXPONENT:
         raise ValueError(f"unknown Froude quantity kind {kind!r}")
@@ -59,7 +94,20 @@ def froude_to_model(value, kind: str, scale: float):
 
 
 def body_velocities(dx0, dy0, psi_deg):
-    """Earth-fixed velocities (m/s) and heading (deg) to body-fixed u, v (m/s), v to starboard."""
+    """Earth-fixed velocities and heading to body-fixed u, v (v to starboard).
+
+    Parameters
+    ----------
+    dx0, dy0 : float or array
+        Earth-fixed velocity components, m/s (x0 north, y0 east).
+    psi_deg : float or array
+        Heading, deg.
+
+    Returns
+    -------
+    tuple
+        (u, v), m/s.
+    """
     p = np.asarray(psi_deg, dtype=float) * DEG
     dx0 = np.asarray(dx0, dtype=float)
     dy0 = np.asarray(dy0, dtype=float)

@@ -151,7 +151,19 @@ def metrics_document(dataset: str | None, index: Mapping[str, Any], *, ident_run
 
 
 def scores(meas: np.ndarray, pred: np.ndarray) -> dict[str, Any]:
-    """MSE v (m/s)^2, MSE r (deg/s)^2, MAE psi deg over the rows of (n, 3) arrays (v NaN -> null)."""
+    """The validation scores of predictions against measurements.
+
+    Parameters
+    ----------
+    meas, pred : numpy.ndarray
+        (n, 3) arrays of v (m/s), r (deg/s), psi (deg); v may be NaN (not measured).
+
+    Returns
+    -------
+    dict
+        {"mse_v" ((m/s)^2, None when v is not measured), "mse_r" ((deg/s)^2), "mae_psi" (deg),
+        "samples"}.
+    """
     err = pred - meas
     v_ok = np.all(np.isfinite(err[:, 0])) and len(err) > 0
     return {"mse_v": float(np.mean(err[:, 0] ** 2)) if v_ok else None,
@@ -169,10 +181,26 @@ def _theta(est: dict[str, Any]) -> np.ndarray:
 
 def one_step(est: dict[str, Any], run: Run, *, cfg: FilterConfig | None = None, start: int = 0,
              continue_state: bool = False) -> np.ndarray:
-    """One-step (online) predictions of v, r, psi for samples start+1 .. end (see module docstring).
+    """One-step (online) predictions of v, r, psi for samples start+1 .. end (module docstring).
 
-    ``continue_state``: start from the estimates' final filter posterior (identification run, with
-    ``start`` = last window sample); otherwise restart the states from sample ``start``.
+    Parameters
+    ----------
+    est : dict
+        An estimates.json document ("algorithm", "parameters", "filter_state").
+    run : Run
+        The run validated on.
+    cfg : FilterConfig, optional
+        The identifying filter's settings (R, v0_std).
+    start : int
+        The sample the prediction starts from.
+    continue_state : bool
+        True: start from the estimates' final filter posterior (identification run, ``start`` the
+        last window sample); False: restart the states from sample ``start``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n - start - 1, 3): predicted v (m/s), r (deg/s), psi (deg).
     """
     cfg = cfg or FilterConfig()
     _, d, Y3 = _arrays(run)
@@ -199,7 +227,24 @@ def one_step(est: dict[str, Any], run: Run, *, cfg: FilterConfig | None = None, 
 
 
 def free_run(est: dict[str, Any], run: Run, start: int = 0, v_start: float | None = None) -> np.ndarray:
-    """Free-run simulation from the measured state at ``start``; returns rows start+1 .. end."""
+    """Free-run simulation from the measured state at ``start``, driven by the measured rudder.
+
+    Parameters
+    ----------
+    est : dict
+        An estimates.json document ("parameters": a11 a12 a21 a22 1/s, b11 b21 1/s^2).
+    run : Run
+        The run (time s, v m/s, r deg/s, psi deg, delta deg).
+    start : int
+        The starting sample.
+    v_start : float, optional
+        v at the start (m/s) when the run has no v (default 0: a straight approach).
+
+    Returns
+    -------
+    numpy.ndarray
+        Rows start+1 .. end of the simulated v (m/s), r (deg/s), psi (deg).
+    """
     _, d, Y3 = _arrays(run)
     x0 = Y3[start].copy()
     if not np.isfinite(x0[0]):
@@ -212,8 +257,22 @@ def validate(estimates: dict[str, dict[str, Any]], ident_run: Run, held_out: lis
              cfg: FilterConfig | None = None) -> tuple[list[dict[str, Any]], pd.DataFrame]:
     """Score every algorithm's estimates on the identification rest and the held-out runs.
 
-    ``estimates`` maps algorithm -> estimates.json content.  Returns (metric rows, predictions in
-    the long format of catalog.py).
+    Parameters
+    ----------
+    estimates : dict
+        Algorithm -> estimates.json content.
+    ident_run : Run
+        The identification run (its samples after the window are the 'identification-rest').
+    held_out : list of Run
+        The held-out runs.
+    cfg : FilterConfig, optional
+        The identifying filter's settings for the one-step predictions.
+
+    Returns
+    -------
+    list of dict, pandas.DataFrame
+        The metric rows (:class:`ValidationRow` keys: mse_v (m/s)^2, mse_r (deg/s)^2, mae_psi deg) and
+        the predictions in the long format of pipeline/catalog.py.
     """
     cfg = cfg or FilterConfig()
     rows: list[dict[str, Any]] = []

@@ -165,7 +165,24 @@ def find_executes(time, delta, *, level_fraction: float = 0.5, ramp_band=(0.2, 0
 
 
 def heading_at(time, psi, t_at: float, window: float) -> float:
-    """Heading at ``t_at`` from a straight line fitted to psi over [t_at - window, t_at] (deg)."""
+    """Heading at ``t_at`` from a straight line fitted to psi over [t_at - window, t_at].
+
+    Parameters
+    ----------
+    time : array
+        Sample times, s.
+    psi : array
+        Heading, deg.
+    t_at : float
+        The instant, s.
+    window : float
+        Length of the fit before ``t_at``, s (fewer than three samples in it: linear interpolation).
+
+    Returns
+    -------
+    float
+        The heading at ``t_at``, deg.
+    """
     t = np.asarray(time, float)
     p = np.asarray(psi, float)
     m = (t >= t_at - window) & (t <= t_at + 1e-9)
@@ -176,7 +193,24 @@ def heading_at(time, psi, t_at: float, window: float) -> float:
 
 
 def slope_at(time, y, t_at: float, window: float) -> float:
-    """Local straight-line slope of y around ``t_at`` (+-window s)."""
+    """Local straight-line slope of y around ``t_at`` (+-window s).
+
+    Parameters
+    ----------
+    time : array
+        Sample times, s.
+    y : array
+        The signal (e.g. heading, deg).
+    t_at : float
+        The instant, s.
+    window : float
+        Half-width of the fit, s (fewer than three samples in it: the slope of the bracketing pair).
+
+    Returns
+    -------
+    float
+        dy/dt at ``t_at``, y's unit per s (deg/s for a heading).
+    """
     t = np.asarray(time, float)
     m = np.abs(t - t_at) <= window + 1e-9
     if m.sum() < 3:
@@ -188,8 +222,24 @@ def slope_at(time, y, t_at: float, window: float) -> float:
 def extremum(time, psi, i0: int, i1: int, sign: int, window: float) -> tuple[float, float, bool]:
     """Extremum of sign*psi over samples i0..i1 (inclusive), refined by a local cubic fit.
 
-    Returns (time s, psi deg at the extremum, complete) where complete is False when the raw
-    extremum sits at the end of the interval (the heading had not yet turned back).
+    Parameters
+    ----------
+    time : array
+        Sample times, s.
+    psi : array
+        Heading, deg.
+    i0, i1 : int
+        First and last sample of the interval searched.
+    sign : int
+        +1 for a maximum of psi, -1 for a minimum.
+    window : float
+        Half-width of the cubic fit around the raw extremum, s.
+
+    Returns
+    -------
+    tuple of (float, float, bool)
+        Time of the extremum (s), psi there (deg), and ``complete``: False when the raw extremum sits
+        at the end of the interval (the heading had not yet turned back).
     """
     t = np.asarray(time, float)
     p = np.asarray(psi, float)

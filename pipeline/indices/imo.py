@@ -25,7 +25,18 @@ from pipeline.config import IndicesConfig
 
 
 def overshoot_limits(l_over_v: float) -> tuple[float, float]:
-    """(first, second) overshoot limits of a 10/10 zigzag, deg, for full-scale L/V in s."""
+    """The IMO (MSC.137(76)) first and second overshoot limits of a 10/10 zigzag.
+
+    Parameters
+    ----------
+    l_over_v : float
+        Full-scale L/V, s.
+
+    Returns
+    -------
+    tuple of float
+        (first, second) overshoot limits, deg.
+    """
     if l_over_v < 10:
         return 10.0, 25.0
     if l_over_v >= 30:
@@ -34,6 +45,20 @@ def overshoot_limits(l_over_v: float) -> tuple[float, float]:
 
 
 def model_scale(meta: dict[str, Any], cfg: IndicesConfig) -> float | None:
+    """The geometric scale factor (full / model) of a run: its metadata's, else its ship's.
+
+    Parameters
+    ----------
+    meta : dict
+        Run metadata ("model_scale", "scale_factor" or "ship").
+    cfg : IndicesConfig
+        ``ship_scales``: the scale by ship name when the metadata gives none.
+
+    Returns
+    -------
+    float or None
+        The scale factor (dimensionless, > 1), None when unknown.
+    """
     for key in ("model_scale",):
         if meta.get(key):
             return float(meta[key])
@@ -51,12 +76,27 @@ def _nominal(value, measured) -> float | None:
 
 def imo_check(kind: str, metrics: dict[str, Any], meta: dict[str, Any], *,
               config: IndicesConfig | None = None) -> dict[str, Any]:
-    """IMO check of one run.  ``kind`` 'zigzag' or 'turning'; ``metrics`` from zigzag_metrics or
-    turning_metrics (a zigzag's ``reach_at_trigger_m`` gives the 10/10 reach); ``meta`` the run's
-    metadata (lpp, approach_speed, model_scale, ship, rudder_deg, heading_deg).
+    """IMO manoeuvring-standard check of one run (module docstring for the criteria).
 
-    Returns {"applicable": bool, "test", "l_over_v_s", "scale", "criteria": [{"name", "value",
-    "limit", "unit", "pass"}], "pass": bool or None, "note"}.
+    Parameters
+    ----------
+    kind : str
+        'zigzag' or 'turning'.
+    metrics : dict
+        From :func:`pipeline.indices.zigzag.zigzag_metrics` or
+        :func:`pipeline.indices.turning.turning_metrics` (a zigzag's ``reach_at_trigger_m`` gives the
+        10/10 reach).
+    meta : dict
+        The run's metadata: lpp (m), approach_speed (m/s, model scale), model_scale, ship, rudder_deg,
+        heading_deg (deg).
+    config : IndicesConfig, optional
+        ``ship_scales`` for the scale when the metadata gives none.
+
+    Returns
+    -------
+    dict
+        {"applicable": bool, "test", "l_over_v_s" (full-scale L/V, s), "scale", "criteria": [{"name",
+        "value", "limit", "unit", "pass"}], "pass": bool or None, "note"}.
     """
     cfg = config or IndicesConfig()
     lpp = meta.get("lpp")

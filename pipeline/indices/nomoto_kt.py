@@ -42,9 +42,25 @@ def graphical_kt(run: Run, *, config: IndicesConfig | None = None,
                  zigzag: dict[str, Any] | None = None) -> dict[str, Any]:
     """K and T by the standard (graphical) method; see the module docstring.
 
-    Returns {"method": "standard", "K", "T", "K_swings" (per pair of extrema), "T_points" (per
-    execute), "extrema", "executes_used", "rudder_deg", "heading_deg"}.  Raises InputError when the
-    run has fewer than two heading extrema (K) or no counter-rudder after one (T).
+    Parameters
+    ----------
+    run : Run
+        A zigzag: time s, psi deg, delta deg (docs/contract.md#run-data).
+    config : IndicesConfig, optional
+        The heading, tangent and peak windows and the execute thresholds.
+    zigzag : dict, optional
+        The run's :func:`pipeline.indices.zigzag.zigzag_metrics` when already computed.
+
+    Returns
+    -------
+    dict
+        {"method": "standard", "K" (1/s), "T" (s), "K_swings" (per pair of extrema), "T_points" (per
+        execute), "extrema", "executes_used", "rudder_deg", "heading_deg"}.
+
+    Raises
+    ------
+    InputError
+        When the run has fewer than two heading extrema (K) or no counter-rudder after one (T).
     """
     cfg = config or IndicesConfig()
     t, psi, delta = _signals(run)

@@ -61,6 +61,18 @@ PAPER = {"table4": paper.TABLE4, "table7": paper.TABLE7, "graphical": paper.GRAP
 
 
 def run_kind(run: Run) -> str:
+    """The kind of manoeuvre a run is: its metadata's "kind", else read from its test name.
+
+    Parameters
+    ----------
+    run : Run
+        The run (``meta["kind"]`` or ``meta["test_name"]``).
+
+    Returns
+    -------
+    str
+        'zigzag', 'turning' or another kind :func:`pipeline.runinfo.parse_test_name` names.
+    """
     kind = run.meta.get("kind")
     if kind:
         return str(kind)
@@ -70,8 +82,19 @@ def run_kind(run: Run) -> str:
 def analyse_run(run: Run, *, config: IndicesConfig | None = None) -> dict[str, Any]:
     """Zigzag or turning metrics, the IMO check and (zigzags) K, T by both methods for one run.
 
-    Returns {"run_id", "test_name", "kind", "metrics", "imo", "kt": {"standard", "integral"},
-    "errors": [...]} (errors list what could not be computed and why).
+    Parameters
+    ----------
+    run : Run
+        One run (units of docs/contract.md#run-data).
+    config : IndicesConfig, optional
+        The analysis settings.
+
+    Returns
+    -------
+    dict
+        {"run_id", "test_name", "kind", "metrics", "imo", "kt": {"standard", "integral"} (K 1/s,
+        T s), "errors": [...], "nominal_rudder_deg", "nominal_heading_deg"}; ``errors`` lists what
+        could not be computed and why.
     """
     cfg = config or IndicesConfig()
     kind = run_kind(run)
@@ -217,7 +240,18 @@ def control_model(ident_out: dict[str, Any], *, ident_flags: dict[str, list], fa
 def choose_control_model(ident_out: dict[str, Any], ident_flags: dict[str, list], failures: dict[str, str],
                          graphical_model: dict[str, Any], estimates: dict[str, dict], ident: str,
                          lpp: float | None, u: float | None) -> dict[str, Any]:
-    """:func:`control_model` in its JSON form (the ``control_model`` entry of indices.json)."""
+    """The ``control_model`` entry of indices.json: :func:`control_model` in its JSON form.
+
+    Parameters
+    ----------
+    ident_out, ident_flags, failures, graphical_model, estimates, ident, lpp, u
+        As :func:`control_model` (``lpp`` m, ``u`` m/s).
+
+    Returns
+    -------
+    dict
+        ``control_model(...).to_json()`` (K 1/s, T1 T2 T3 T s).
+    """
     return control_model(ident_out, ident_flags=ident_flags, failures=failures,
                          graphical_model=graphical_model, estimates=estimates, ident=ident, lpp=lpp,
                          u=u).to_json()
@@ -409,7 +443,21 @@ def build_documents(index: dict[str, Any], runs: dict[str, Run], estimates: dict
 
 
 def resolve_run_path(runs_dir: Path, entry: dict[str, Any]) -> Path:
-    """Where a runs/index.json entry's Parquet file is."""
+    """Where a runs/index.json entry's Parquet file is.
+
+    Parameters
+    ----------
+    runs_dir : Path
+        The dataset's runs/ folder.
+    entry : dict
+        One entry of runs/index.json ("file" as written, else "run_id").
+
+    Returns
+    -------
+    Path
+        The file named by the entry (as given, under ``runs_dir``, or by its name there), else
+        ``<runs_dir>/<run_id>.parquet``.
+    """
     f = entry.get("file")
     if f:
         p = Path(f)

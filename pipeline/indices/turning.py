@@ -34,7 +34,18 @@ def _speed(run: Run, t, x, y) -> np.ndarray:
 
 
 def fit_circle(x, y) -> tuple[float, float, float]:
-    """Least-squares circle (Kasa): returns centre x, centre y, radius."""
+    """Least-squares circle through points (Kasa's algebraic fit).
+
+    Parameters
+    ----------
+    x, y : array
+        Track coordinates, m.
+
+    Returns
+    -------
+    tuple of float
+        Centre x (m), centre y (m), radius (m).
+    """
     a = np.column_stack([x, y, np.ones_like(x)])
     b = x * x + y * y
     (c1, c2, c3), *_ = np.linalg.lstsq(a, b, rcond=None)
@@ -90,12 +101,23 @@ def _steady_mask(t, change, r, i_e: int, held_end: int, total_held: float, cfg: 
 
 
 def turning_metrics(run: Run, *, config: IndicesConfig | None = None) -> dict[str, Any]:
-    """Turning-circle metrics (module docstring).  Needs columns x0, y0; lpp from run.meta.
+    """Turning-circle metrics (module docstring for the definitions).
 
-    Returns {"side", "rudder_deg", "t_execute_s", "advance_m", "transfer_m", "tactical_diameter_m",
-    "steady_diameter_m", and the same divided by lpp as "*_L", "steady_speed_ratio",
-    "steady_yaw_rate_deg_s", "approach_speed_m_s", "heading_change_deg", "lpp_m"}; quantities the
-    run does not reach (e.g. 180 deg) are None.
+    Parameters
+    ----------
+    run : Run
+        A turning circle with columns time s, psi deg, delta deg, x0 y0 m (and r deg/s, u v m/s
+        when logged); ``run.meta["lpp"]`` (m) for the lengths in ship lengths.
+    config : IndicesConfig, optional
+        Steady-turn and execute settings.
+
+    Returns
+    -------
+    dict
+        {"side", "rudder_deg", "t_execute_s", "advance_m", "transfer_m", "tactical_diameter_m",
+        "steady_diameter_m", the same divided by lpp as "*_L", "steady_speed_ratio",
+        "steady_yaw_rate_deg_s", "approach_speed_m_s", "heading_change_deg", "lpp_m"}; quantities the
+        run does not reach (e.g. 180 deg) are None.
     """
     cfg = config or IndicesConfig()
     t, psi, delta = _signals(run)

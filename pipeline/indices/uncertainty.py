@@ -54,7 +54,20 @@ def _sqrt_cov(cov) -> np.ndarray:
 
 
 def jacobian(params, *, rel_step: float = 1e-6) -> np.ndarray:
-    """Central-difference Jacobian d(K, T1, T2, T3, T)/d(a11 ... b21), 5 x 6."""
+    """Central-difference Jacobian of the indices with respect to the parameters.
+
+    Parameters
+    ----------
+    params : mapping or sequence
+        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+    rel_step : float
+        Step relative to each parameter's size (at least 1e-3 of a unit), dimensionless.
+
+    Returns
+    -------
+    numpy.ndarray
+        5 x 6: d(K, T1, T2, T3, T) / d(a11 ... b21), in the indices' units per the parameters'.
+    """
     theta = as_theta(params)
     jac = np.empty((len(INDEX_NAMES), 6))
     for j in range(6):
@@ -108,17 +121,48 @@ def propagate(params, cov, *, method: str = "unscented") -> tuple[dict[str, dict
 
 
 def indices_with_uncertainty(params, cov, *, method: str = "unscented") -> dict[str, dict[str, float]]:
-    """``{"K": {"value", "std"}, "T1": ..., "T2", "T3", "T"}`` (see :func:`propagate`)."""
+    """The indices with one-sigma bounds (:func:`propagate` without the method used).
+
+    Parameters
+    ----------
+    params : mapping or sequence
+        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+    cov : array or None
+        Their 6 x 6 covariance in the same order (None: stds are None).
+    method : str
+        'unscented' or 'linear'.
+
+    Returns
+    -------
+    dict
+        {"K": {"value", "std"}, "T1", "T2", "T3", "T"}: K in 1/s, the time constants in s.
+    """
     return propagate(params, cov, method=method)[0]
 
 
 def monte_carlo(params, cov, *, samples: int = 20000, seed: int = 0) -> dict[str, dict[str, float]]:
-    """Reference propagation: indices of ``samples`` Gaussian draws N(params, cov), seeded.
+    """Reference propagation: the indices of ``samples`` seeded Gaussian draws N(params, cov).
 
-    Draws with no real positive time constants are dropped (their fraction is returned as
-    ``"rejected"``).  Returns {name: {"mean", "std", "p16", "p50", "p84"}} plus "rejected".
-    When the covariance is wide, the indices (ratios of parameters) are heavy-tailed and skewed:
-    the percentiles then describe the spread better than "std".
+    Draws with no real positive time constants are dropped (their share is returned as
+    ``"rejected"``).  When the covariance is wide the indices (ratios of parameters) are heavy-tailed
+    and skewed: the percentiles then describe the spread better than "std".
+
+    Parameters
+    ----------
+    params : mapping or sequence
+        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+    cov : array
+        Their 6 x 6 covariance.
+    samples : int
+        Number of draws.
+    seed : int
+        Seed of the draws.
+
+    Returns
+    -------
+    dict
+        {name: {"mean", "std", "p16", "p50", "p84"}} for K (1/s), T1 T2 T3 T (s), and "rejected"
+        (share of draws dropped, 0-1).
     """
     theta = as_theta(params)
     rng = np.random.default_rng(seed)
@@ -158,6 +202,23 @@ def draw_validity(params, cov, *, samples: int = 20000, seed: int = 0) -> dict[s
     nearly collinear (sway follows yaw), so the covariance is a long ridge along which D crosses zero
     while K and T stay put.  Checking K and T against the second-order condition would flag them for
     the uncertainty of T1, T2, T3.
+
+    Parameters
+    ----------
+    params : mapping or sequence
+        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+    cov : array
+        Their 6 x 6 covariance.
+    samples : int
+        Number of draws.
+    seed : int
+        Seed of the draws (the same as :func:`monte_carlo`'s gives the same draws).
+
+    Returns
+    -------
+    dict
+        {"invalid_fraction", "invalid_fraction_first_order", "invalid_causes": {"D <= 0",
+        "unstable", "complex"}}: shares of the draws, 0-1.
     """
     theta = as_theta(params)
     rng = np.random.default_rng(seed)
@@ -182,7 +243,18 @@ def draw_validity(params, cov, *, samples: int = 20000, seed: int = 0) -> dict[s
 
 
 def rounding_half_widths(printed: dict[str, str]) -> dict[str, float]:
-    """Half a unit of the last printed digit of each value, e.g. '0.0099' -> 5e-5."""
+    """Half a unit of the last printed digit of each value, e.g. '0.0099' -> 5e-5.
+
+    Parameters
+    ----------
+    printed : dict
+        Name -> the value as printed (string: the digits matter).
+
+    Returns
+    -------
+    dict
+        Name -> half-width, in the value's unit.
+    """
     return {k: 0.5 * float(Decimal(1).scaleb(Decimal(str(v).strip()).as_tuple().exponent))
             for k, v in printed.items()}
 
@@ -195,6 +267,22 @@ def index_range_over_box(params, half_widths: dict[str, float], *, interior: int
     boxes the indices are monotone, so the corners carry the extremes; the interior points guard
     against the exception).  Used to ask whether a published table of indices is consistent with a
     published, rounded table of parameters.
+
+    Parameters
+    ----------
+    params : mapping or sequence
+        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2).
+    half_widths : dict
+        Parameter name -> half-width of the box, the parameter's unit.
+    interior : int
+        Number of seeded interior points.
+    seed : int
+        Their seed.
+
+    Returns
+    -------
+    dict
+        Index name -> (min, max): K in 1/s, T1 T2 T3 T in s.
     """
     theta = as_theta(params)
     hw = np.array([float(half_widths.get(n, 0.0)) for n in PARAM_NAMES])

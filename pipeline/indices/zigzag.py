@@ -50,15 +50,30 @@ def _signals(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def zigzag_metrics(run: Run, *, config: IndicesConfig | None = None) -> dict[str, Any]:
     """Zigzag metrics of a run (see the module docstring for the definitions).
 
-    Returns a dict: rudder_deg (amplitude), heading_deg (trigger), first_side, psi0_deg,
-    executes [{"time_s", "side", "rudder_deg", "heading_dev_deg", "trigger_delay_s"}],
-    mean_trigger_delay_s, overshoots [{"n", "side", "angle_deg", "check_time_s", "t_execute_s",
-    "t_peak_s", "peak_dev_deg", "beyond_execute_deg"}], first_overshoot_deg, second_overshoot_deg,
-    third_overshoot_deg, initial_turning_time_s, reach_at_trigger_m (track length from the first
-    execute until the trigger heading; needs x0, y0), time_to_check_yaw_s (first),
-    period_s (first full cycle), periods_s, mean_period_s, by_side {"starboard"|"port":
-    {"overshoots_deg", "check_times_s", "first_overshoot_deg", "mean_overshoot_deg",
-    "mean_check_time_s"}}.  Raises InputError when the run has no counter-rudder.
+    Parameters
+    ----------
+    run : Run
+        A zigzag: time s, psi deg, delta deg (x0, y0 m for the reach).
+    config : IndicesConfig, optional
+        The heading and peak windows and the execute thresholds.
+
+    Returns
+    -------
+    dict
+        rudder_deg (amplitude), heading_deg (trigger), first_side, psi0_deg,
+        executes [{"time_s", "side", "rudder_deg", "heading_dev_deg", "trigger_delay_s"}],
+        mean_trigger_delay_s, overshoots [{"n", "side", "angle_deg", "check_time_s", "t_execute_s",
+        "t_peak_s", "peak_dev_deg", "beyond_execute_deg"}], first_overshoot_deg,
+        second_overshoot_deg, third_overshoot_deg, initial_turning_time_s, reach_at_trigger_m (track
+        length from the first execute until the trigger heading; needs x0, y0),
+        time_to_check_yaw_s (first), period_s (first full cycle), periods_s, mean_period_s, by_side
+        {"starboard"|"port": {"overshoots_deg", "check_times_s", "first_overshoot_deg",
+        "mean_overshoot_deg", "mean_check_time_s"}}.  Times in s, angles in deg.
+
+    Raises
+    ------
+    InputError
+        When the run has no counter-rudder.
     """
     cfg = config or IndicesConfig()
     t, psi, delta = _signals(run)

@@ -23,7 +23,24 @@ from pipeline.tank.simulate import simulate
 
 def yaw_rate_amplitude_20_20(cfg: TankConfig, coeffs: KCSCoefficients | None = None, *,
                              duration: float = 60.0, skip_s: float = 10.0) -> float:
-    """Largest |r| (deg/s) after ``skip_s`` s of a noise-free 20/20 starboard zigzag in the tank."""
+    """Largest |r| after ``skip_s`` s of a noise-free 20/20 starboard zigzag in the tank.
+
+    Parameters
+    ----------
+    cfg : TankConfig
+        The tank (scale, approach speed, effects).
+    coeffs : KCSCoefficients, optional
+        The KCS coefficient set (default: the SIMMAN 2020 one).
+    duration : float
+        Length of the zigzag, s.
+    skip_s : float
+        The first seconds left out (the first swing builds up), s.
+
+    Returns
+    -------
+    float
+        The yaw-rate amplitude, deg/s.
+    """
     run = simulate(zigzag(20, 20, "starboard", duration=duration),
                    dataclasses.replace(cfg, noise=False), coeffs=coeffs)
     f = run.frame
@@ -32,10 +49,29 @@ def yaw_rate_amplitude_20_20(cfg: TankConfig, coeffs: KCSCoefficients | None = N
 
 def extra_damping_for_cut(cut: float, cfg: TankConfig = DEFAULT_TANK,
                           coeffs: KCSCoefficients | None = None) -> float:
-    """Extra N'_rrr (negative: more damping) that cuts the 20/20 yaw-rate amplitude by ``cut`` (0-1).
+    """Extra N'_rrr (negative: more damping) that cuts the 20/20 yaw-rate amplitude by ``cut``.
 
     The amplitude is measured against the same tank without extra damping (other effects of ``cfg``
     kept; speed held or free as ``cfg`` says).
+
+    Parameters
+    ----------
+    cut : float
+        The share of the amplitude to cut, in (0, 0.9).
+    cfg : TankConfig
+        The tank (scale, approach speed, effects).
+    coeffs : KCSCoefficients, optional
+        The KCS coefficient set (default: the SIMMAN 2020 one).
+
+    Returns
+    -------
+    float
+        The ``TankConfig.extra_yaw_damping`` to inject (non-dimensional N'_rrr, negative).
+
+    Raises
+    ------
+    ValueError
+        When ``cut`` is outside (0, 0.9) or no damping up to N'_rrr = -100 reaches it.
     """
     if not 0.0 < cut < 0.9:
         raise ValueError(f"cut must be a fraction in (0, 0.9), got {cut!r}")
@@ -56,12 +92,28 @@ def extra_damping_for_cut(cut: float, cfg: TankConfig = DEFAULT_TANK,
 
 def n_rrr_equivalent(extra_yaw_damping: float, cfg: TankConfig = DEFAULT_TANK,
                      coeffs: KCSCoefficients | None = None, *, r_deg_s: float = 1.0) -> float:
-    """The injected N'_rrr in the diagnosis model's terms: n_rrr (s/deg^2) with dr/dt += n_rrr r^3.
+    """The injected N'_rrr in the diagnosis model's terms: n_rrr with dr/dt += n_rrr r^3.
 
     The MMG yaw moment gains (rho/2) L^2 d U^2 N'_rrr (r L/U)^3, which through the sway-yaw mass
     matrix adds a yaw acceleration exactly cubic in r at zero drift; evaluated here from the model's
     own derivative at the approach speed (u = U, v = 0, r = ``r_deg_s``), so the conversion shares
     every constant with the simulator.
+
+    Parameters
+    ----------
+    extra_yaw_damping : float
+        The injected non-dimensional N'_rrr (``TankConfig.extra_yaw_damping``).
+    cfg : TankConfig
+        The tank (scale, approach speed, effects).
+    coeffs : KCSCoefficients, optional
+        The KCS coefficient set (default: the SIMMAN 2020 one).
+    r_deg_s : float
+        Yaw rate the derivative is evaluated at, deg/s (the result does not depend on it).
+
+    Returns
+    -------
+    float
+        n_rrr, s/deg^2 (dr/dt in deg/s^2 for r in deg/s).
     """
     coeffs = coeffs or KCSCoefficients()
     rps = trim_rps(cfg, coeffs)

@@ -25,9 +25,23 @@ def _speed(run: Run) -> np.ndarray:
 
 
 def zigzag_figures(run: Run, heading_deg: float) -> dict:
-    """Overshoot angles (deg, at each heading extremum after the first), lowest speed ratio.
+    """Overshoot angles and the lowest speed ratio of a zigzag.
 
     The speed ratio is the lowest total speed sqrt(u^2 + v^2) over the approach speed (u at t = 0).
+
+    Parameters
+    ----------
+    run : Run
+        A zigzag from the tank (time s, psi deg, delta deg, u v m/s).
+    heading_deg : float
+        The heading trigger, deg.
+
+    Returns
+    -------
+    dict
+        {"overshoots": overshoot angles at each heading extremum after the first (deg),
+        "extreme_times": their times (s), "min_speed": the lowest total-speed ratio and "min_u" the
+        lowest surge ratio (dimensionless)}.
     """
     psi = run.col("psi") * np.sign(run.col("delta")[np.argmax(np.abs(run.col("delta")) > 1.0)])
     r = np.gradient(psi, run.col("time"))
@@ -50,9 +64,21 @@ def zigzag_figures(run: Run, heading_deg: float) -> dict:
 
 
 def turning_figures(run: Run) -> dict:
-    """Advance, transfer (at 90 deg of heading), tactical diameter (at 180 deg), in ship lengths,
-    steady turning diameter and steady speed ratio (over the last 360 deg of heading), and the
-    total heading change (deg).  Positions are those of midship, from the execute (t = 0)."""
+    """The figures of a turning circle, positions of midship from the execute (t = 0).
+
+    Parameters
+    ----------
+    run : Run
+        A turning circle from the tank (time s, x0 y0 m, psi deg, u v m/s; meta "lpp" m).
+
+    Returns
+    -------
+    dict
+        {"advance", "transfer" (at 90 deg of heading), "tactical" (at 180 deg): in ship lengths;
+        "heading_change": total heading change, deg; "steady_speed": the speed ratio over the last
+        360 deg of heading; "steady_diameter" (ship lengths) over the same, when the run turns
+        540 deg or more}.
+    """
     lpp = float(run.meta["lpp"])
     psi = np.abs(run.col("psi"))
     x, y = run.col("x0"), run.col("y0")

@@ -89,7 +89,23 @@ def _check(rudder_deg, side, duration, what):
 
 def zigzag(rudder_deg: float, heading_deg: float, first_side: str = "starboard", *,
            duration: float | None = None) -> Manoeuvre:
-    """A rudder_deg/heading_deg zigzag, first execute to ``first_side`` (default length 150 s)."""
+    """A rudder_deg/heading_deg zigzag, first execute to ``first_side``.
+
+    Parameters
+    ----------
+    rudder_deg : float
+        Rudder angle, deg (> 0).
+    heading_deg : float
+        Heading deviation that triggers each counter-rudder, deg (> 0).
+    first_side : str
+        'starboard' or 'port'.
+    duration : float, optional
+        Length of the record from the first execute, s (default 150 s).
+
+    Returns
+    -------
+    Manoeuvre
+    """
     _check(rudder_deg, first_side, duration, "zigzag")
     if not (isinstance(heading_deg, (int, float)) and math.isfinite(heading_deg) and heading_deg > 0):
         raise InputError(f"zigzag: heading trigger must be a positive number of degrees, got {heading_deg!r}")
@@ -99,9 +115,24 @@ def zigzag(rudder_deg: float, heading_deg: float, first_side: str = "starboard",
 
 def turning_circle(rudder_deg: float = 35.0, side: str = "starboard",
                    duration: float | None = None, *, pull_out_s: float | None = None) -> Manoeuvre:
-    """A turning circle at constant rudder to ``side`` (default length 90 s, > 400 deg of heading);
-    with ``pull_out_s`` (s after the execute, inside the record) the rudder is commanded back to
-    midships then, and the rest of the record is the pull-out."""
+    """A turning circle at constant rudder to ``side``.
+
+    Parameters
+    ----------
+    rudder_deg : float
+        Rudder angle, deg (> 0).
+    side : str
+        'starboard' or 'port'.
+    duration : float, optional
+        Length of the record from the execute, s (default 90 s, > 400 deg of heading).
+    pull_out_s : float, optional
+        Time after the execute (s, inside the record) at which the rudder is commanded back to
+        midships; the rest of the record is the pull-out.
+
+    Returns
+    -------
+    Manoeuvre
+    """
     _check(rudder_deg, side, duration, "turning circle")
     dur = float(duration) if duration is not None else TURNING_DURATION
     if pull_out_s is not None and not (isinstance(pull_out_s, (int, float)) and math.isfinite(pull_out_s)
@@ -113,13 +144,29 @@ def turning_circle(rudder_deg: float = 35.0, side: str = "starboard",
 
 
 def straight(duration: float = 60.0) -> Manoeuvre:
-    """A straight run with the rudder amidships (not in the default set; for checks)."""
+    """A straight run with the rudder amidships (not in the default set; for checks).
+
+    Parameters
+    ----------
+    duration : float
+        Length of the record, s.
+
+    Returns
+    -------
+    Manoeuvre
+    """
     _check(1.0, "starboard", duration, "straight run")
     return Manoeuvre("straight", 0.0, None, "starboard", float(duration))
 
 
 def default_set() -> list[Manoeuvre]:
-    """Zigzags 20/20 and 10/10 to both sides, 35 deg turning circles to both sides."""
+    """The built-in tank's default runs.
+
+    Returns
+    -------
+    list of Manoeuvre
+        Zigzags 20/20 and 10/10 to both sides, 35 deg turning circles to both sides.
+    """
     return [
         zigzag(20, 20, "starboard"), zigzag(20, 20, "port"),
         zigzag(10, 10, "starboard"), zigzag(10, 10, "port"),

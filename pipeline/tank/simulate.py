@@ -38,7 +38,20 @@ CSV_FORMATS = {"time": "%.3f", "x0": "%.4f", "y0": "%.4f", "psi": "%.4f", "u": "
 
 
 def noise_seed(seed: int, test_name: str) -> int:
-    """The run's noise seed: a 63-bit integer from SHA-256 of ``'<seed>:<test_name>'``."""
+    """The run's noise seed, independent of Python's hash salt.
+
+    Parameters
+    ----------
+    seed : int
+        ``TankConfig.seed``.
+    test_name : str
+        The manoeuvre's test name.
+
+    Returns
+    -------
+    int
+        A 63-bit integer from SHA-256 of ``'<seed>:<test_name>'``.
+    """
     digest = hashlib.sha256(f"{int(seed)}:{test_name}".encode()).digest()
     return int.from_bytes(digest[:8], "little") >> 1
 
@@ -65,10 +78,21 @@ def simulate(manoeuvre: Manoeuvre, cfg: TankConfig = DEFAULT_TANK,
              coeffs: KCSCoefficients | None = None) -> Run:
     """Simulate ``manoeuvre`` in the virtual tank.
 
-    Returns a :class:`pipeline.io.Run` with the canonical columns time (s), x0, y0 (m), psi (deg),
-    u, v (m/s), r (deg/s), delta (deg, the logged servo angle), rpm (1/min) at ``cfg.log_dt``, the
-    first execute at t = 0 from a steady straight approach, and provenance metadata.  ``coeffs``
-    overrides the KCS coefficient set (tests use a port/starboard-symmetric one).
+    Parameters
+    ----------
+    manoeuvre : Manoeuvre
+        What to run (:mod:`pipeline.tank.manoeuvres`).
+    cfg : TankConfig
+        The tank (scale, approach speed, effects).
+    coeffs : KCSCoefficients, optional
+        The KCS coefficient set (default: the SIMMAN 2020 one; tests use a port/starboard-symmetric one).
+
+    Returns
+    -------
+    Run
+        The canonical columns time (s), x0, y0 (m), psi (deg), u, v (m/s), r (deg/s), delta (deg,
+        the logged servo angle), rpm (1/min) at ``cfg.log_dt``, the first execute at t = 0 from a
+        steady straight approach, and provenance metadata.
     """
     coeffs = coeffs or KCSCoefficients()
     sub, h = _steps(cfg)
@@ -131,9 +155,23 @@ def simulate(manoeuvre: Manoeuvre, cfg: TankConfig = DEFAULT_TANK,
 
 
 def read_through_heading(u, v, eps_rad: float):
-    """(u, v) (m/s) as read through a heading that reads ``eps_rad`` more than the centreline: the
-    ship's velocity resolved in axes turned by eps, u cos eps + v sin eps and v cos eps - u sin eps (a
-    tank that forms body velocities from its earth-fixed track and heading).  eps = 0: (u, v) as given."""
+    """(u, v) as read through a heading that reads ``eps_rad`` more than the centreline.
+
+    The ship's velocity resolved in axes turned by eps, u cos eps + v sin eps and v cos eps - u sin eps
+    (a tank that forms body velocities from its earth-fixed track and heading).
+
+    Parameters
+    ----------
+    u, v : array
+        Body-fixed velocities, m/s.
+    eps_rad : float
+        Heading misalignment, rad (0: (u, v) as given).
+
+    Returns
+    -------
+    tuple of array
+        The read (u, v), m/s.
+    """
     if eps_rad == 0.0:
         return u, v
     c, s = np.cos(eps_rad), np.sin(eps_rad)
@@ -156,6 +194,18 @@ def write_csv(path: str | Path, run: Run) -> Path:
 
     Layout: ``# key: value`` lines (ship, provenance, test, lpp, scale, dt, seed, note), then the
     header ``time,x0,y0,psi,u,v,r,delta,rpm`` and one comma-separated row per sample.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+    run : Run
+        A run in the canonical columns and units.
+
+    Returns
+    -------
+    Path
+        The file written.
     """
     path = Path(path)
     m = run.meta
