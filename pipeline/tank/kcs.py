@@ -135,8 +135,22 @@ DEFAULT_COEFFS = KCSCoefficients()
 def param_vector(cfg: TankConfig, coeffs: KCSCoefficients, rps: float) -> np.ndarray:
     """Dimensional parameter vector (SI) for the compiled force model at model scale ``cfg.lpp``.
 
-    ``rps`` is the propeller speed in 1/s.  ``cfg.extra_yaw_damping`` is added to N'_rrr and
-    ``cfg.hold_speed`` freezes u at ``cfg.approach_speed``.
+    ``cfg.extra_yaw_damping`` is added to N'_rrr and ``cfg.hold_speed`` freezes u at
+    ``cfg.approach_speed``.
+
+    Parameters
+    ----------
+    cfg : TankConfig
+        The tank (length m, approach speed m/s, effects).
+    coeffs : KCSCoefficients
+        The KCS coefficient set.
+    rps : float
+        Propeller speed, 1/s.
+
+    Returns
+    -------
+    numpy.ndarray
+        The parameter vector the force model reads (SI units).
     """
     c = coeffs
     L, d, rho = cfg.lpp, c.draft, c.rho
@@ -306,14 +320,40 @@ def _run(p, s0, zigzag, rudder, trigger, side, n_log, substeps, h, rate, dmax,
 
 
 def u_dot_straight(p: np.ndarray, u: float) -> float:
-    """Surge acceleration (m/s^2) straight ahead at speed ``u`` with the rudder amidships."""
+    """Surge acceleration straight ahead with the rudder amidships.
+
+    Parameters
+    ----------
+    p : numpy.ndarray
+        Parameter vector of :func:`param_vector`.
+    u : float
+        Surge speed, m/s.
+
+    Returns
+    -------
+    float
+        du/dt, m/s^2.
+    """
     q = p.copy()
     q[I_HOLD] = 0.0
     return float(_forces(np.array([u, 0.0, 0.0, 0.0, 0.0, 0.0]), 0.0, q)[0])
 
 
 def trim_rps(cfg: TankConfig = DEFAULT_TANK, coeffs: KCSCoefficients = DEFAULT_COEFFS) -> float:
-    """Propeller speed (1/s) that holds ``cfg.approach_speed`` straight ahead (thrust = resistance)."""
+    """Propeller speed that holds ``cfg.approach_speed`` straight ahead (thrust = resistance).
+
+    Parameters
+    ----------
+    cfg : TankConfig
+        The tank (approach speed m/s).
+    coeffs : KCSCoefficients
+        The KCS coefficient set.
+
+    Returns
+    -------
+    float
+        Propeller speed, 1/s.
+    """
     def f(n):
         return u_dot_straight(param_vector(cfg, coeffs, n), cfg.approach_speed)
     try:
@@ -328,8 +368,22 @@ def linearise(cfg: TankConfig = DEFAULT_TANK, coeffs: KCSCoefficients = DEFAULT_
 
     Central differences in v (m/s), r (rad/s) and delta (rad) at the trimmed approach condition;
     at beta_R = 0 the flow-straightening coefficient has a kink (gamma_R switches), and central
-    differences take the mean of the two one-sided slopes.  Returns dimensional K (1/s), T1, T2,
-    T3, T (s) and the non-dimensional K', T1', T2', T3', T' (time scale L/U).
+    differences take the mean of the two one-sided slopes.
+
+    Parameters
+    ----------
+    cfg : TankConfig
+        The tank.
+    coeffs : KCSCoefficients
+        The KCS coefficient set.
+    step : float
+        Central-difference step in each of v (m/s), r (rad/s), delta (rad).
+
+    Returns
+    -------
+    dict
+        Dimensional K (1/s), T1, T2, T3, T (s) and the non-dimensional K', T1', T2', T3', T' (time
+        scale L/U).
     """
     p = param_vector(cfg, coeffs, trim_rps(cfg, coeffs))
     s0 = initial_state(cfg)
@@ -357,7 +411,18 @@ def linearise(cfg: TankConfig = DEFAULT_TANK, coeffs: KCSCoefficients = DEFAULT_
 
 
 def initial_state(cfg: TankConfig) -> np.ndarray:
-    """Straight ahead at the approach speed, at the origin, heading 0."""
+    """Straight ahead at the approach speed, at the origin, heading 0.
+
+    Parameters
+    ----------
+    cfg : TankConfig
+        The tank (approach speed m/s).
+
+    Returns
+    -------
+    numpy.ndarray
+        (u m/s, v m/s, r rad/s, x0 m, y0 m, psi rad).
+    """
     return np.array([cfg.approach_speed, 0.0, 0.0, 0.0, 0.0, 0.0])
 
 
