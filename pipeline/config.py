@@ -133,6 +133,9 @@ class ManoeuvreConfig:
     plateau_share: float = 0.1
     execute_sigmas: float = 4.0
     execute_min_share: float = 0.002
+    # Heading extremum: the cubic's window (IndicesConfig.peak_window) is clipped to this share of
+    # the interval between the executes around it, so that it never reaches the neighbouring swing.
+    peak_window_share: float = 0.25
     # Integral K-T method: the least-squares fit of 4-5 coefficients needs this many samples at the
     # least (several per coefficient).
     integral_min_samples: int = 20

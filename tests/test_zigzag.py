@@ -210,6 +210,23 @@ def test_execute_of_an_accelerating_servo():
     assert list(ex.sides) == [1, -1]
 
 
+def test_neutral_rudder_follows_the_configured_share():
+    """A rudder held at 3 deg before the first execute of a 20 deg zigzag: the default neutral band
+    (a quarter of the amplitude, 5 deg) takes 3 deg as the neutral and measures the plateaus from
+    it; a band of a tenth (2 deg) does not, and the neutral is 0."""
+    from dataclasses import replace
+
+    from pipeline.config import ManoeuvreConfig
+    from pipeline.indices.executes import find_executes
+    t = np.arange(0.0, 40.0, 0.05)
+    d = np.where(t < 5.0, 3.0, np.where(t < 17.5, 23.0, -17.0))
+    ex = find_executes(t, d)
+    assert ex.neutral == pytest.approx(3.0) and ex.amplitude == pytest.approx(20.0)
+    narrow = find_executes(t, d, config=replace(ManoeuvreConfig(), neutral_share=0.1))
+    assert narrow.neutral == 0.0
+    np.testing.assert_allclose(ex.levels, [23.0, -17.0])
+
+
 def test_mirror_runs_give_same_overshoots():
     a = zigzag_metrics(simulate_zigzag(first_side=1)[0])
     b = zigzag_metrics(simulate_zigzag(first_side=-1)[0])

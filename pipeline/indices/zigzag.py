@@ -99,7 +99,7 @@ def zigzag_metrics(run: Run, *, config: IndicesConfig | None = None) -> dict[str
         i0 = int(idx[n])
         i1 = int(idx[n + 1]) if n + 1 < idx.size else t.size - 1
         gap = t[i1] - t[i0]
-        win = min(cfg.peak_window, 0.25 * gap) if gap > 0 else cfg.peak_window
+        win = min(cfg.peak_window, cfg.manoeuvre.peak_window_share * gap) if gap > 0 else cfg.peak_window
         tp, pp, complete = extremum(t, psi, i0, i1, side, win)
         if not complete:
             continue
