@@ -183,7 +183,7 @@ class IndicesConfig:
     manoeuvre: ManoeuvreConfig = field(default_factory=ManoeuvreConfig)
     # IMO check: model scale factor by ship, used when the run's metadata does not give it
     # (L/U is a full-scale time; KVLCC2 HSVA 1:45.7 from the data README, KCS SIMMAN 1:37.89).
-    ship_scales: dict[str, float] = field(default_factory=lambda: {"KVLCC2": 45.7, "KCS": 37.89})
+    ship_scales: dict[str, float] = field(default_factory=lambda: {"KVLCC2": 45.7, "KCS": TankConfig.scale})
     # Trust flags (pipeline/indices/trust.py says why): relative one-sigma uncertainty above which an
     # index's 95 % interval reaches zero; share of Monte Carlo draws without real positive time
     # constants above which the Gaussian bounds are local only.
