@@ -136,7 +136,7 @@ class WarmKernels(WorkerPlugin):
 # ---------------------------------------------------------------- client side
 
 
-def _client(scheduler: str | None, workers: int, memory_limit: str):
+def _client(scheduler: str | None, workers: int, memory_limit: str, dashboard: bool = False):
     from distributed import Client
 
     from pipeline.study.cluster import local_cluster
@@ -148,7 +148,10 @@ def _client(scheduler: str | None, workers: int, memory_limit: str):
         except (OSError, TimeoutError) as exc:
             raise InputError(f"cannot reach the dask scheduler at {address} ({type(exc).__name__}: "
                              f"{' '.join(str(exc).split())[:200]})") from None
-    return local_cluster(workers, memory_limit)
+    client, cluster = local_cluster(workers, memory_limit, dashboard=dashboard)
+    if dashboard:
+        log.warning("dask dashboard (loopback only): %s", cluster.dashboard_link)
+    return client, cluster
 
 
 def _read_case(path: Path) -> dict[str, Any] | None:
@@ -178,11 +181,12 @@ def plan(spec: Spec) -> list[dict[str, Any]]:
 
 
 def run_study(spec: Spec, out: str | Path, *, scheduler: str | None = None, workers: int | None = None,
-              progress: bool = True, client=None) -> dict[str, Any]:
+              progress: bool = True, client=None, dashboard: bool = False) -> dict[str, Any]:
     """Run (or resume) a study; write DIR/results.parquet, DIR/summary.json, DIR/timings.json.
 
     ``client``: an existing dask Client to use (else one is made from ``scheduler`` /
-    DASK_SCHEDULER_ADDRESS, or a LocalCluster of ``workers`` processes).  Returns the summary.
+    DASK_SCHEDULER_ADDRESS, or a LocalCluster of ``workers`` processes listening on 127.0.0.1 only;
+    ``dashboard`` starts its web dashboard, also on 127.0.0.1).  Returns the summary.
     """
     from pipeline.study import get_kind
 
@@ -203,7 +207,7 @@ def run_study(spec: Spec, out: str | Path, *, scheduler: str | None = None, work
         own = client is None
         cluster = None
         if own:
-            client, cluster = _client(scheduler, n_workers, spec.study.memory_limit)
+            client, cluster = _client(scheduler, n_workers, spec.study.memory_limit, dashboard)
         try:
             cases_dir.mkdir(parents=True, exist_ok=True)      # only once there is a cluster to run on
             _register_warm(client, kind, spec.settings)
