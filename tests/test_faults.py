@@ -62,3 +62,85 @@ def _get(url: str) -> int:
             return r.status
     except urllib.error.HTTPError as exc:
         return exc.code
+
+
+# ---------------------------------------------------------------- no orphaned workers
+
+
+@pytest.fixture(scope="module")
+def four_truth_runs(tmp_path_factory) -> list[str]:
+    """Four short zigzags of the diagnosis's known truth (a 1.5 deg rudder offset), as Parquet runs:
+    two to train, two to validate (the case of tests/nested_bytes.py)."""
+    import dataclasses as dc
+
+    from pipeline.diagnose import TruthConfig, zigzag_truth
+    from pipeline.io import write_run
+
+    d = tmp_path_factory.mktemp("truth")
+    cfg = TruthConfig(seed=3, rudder_offset=1.5)
+    legs = [(20, "starboard"), (10, "port"), (20, "port"), (10, "starboard")]
+    out = []
+    for j, (a, side) in enumerate(legs):
+        p = d / f"zz{j}.parquet"
+        write_run(p, zigzag_truth(a, a, side, 40.0, dc.replace(cfg, seed=cfg.seed + j)))
+        out.append(str(p))
+    return out
+
+
+def _gone(pids: list[int], within_s: float) -> list[int]:
+    """The pids still alive (not zombies) after waiting up to ``within_s`` seconds."""
+    import time
+
+    t_end = time.monotonic() + within_s
+    while True:
+        alive = []
+        for pid in pids:
+            try:
+                if psutil.Process(pid).status() != psutil.STATUS_ZOMBIE:
+                    alive.append(pid)
+            except psutil.NoSuchProcess:
+                pass
+        if not alive or time.monotonic() > t_end:
+            return alive
+        time.sleep(0.2)
+
+
+@pytest.mark.parametrize("sig", ["SIGKILL", "SIGTERM"])
+def test_the_diagnosis_pool_dies_with_its_parent(sig, four_truth_runs, tmp_path):
+    """A standalone ``python -m pipeline diagnose`` whose nested leave-one-run-out runs in 2 forked
+    workers, ended by SIGKILL or SIGTERM while they work: no worker outlives it (a pool's workers were
+    left blocked on a pipe, reparented to PID 1).  ``run`` calls the same code in its own process."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "PYTHONPATH": root}
+    a, b, c, d = four_truth_runs
+    proc = subprocess.Popen([sys.executable, "-m", "pipeline", "diagnose", "--train", a, b,
+                             "--validate", c, d, "--out", str(tmp_path / "out")],
+                            env=env, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    workers: list[int] = []
+    try:
+        parent = psutil.Process(proc.pid)
+        t_end = time.monotonic() + 300
+        while len(workers) < 2 and proc.poll() is None and time.monotonic() < t_end:
+            workers = [p.pid for p in parent.children(recursive=True)]
+            time.sleep(0.1)
+        assert len(workers) >= 2, f"the pool never started (exit {proc.poll()})"
+        time.sleep(1.0)                                  # the workers are inside their first task
+        proc.send_signal(getattr(signal, sig))
+        proc.wait(timeout=30)
+        assert proc.returncode != 0
+        # the kernel's parent-death signal acts at once; the watchdog's poll is 1 s (pipeline.lifeline)
+        assert _gone(workers, within_s=10.0) == []
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        for pid in workers:
+            try:
+                psutil.Process(pid).kill()
+            except psutil.NoSuchProcess:
+                pass

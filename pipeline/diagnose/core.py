@@ -62,6 +62,7 @@ from pipeline.diagnose.fit import (
 from pipeline.diagnose.select import Fold, Search, Selection, _gain, heading_noise_deg, select
 from pipeline.errors import InputError, ModelError
 from pipeline.io import Run
+from pipeline.lifeline import die_with_parent
 from pipeline.model import PARAM_NAMES
 
 
@@ -325,7 +326,9 @@ def _nested_in_workers(folds, ctx, cfg, noise, workers: int):
         yield None
         return
     n = len(folds[0].train) + len(folds[0].val)
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+    # the workers end with this process on any signal (pipeline.lifeline; docs/operations.md)
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
+                             initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
         futures = [pool.submit(_nested_task, folds, i, ctx, cfg, noise, plain_active()) for i in range(n)]
         try:
             yield futures
