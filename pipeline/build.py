@@ -149,12 +149,14 @@ def _ingest_argv(ds: Dataset, root: Path) -> list[list[str]]:
     folder itself for 'local', else its parent; without it a ``run --raw DIR`` read the description
     under data/raw, so a full-scale folder's scale was not applied and ingest refused its files)."""
     files = [str(p) for p in raw_files(ds)]
-    return [["ingest", *files, "--out", str(root / ds.name / "runs"), "--dataset", ds.name,
-             "--raw", str(raw_root(ds))]]
+    return [["ingest", f"--out={root / ds.name / 'runs'}", f"--dataset={ds.name}", f"--raw={raw_root(ds)}",
+             "--", *files]]
 
 
 def _dataset_args(ds: Dataset, root: Path) -> list[str]:
-    return ["--dataset", ds.name, "--root", str(root)]
+    """``--dataset=NAME --root=ROOT``: a value joined to its option is never read as an option itself,
+    whatever it starts with (a folder called ``-x`` or ``--help``)."""
+    return [f"--dataset={ds.name}", f"--root={root}"]
 
 
 STAGES: tuple[Stage, ...] = (
@@ -238,6 +240,15 @@ def _tank_key() -> str:
     return h.hexdigest()
 
 
+def _exit_code(run: Callable[[list[str]], int], argv: list[str]) -> int:
+    """``run(argv)``'s exit status; an argparse refusal (SystemExit) is a status too, not the end of the
+    build."""
+    try:
+        return run(argv)
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else 2
+
+
 def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str | None = None,
                   run: Callable[[list[str]], int] | None = None,
                   say: Callable[[str], None] = print) -> list[str]:
@@ -259,7 +270,7 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
     stages = STAGES[: names.index(until) + 1] if until else STAGES
     if ds.name == VIRTUAL and not tank_up_to_date(ds.raw):
         say(f"[{ds.name}] tank")
-        if run(["tank", "--out", str(ds.raw)]) != 0:
+        if _exit_code(run, ["tank", f"--out={ds.raw}"]) != 0:
             raise PipelineError(f"dataset {ds.name!r}: stage tank failed (see above)")
         from pipeline.io import atomic_path
 
@@ -286,7 +297,7 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
         say(f"[{ds.name}] {stage.name}")
         code = 0
         for argv in stage.argv(ds, root):
-            code = run(argv)
+            code = _exit_code(run, argv)
             if code != 0:
                 break
         if code != 0:

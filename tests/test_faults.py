@@ -144,3 +144,84 @@ def test_the_diagnosis_pool_dies_with_its_parent(sig, four_truth_runs, tmp_path)
                 psutil.Process(pid).kill()
             except psutil.NoSuchProcess:
                 pass
+
+
+# ---------------------------------------------------------------- one bad dataset, hostile names
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HOSTILE_NAMES = ("-dash", "$x #% y")
+
+
+def test_one_bad_dataset_never_stops_the_others(tmp_path, monkeypatch, capsys):
+    """``run --all``: a dataset.toml of the wrong shape (``runs = 5``) is one error line naming its
+    dataset; the datasets after it, named ``-dash`` (an option to argparse, were it parsed as one) and
+    ``$x #% y``, are built all the same; the exit status is 2."""
+    import shutil
+
+    from pipeline import build
+    from pipeline.cli import main
+
+    raw, root = tmp_path / "raw", tmp_path / "proc"
+    clean = os.path.join(ROOT, "tests", "data", "probes", "clean.csv")
+    for name in ("a-bad", *HOSTILE_NAMES):
+        (raw / name).mkdir(parents=True)
+        shutil.copy(clean, raw / name / "zz.csv")
+        (raw / name / "dataset.toml").write_text("[data]\nscale = 1\n")
+    (raw / "a-bad" / "dataset.toml").write_text("runs = 5\n[data]\nscale = 1\n")
+    # the built-in virtual tank is not under test: its folder holds a ready run (no 40 s simulation)
+    (raw / "virtual").mkdir()
+    shutil.copy(clean, raw / "virtual" / "zz.csv")
+    monkeypatch.setattr(build, "tank_up_to_date", lambda _raw: True)
+    monkeypatch.chdir(tmp_path)
+    rc = main(["run", "--all", "--raw", str(raw), "--root", str(root), "--shared", str(tmp_path / "none"),
+               "--until", "ingest"])
+    cap = capsys.readouterr()
+    assert rc == 2
+    errors = [line for line in cap.err.splitlines() if line.startswith("error:")]
+    assert len(errors) == 2, cap.err
+    assert errors[0].startswith("error: dataset 'a-bad'") and "Traceback" not in cap.err
+    assert errors[-1] == "error: 1 of 4 dataset(s) not fully built: a-bad (see above)"
+    for name in ("virtual", *HOSTILE_NAMES):
+        assert (root / name / "runs" / "index.json").is_file(), name
+        assert f"[{name}] ran ingest" in cap.out
+    assert not (root / "a-bad" / "runs").exists()
+
+
+def test_stage_commands_take_dataset_names_as_values_only(tmp_path):
+    """Every stage command the build makes joins a dataset name to its option (``--dataset=NAME``) and
+    puts the files after ``--``: a name starting with ``-`` reaches the stage as the value it is."""
+    from pipeline import build
+    from pipeline.cli import build_parser
+
+    ds = build.Dataset("-dash", tmp_path / "-dash")
+    (tmp_path / "-dash").mkdir()
+    (tmp_path / "-dash" / "-zz.csv").write_text("time,psi,r,delta\n")
+    (tmp_path / "-dash" / "dataset.toml").write_text("[data]\nscale = 1\n")
+    parser = build_parser()
+    for stage in build.STAGES:
+        for argv in stage.argv(ds, tmp_path / "proc"):
+            args = parser.parse_args(argv)
+            assert args.dataset == "-dash", (stage.name, argv)
+            if stage.name == "ingest":
+                assert [p.name for p in args.files] == ["-zz.csv"]
+
+
+def test_diagnosis_plots_take_dollar_names_as_text(tmp_path):
+    """A run called ``$\\macro$ zz`` (mathtext to matplotlib, a ValueError at the plot title) and a
+    provenance with ``$``: both diagnosis plots are rendered, titles as written."""
+    from types import SimpleNamespace
+
+    import numpy as np
+    import pandas as pd
+
+    from pipeline.diagnose.output import plot_series
+
+    t = np.arange(0.0, 20.0, 0.08)
+    cols = {c: np.sin(0.3 * t + k) for k, c in enumerate(
+        ("psi", "psi_baseline", "psi_extended", "r", "r_baseline", "r_extended", "delta"))}
+    series = pd.DataFrame({"run_id": "$\\macro$ zz", "time": t, **cols})
+    diag = SimpleNamespace(series=series, report={"extended": {"effects": ["rudder_offset"]},
+                                                  "provenance": "tank $5$ %"})
+    paths = plot_series(diag, tmp_path)
+    assert [p.name for p in paths] == ["freerun___macro__zz.png", "residuals___macro__zz.png"]
+    assert all(p.stat().st_size > 1000 for p in paths)

@@ -57,6 +57,11 @@ def _run(args) -> int:
             print(f"error: {exc}", file=sys.stderr, flush=True)
             failed.append(ds.name)
             continue
+        except Exception as exc:  # noqa: BLE001 - whatever one dataset raises, the others are built
+            msg = " ".join(str(exc).split())[:300]
+            print(f"error: dataset {ds.name!r}: {type(exc).__name__}: {msg}", file=sys.stderr, flush=True)
+            failed.append(ds.name)
+            continue
         print(f"[{ds.name}] " + (f"ran {', '.join(done)}" if done else "up to date"), flush=True)
     print(f"stages finished in {time.perf_counter() - t0:.0f} s")
     if failed:
