@@ -225,3 +225,73 @@ def test_diagnosis_plots_take_dollar_names_as_text(tmp_path):
     paths = plot_series(diag, tmp_path)
     assert [p.name for p in paths] == ["freerun___macro__zz.png", "residuals___macro__zz.png"]
     assert all(p.stat().st_size > 1000 for p in paths)
+
+
+# ---------------------------------------------------------------- studies refused before they run
+
+AUTOPILOT = ('[study]\nkind = "autopilot_monte_carlo"\nname = "t"\nseed = 5\n'
+             '[autopilot_monte_carlo]\nplants = ["nomoto"]\ntw = [3.0]\nwind_rudder = [2.0]\nseeds = 1\n'
+             '[autopilot_monte_carlo.control]\nduration = 60.0\nsteady_start = 30.0\n')
+
+
+@pytest.mark.parametrize("body,key", [
+    ("[study]\nkind = 'detection_power'\n[detection_power]\nduration_s = -5\n", "detection_power.duration_s"),
+    ("[study]\nkind = 'detection_power'\n[detection_power.magnitudes]\nrudder_offset = [0.5, inf]\n",
+     "detection_power.magnitudes.rudder_offset[1]"),
+    ("[study]\nkind = 'detection_power'\n[detection_power.magnitudes]\nrudder_ofset = [0.5]\n",
+     "detection_power.magnitudes.rudder_ofset"),
+    ("[study]\nkind = 'detection_power'\n[detection_power]\neffects = ['rudder_ofset']\n",
+     "detection_power.effects"),
+    ("[study]\nkind = 'detection_power'\n[detection_power]\nrudder_deg = nan\n",
+     "detection_power.rudder_deg"),
+    (AUTOPILOT.replace("tw = [3.0]", "tw = [-3.0]"), "autopilot_monte_carlo.tw"),
+    (AUTOPILOT.replace("duration = 60.0", "duration = -5.0"), "autopilot_monte_carlo.control.duration"),
+    ("[study]\nkind = 'batch_identify'\n[batch_identify]\ndt = 0.0\n", "batch_identify.dt"),
+    ("[study]\nkind = 'autopilot_monte_carlo'\nno_worker_timeout_s = 0.0\n", "study.no_worker_timeout_s"),
+])
+def test_a_study_spec_no_case_could_run_with_is_refused_before_anything_runs(body, key, tmp_path, capsys):
+    """One line naming the file and the key, exit 2, no output folder: a duration of -5 s, a magnitude
+    of inf, a misspelt effect (with the known names), NaN, a negative time constant (before: every case
+    failed and the study exited 0, or the misspelt effect was dropped)."""
+    from pipeline.cli import main
+
+    spec = tmp_path / "bad spec.toml"
+    spec.write_text(body)
+    assert main(["study", str(spec), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and str(spec) in err and f"key '{key}'" in err, err
+    if "ofset" in body:
+        assert "rudder_offset" in err and "rudder_delay" in err        # the known names
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_study_whose_workers_all_died_says_so_in_bounded_time(tmp_path):
+    """The only worker of a cluster (``dask worker`` without a nanny, as on a remote cluster) killed
+    with SIGKILL: the study stops with one line naming the cause within the spec's no_worker_timeout_s
+    (2 s here) instead of waiting silently."""
+    import time
+    import tomllib
+
+    from distributed import Client
+
+    from pipeline.errors import PipelineError
+    from pipeline.study import run_study
+    from pipeline.study.cluster import loopback_cluster
+    from pipeline.study.spec import spec_from_dict
+
+    doc = tomllib.loads(AUTOPILOT)
+    doc["study"]["no_worker_timeout_s"] = 2.0
+    spec = spec_from_dict(doc, "t.toml")
+    with loopback_cluster(1, nanny=False) as addr, Client(addr, timeout="60s") as client:
+        for p in psutil.Process(os.getpid()).children():
+            if " worker " in " ".join(p.cmdline()) + " ":
+                p.kill()
+        t_end = time.monotonic() + 60
+        while client.nthreads() and time.monotonic() < t_end:
+            time.sleep(0.2)
+        assert not client.nthreads()
+        t0 = time.monotonic()
+        with pytest.raises(PipelineError, match=r"t\.toml: study t: no dask worker for 2 s") as exc:
+            run_study(spec, tmp_path / "out", client=client, progress=False)
+        assert time.monotonic() - t0 < 30                      # 2 s and the poll, with a wide margin
+        assert "\n" not in str(exc.value) and "0 of 1 cases" in str(exc.value)

@@ -266,8 +266,9 @@ def _fan_out(client, kind, spec: Spec, pending, cases_dir: Path, lost: dict, pro
     bar = tqdm(total=len(pending), desc=f"study {spec.study.name}", unit="case", disable=not progress,
                dynamic_ncols=True)
     errors = 0
+    ac = as_completed([f for f, _ in futures.values()])
     try:
-        for fut in as_completed([f for f, _ in futures.values()]):
+        for fut in _finished(client, ac, spec, len(pending), got):
             _, c = futures[fut.key]
             try:
                 res = fut.result()
@@ -285,13 +286,41 @@ def _fan_out(client, kind, spec: Spec, pending, cases_dir: Path, lost: dict, pro
             bar.update(1)
             if errors:
                 bar.set_postfix(failed=errors)
-    except KeyboardInterrupt:
+    except BaseException:            # Ctrl-C, no worker left: nothing keeps running on the cluster
         for f, _ in futures.values():
             f.cancel()
         raise
     finally:
         bar.close()
     return got
+
+
+#: s between two looks at the scheduler while no case finishes (a cheap call; a tenth of the default
+#: no-worker timeout, so the timeout is kept to within 10 %)
+POLL_S = 0.5
+
+
+def _finished(client, ac, spec: Spec, n: int, got: dict):
+    """The futures of ``ac`` as they finish; a PipelineError once the cluster has had no worker for
+    ``spec.study.no_worker_timeout_s`` seconds (every worker died, or none reached the scheduler),
+    instead of waiting for ever."""
+    from pipeline.errors import PipelineError
+
+    limit = spec.study.no_worker_timeout_s
+    last_worker = time.monotonic()
+    while not ac.is_empty():
+        batch = ac.next_batch(block=False)
+        if batch:
+            yield from batch
+            continue
+        if client.nthreads():
+            last_worker = time.monotonic()
+        elif time.monotonic() - last_worker > limit:
+            raise PipelineError(
+                f"study {spec.study.name}: no dask worker for {limit:g} s (every worker died, or none "
+                f"reached the scheduler; see the workers' logs; key 'study.no_worker_timeout_s'); {len(got)} "
+                f"of {n} cases finished and kept, a rerun resumes", file=spec.path)
+        time.sleep(POLL_S)
 
 
 def results_frame(todo: list[dict], done: dict[str, dict], lost: dict[str, str]) -> pd.DataFrame:

@@ -1,10 +1,12 @@
 """Study spec files (TOML): ``[study]`` (pipeline.config.StudyConfig) and one table named after the
-kind (that kind's settings dataclass).  Unknown keys and wrong types are refused with one line naming
-the file and the key."""
+kind (that kind's settings dataclass).  Unknown keys, wrong types, numbers that are not finite and
+values no case could run with (the kind's ``check``) are refused with one line naming the file and the
+key, before anything runs."""
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import tomllib
 import types
 import typing
@@ -52,6 +54,8 @@ def _coerce(value: Any, hint: Any, where: str, file: str) -> Any:
     if hint is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise InputError(f"key '{where}': expected a number, got {value!r}", file=file)
+        if not math.isfinite(value):      # every number of a study is a physical setting or a rate
+            raise InputError(f"key '{where}': expected a finite number, got {value!r}", file=file)
         return float(value)
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -100,6 +104,10 @@ def spec_from_dict(doc: dict[str, Any], file: str = "<spec>") -> Spec:
     study = build(StudyConfig, doc["study"], "study", file)
     if study.workers < 1:
         raise InputError("key 'study.workers': must be at least 1", file=file)
+    if study.retries < 0:
+        raise InputError("key 'study.retries': must be 0 or more", file=file)
+    if not study.no_worker_timeout_s > 0:
+        raise InputError("key 'study.no_worker_timeout_s': must be > 0 s", file=file)
     try:
         kind = get_kind(study.kind)
     except InputError as exc:
@@ -108,4 +116,9 @@ def spec_from_dict(doc: dict[str, Any], file: str = "<spec>") -> Spec:
     if extra:
         raise InputError(f"unknown table [{extra[0]}] for a {kind.name} study", file=file)
     settings = build(kind.config, doc.get(kind.name, {}), kind.name, file)
+    if kind.check is not None:
+        try:
+            kind.check(settings)
+        except InputError as exc:
+            raise InputError(exc.message, file=file) from None
     return Spec(study=study, settings=settings, path=file)
