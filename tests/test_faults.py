@@ -295,3 +295,76 @@ def test_a_study_whose_workers_all_died_says_so_in_bounded_time(tmp_path):
             run_study(spec, tmp_path / "out", client=client, progress=False)
         assert time.monotonic() - t0 < 30                      # 2 s and the poll, with a wide margin
         assert "\n" not in str(exc.value) and "0 of 1 cases" in str(exc.value)
+
+
+# ---------------------------------------------------------------- write errors and memory, in one line
+
+
+def _no_space(*_a, **_k):
+    import errno
+
+    raise OSError(errno.ENOSPC, "No space left on device")   # as write(2) on a full disk: no file name
+
+
+@pytest.mark.parametrize("what", ["json", "frame", "dir"])
+def test_a_full_disk_names_the_file_being_written(what, tmp_path, monkeypatch):
+    """ENOSPC while writing (no file name of its own, as from write(2) or pyarrow) names the file the
+    user asked for, never the temporary; nothing is left behind and an earlier file stays intact."""
+    import errno
+    import json
+
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    from pipeline import io
+
+    dest = tmp_path / "out" / ("estimates.json" if what != "frame" else "runs.parquet")
+    dest.parent.mkdir()
+    dest.write_text("earlier")
+    if what == "frame":
+        monkeypatch.setattr(pq, "write_table", _no_space)
+    else:
+        monkeypatch.setattr(json, "dumps", _no_space)
+    with pytest.raises(OSError) as exc:
+        if what == "json":
+            io.write_json(dest, {"a": 1})
+        elif what == "frame":
+            io.write_frame(dest, pd.DataFrame({"a": [1.0]}))
+        else:
+            with io.atomic_dir(tmp_path / "stage") as tmp:
+                io.write_json(tmp / "metrics.json", {"a": 1})
+    expect = tmp_path / "stage" / "metrics.json" if what == "dir" else dest
+    assert exc.value.errno == errno.ENOSPC and exc.value.filename == str(expect)
+    assert dest.read_text() == "earlier"
+    assert sorted(p.name for p in tmp_path.rglob("*")) == sorted(["out", dest.name])
+
+
+def test_a_full_disk_is_one_line_at_the_command_line(tmp_path, monkeypatch, capsys):
+    """``ingest`` onto a full disk: one line naming the run file it was writing, exit 2."""
+    import shutil
+
+    import pyarrow.parquet as pq
+
+    from pipeline.cli import main
+
+    shutil.copy(os.path.join(ROOT, "tests", "data", "probes", "clean.csv"), tmp_path / "zz.csv")
+    monkeypatch.setattr(pq, "write_table", _no_space)
+    out = tmp_path / "runs"
+    assert main(["ingest", str(tmp_path / "zz.csv"), "--scale", "1", f"--out={out}"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "No space left on device" in err, err
+    assert f"{out / 'zz.parquet'}" in err and ".tmp." not in err and ".out." not in err, err
+
+
+@pytest.mark.parametrize("limit,match", [("1MiB", "below the 512 MiB"), ("lots", "is not a size")])
+def test_a_small_or_bad_memory_limit_is_one_line_before_any_worker(limit, match, tmp_path, capsys):
+    """``[study] memory_limit = "1MiB"`` (every worker killed by dask at 95 % of it, 37 lines of
+    tracebacks) or a word: one line naming the key, exit 2, no cluster started, no output folder."""
+    from pipeline.cli import main
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(AUTOPILOT.replace('seed = 5\n', f'seed = 5\nmemory_limit = "{limit}"\n'))
+    assert main(["study", str(spec), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "key 'study.memory_limit'" in err and match in err and str(spec) in err
+    assert not (tmp_path / "out").exists()
