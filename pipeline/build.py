@@ -13,7 +13,9 @@ holding the SHA-256 of (a) the content of every input file (raw files, or the up
 output folders) and (b) the source of every ``pipeline`` module the stage's command imports,
 directly or indirectly, found by reading the imports of the code (:func:`import_closure`; function-
 level imports count).  So a change to ``pipeline/config.py``, ``model.py``, ``io.py``, ``cli/`` or any
-module a stage uses reruns that stage and everything downstream; nothing else reruns.
+module a stage uses reruns that stage and everything downstream; nothing else reruns.  The stamp's
+second line is the SHA-256 of the stage's own outputs as it left them (:func:`output_key`): an output
+deleted, truncated or edited since reruns the stage.  A stage's ``timing.json`` is in neither hash.
 """
 
 from __future__ import annotations
@@ -174,6 +176,8 @@ STAGES: tuple[Stage, ...] = (
     Stage("diagnose", "pipeline.cli.diagnose", ("ingest",), ("diagnose/diagnosis.json",),
           lambda ds, root: [["diagnose", *_dataset_args(ds, root)]]),
 )
+#: a stage's run times, beside its results but never hashed or compared (docs/operations.md)
+TIMING_FILE = "timing.json"
 STAGE_DIRS = {"ingest": "runs", "identify": "identify", "validate": "validate", "indices": "indices",
               "control": "control", "diagnose": "diagnose"}
 
@@ -202,10 +206,7 @@ def stage_key(stage: Stage, ds: Dataset, root: Path) -> str:
         if toml.is_file():
             _hash_files(h, [("dataset.toml", toml)])
     for up in stage.after:
-        d = Path(root) / ds.name / STAGE_DIRS[up]
-        files = sorted(p for p in d.rglob("*") if p.is_file() and not p.name.startswith(".")) \
-            if d.is_dir() else []
-        _hash_files(h, [(str(p.relative_to(d.parent)), p) for p in files])
+        _hash_files(h, _stage_files(Path(root) / ds.name / STAGE_DIRS[up]))
     for argv in stage.argv(ds, root):
         h.update("\0".join(argv).encode("utf-8", "surrogateescape") + b"\n")
     return h.hexdigest()
@@ -215,18 +216,39 @@ def _stamp(ds: Dataset, root: Path, stage: Stage) -> Path:
     return Path(root) / ds.name / ".stamps" / stage.name
 
 
+def output_key(stage: Stage, ds: Dataset, root: Path) -> str:
+    """SHA-256 of every file the stage wrote (names and bytes, its folder ``STAGE_DIRS[stage]``, hidden
+    files and ``timing.json`` left out): a file deleted, truncated or edited since changes it."""
+    h = hashlib.sha256()
+    _hash_files(h, _stage_files(Path(root) / ds.name / STAGE_DIRS[stage.name]))
+    return h.hexdigest()
+
+
+def _stage_files(d: Path) -> list[tuple[str, Path]]:
+    """(name under the dataset, path) of a stage folder's result files, sorted; the stage's
+    ``timing.json`` (how long it took, not what it found: docs/operations.md) is not one of them."""
+    if not d.is_dir():
+        return []
+    files = sorted(p for p in d.rglob("*") if p.is_file() and not p.name.startswith(".")
+                   and p.name != TIMING_FILE and not any(q.startswith(".") for q in p.relative_to(d).parts))
+    return [(str(p.relative_to(d.parent)), p) for p in files]
+
+
 def up_to_date(stage: Stage, ds: Dataset, root: Path) -> bool:
+    """True when the stamp holds the stage's current input key and the key of the outputs as the stage
+    left them: a missing, truncated or edited output reruns the stage (and what reads it)."""
     stamp = _stamp(ds, root, stage)
     if not stamp.is_file() or not all((Path(root) / ds.name / o).is_file() for o in stage.outputs):
         return False
-    return stamp.read_text().strip() == stage_key(stage, ds, root)
+    lines = stamp.read_text().split()
+    return lines == [stage_key(stage, ds, root), output_key(stage, ds, root)]
 
 
 def _write_stamp(stage: Stage, ds: Dataset, root: Path) -> None:
     from pipeline.io import atomic_path
 
     with atomic_path(_stamp(ds, root, stage)) as tmp:
-        tmp.write_text(stage_key(stage, ds, root) + "\n")
+        tmp.write_text(f"{stage_key(stage, ds, root)}\n{output_key(stage, ds, root)}\n")
 
 
 def tank_up_to_date(raw: Path) -> bool:

@@ -368,3 +368,62 @@ def test_a_small_or_bad_memory_limit_is_one_line_before_any_worker(limit, match,
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "key 'study.memory_limit'" in err and match in err and str(spec) in err
     assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------- damaged outputs rebuilt
+
+
+def _stage_writer(root, ran: list[str]):
+    """Stand-in stage commands of dataset 'mine': each writes its outputs (and indices a zigzag.json
+    beside indices.json, as the real stage does) from a content that depends only on the stage, and
+    a timing.json that differs every time."""
+    from pipeline import build
+
+    outputs = {s.name: s.outputs for s in build.STAGES}
+
+    def fake(argv):
+        stage = argv[0]
+        ran.append(stage)
+        files = list(outputs[stage]) + (["indices/zigzag.json"] if stage == "indices" else [])
+        for o in files:
+            p = root / "mine" / o
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_text(f'{{"stage": "{stage}", "file": "{o}"}}\n')
+        timing = root / "mine" / build.STAGE_DIRS[stage] / "timing.json"
+        timing.write_text(f'{{"seconds": {len(ran)}}}\n')
+        return 0
+
+    return fake
+
+
+@pytest.mark.parametrize("damage", ["truncate identify/srukf-ffm/estimates.json",
+                                    "delete indices/zigzag.json"])
+def test_a_damaged_or_missing_output_is_rebuilt_by_the_next_run(damage, tmp_path):
+    """Stamps cover the outputs: a truncated estimates.json reruns identify, a deleted
+    indices/zigzag.json (not among the stage's declared outputs) reruns indices; the rebuilt files
+    are the same bytes, so nothing downstream reruns; a changed timing.json alone reruns nothing."""
+    from pipeline import build
+
+    raw, root = tmp_path / "raw", tmp_path / "proc"
+    (raw / "mine").mkdir(parents=True)
+    (raw / "mine" / "a.csv").write_text("time,psi,r,delta\n0,0,0,0\n")
+    (raw / "mine" / "dataset.toml").write_text("[data]\nscale = 1\n")
+    ran: list[str] = []
+    ds = build.Dataset("mine", raw / "mine")
+    fake = _stage_writer(root, ran)
+    build.build_dataset(ds, root, run=fake, say=lambda s: None)
+    assert list(dict.fromkeys(ran)) == [s.name for s in build.STAGES]
+    ran.clear()
+    (root / "mine" / "identify" / "timing.json").write_text('{"seconds": 99}\n')
+    assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == [] and ran == []
+    verb, rel = damage.split()
+    target = root / "mine" / rel
+    if verb == "truncate":
+        target.write_text(target.read_text()[:7])
+    else:
+        target.unlink()
+    done = build.build_dataset(ds, root, run=fake, say=lambda s: None)
+    assert done == [rel.split("/")[0]]
+    assert target.read_text().startswith('{"stage"')
+    ran.clear()
+    assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == [] and ran == []
