@@ -22,9 +22,12 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from pipeline.progress import heartbeat
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 VIRTUAL, HSVA, LOCAL = "virtual", "hsva", "local"
@@ -262,6 +265,26 @@ def _tank_key() -> str:
     return h.hexdigest()
 
 
+def _write_timing(ds: Dataset, root: Path, stage: str, seconds: float, status: str) -> None:
+    """Record a stage's wall time (s) in ``ROOT/NAME/timing.json`` (``{"dataset", "stages": {stage:
+    {"seconds", "status"}}}``, the other stages' entries kept): the one place a build's timings go,
+    outside every folder that is hashed or compared (docs/operations.md)."""
+    import json
+
+    from pipeline.io import write_json
+
+    path = Path(root) / ds.name / TIMING_FILE
+    try:
+        doc = json.loads(path.read_text())
+        stages = doc["stages"] if isinstance(doc, dict) and isinstance(doc.get("stages"), dict) else {}
+    except (OSError, ValueError):
+        stages = {}                                  # none yet, or torn: timings are not results
+    stages[stage] = {"seconds": round(seconds, 3), "status": status}
+    order = {s.name: i for i, s in enumerate(STAGES)}
+    write_json(path, {"dataset": ds.name,
+                      "stages": dict(sorted(stages.items(), key=lambda kv: order.get(kv[0], 99)))})
+
+
 def _exit_code(run: Callable[[list[str]], int], argv: list[str]) -> int:
     """``run(argv)``'s exit status; an argparse refusal (SystemExit) is a status too, not the end of the
     build."""
@@ -273,8 +296,14 @@ def _exit_code(run: Callable[[list[str]], int], argv: list[str]) -> int:
 
 def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str | None = None,
                   run: Callable[[list[str]], int] | None = None,
-                  say: Callable[[str], None] = print) -> list[str]:
+                  say: Callable[[str], None] = print,
+                  on_stage: Callable[[str, str, str, float], None] | None = None) -> list[str]:
     """Bring every stage of ``ds`` up to date (up to and including ``until``); returns the stages run.
+
+    Each stage run is said twice (its start, then its status and wall time in s), with a heartbeat
+    line every 30 s between in a log (:func:`pipeline.progress.heartbeat`); its time is kept in
+    ``ROOT/NAME/timing.json`` (:func:`_write_timing`) and handed to ``on_stage(dataset, stage, status,
+    seconds)``.
 
     ``run`` executes one argv list (default :func:`pipeline.cli.main`).  A stage whose command exits
     non-zero stops only the stages that read its outputs (directly or not, ``Stage.after``): the others
@@ -318,10 +347,18 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
             continue
         say(f"[{ds.name}] {stage.name}")
         code = 0
-        for argv in stage.argv(ds, root):
-            code = _exit_code(run, argv)
-            if code != 0:
-                break
+        t0 = time.perf_counter()
+        with heartbeat(f"[{ds.name}] {stage.name}"):
+            for argv in stage.argv(ds, root):
+                code = _exit_code(run, argv)
+                if code != 0:
+                    break
+        secs = time.perf_counter() - t0
+        status = "ran" if code == 0 else f"failed (exit {code})"
+        say(f"[{ds.name}] {stage.name} {status} in {secs:.1f} s")
+        _write_timing(ds, root, stage.name, secs, status)
+        if on_stage is not None:
+            on_stage(ds.name, stage.name, status, secs)
         if code != 0:
             failed.append((stage.name, code))
             continue

@@ -427,3 +427,98 @@ def test_a_damaged_or_missing_output_is_rebuilt_by_the_next_run(damage, tmp_path
     assert target.read_text().startswith('{"stage"')
     ran.clear()
     assert build.build_dataset(ds, root, run=fake, say=lambda s: None) == [] and ran == []
+
+
+# ---------------------------------------------------------------- logs people can read; same bytes
+
+
+def test_a_heartbeat_line_in_a_log_and_none_on_a_terminal(capfd, monkeypatch):
+    """In a log (stderr not a terminal) a long block says it still runs every ``every_s`` s; on a
+    terminal (where the bars show progress) it says nothing; the timer is gone afterwards."""
+    import signal
+    import time
+
+    from pipeline import progress
+
+    with progress.heartbeat("[x] diagnose", every_s=0.1):
+        t_end = time.monotonic() + 0.45
+        while time.monotonic() < t_end:
+            sum(range(1000))                 # busy in Python, as a stage is between its C calls
+    beats = [line for line in capfd.readouterr().err.splitlines() if line.startswith("[x] diagnose still")]
+    assert 3 <= len(beats) <= 5, beats
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+    monkeypatch.setattr(progress, "on_terminal", lambda: True)
+    with progress.heartbeat("[x] diagnose", every_s=0.1):
+        time.sleep(0.3)
+    assert "still running" not in capfd.readouterr().err
+
+
+def test_a_bar_refreshes_on_a_terminal_only(capfd, monkeypatch):
+    from pipeline import progress
+
+    for _ in progress.bar(range(20), desc="fits"):
+        pass
+    assert "\r" not in capfd.readouterr().err              # stderr captured: not a terminal
+    monkeypatch.setattr(progress, "on_terminal", lambda: True)
+    for _ in progress.bar(range(20), desc="fits"):
+        pass
+    assert "\r" in capfd.readouterr().err
+
+
+def _tree_bytes(root) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
+            if p.is_file() and p.name != "timing.json"}
+
+
+@pytest.mark.slow
+def test_make_pipeline_log_is_lines_and_a_table_and_a_rebuild_gives_the_same_bytes(tmp_path):
+    """``python -m pipeline run --all`` with stdout and stderr to a file (the virtual tank, to
+    ingest): no carriage-return refresh anywhere, a line per stage with its time, a closing table
+    naming each stage run; timing.json holds the times; a full rebuild (outputs removed, as by
+    ``make clean``) gives the same bytes for every output but timing.json."""
+    import json
+    import shutil
+    import subprocess
+    import sys
+
+    raw, root = tmp_path / "raw", tmp_path / "proc"
+    raw.mkdir()
+    argv = [sys.executable, "-m", "pipeline", "run", "--all", f"--raw={raw}", f"--root={root}",
+            f"--shared={tmp_path / 'none'}", "--until", "ingest"]
+    env = {**os.environ, "PYTHONPATH": ROOT}
+    log = tmp_path / "log.txt"
+    with open(log, "wb") as fh:
+        done = subprocess.run(argv, env=env, cwd=tmp_path, stdout=fh, stderr=subprocess.STDOUT, timeout=600)
+    text = log.read_text()
+    assert done.returncode == 0, text[-2000:]
+    assert "\r" not in text
+    lines = text.splitlines()
+    assert "[virtual] tank" in lines and any(s.startswith("[virtual] ingest ran in ") for s in lines), text
+    head = next(i for i, s in enumerate(lines) if s.split() == ["dataset", "stage", "status", "seconds"])
+    assert lines[head + 1].split()[:3] == ["virtual", "ingest", "ran"]
+    assert lines[head + 2].startswith("stages finished in ")
+    timing = json.loads((root / "virtual" / "timing.json").read_text())
+    assert list(timing["stages"]) == ["ingest"] and timing["stages"]["ingest"]["seconds"] > 0
+    first = _tree_bytes(root)
+    assert "virtual/runs/index.json" in first and len(first) >= 7
+    shutil.rmtree(root)
+    done = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert _tree_bytes(root) == first
+
+
+def test_a_hidden_bar_starts_no_thread(monkeypatch):
+    """In a log the bar is nothing at all: no tqdm monitor thread, which would keep the diagnosis
+    from forking its nested workers (a process with two threads does not fork)."""
+    import threading
+
+    from pipeline import progress
+
+    monkeypatch.setattr(progress, "on_terminal", lambda: False)
+    before = threading.active_count()
+    b = progress.bar(desc="diagnose: fits", leave=False)
+    b.update(1)
+    b.set_description("held-out runs")
+    b.close()
+    assert list(progress.bar(range(3))) == [0, 1, 2]
+    assert threading.active_count() == before

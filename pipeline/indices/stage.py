@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from pipeline.catalog import is_builtin_tank
 from pipeline.config import IndicesConfig
@@ -36,6 +35,7 @@ from pipeline.indices.uncertainty import draw_validity, monte_carlo, propagate
 from pipeline.indices.zigzag import zigzag_metrics
 from pipeline.io import Run
 from pipeline.model import INDEX_NAMES, PAPER_GRAPHICAL, PAPER_TABLE4, PAPER_TABLE7
+from pipeline.progress import bar
 from pipeline.runinfo import choose_runs, parse_test_name
 
 PAPER = {"table4": PAPER_TABLE4, "table7": PAPER_TABLE7, "graphical": PAPER_GRAPHICAL,
@@ -180,7 +180,7 @@ def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict
     except ValueError as exc:
         raise InputError(str(exc), file="runs/index.json") from None
     results = []
-    for e in tqdm(entries, desc="indices: runs", disable=not progress, leave=False):
+    for e in bar(entries, desc="indices: runs", progress=progress, leave=False):
         run = runs[e["run_id"]]
         for k, v in e.items():
             run.meta.setdefault(k, v)

@@ -35,6 +35,7 @@ import pandas as pd
 
 from pipeline.errors import InputError
 from pipeline.io import write_frame, write_json
+from pipeline.progress import bar as progress_bar
 from pipeline.study.spec import Spec
 
 log = logging.getLogger(__name__)
@@ -255,16 +256,14 @@ def _register_warm(client, kind, settings) -> None:
 
 def _fan_out(client, kind, spec: Spec, pending, cases_dir: Path, lost: dict, progress: bool) -> dict:
     from distributed import as_completed
-    from tqdm import tqdm
-
     futures = {}
     for c in pending:
         fut = client.submit(run_case_task, kind.name, c["params"], c["seed"], spec.settings,
                             key=f"{kind.name}-{c['case_id']}", retries=spec.study.retries, pure=False)
         futures[fut.key] = (fut, c)
     got = {}
-    bar = tqdm(total=len(pending), desc=f"study {spec.study.name}", unit="case", disable=not progress,
-               dynamic_ncols=True)
+    bar = progress_bar(total=len(pending), desc=f"study {spec.study.name}", unit="case", progress=progress,
+                       dynamic_ncols=True)
     errors = 0
     ac = as_completed([f for f, _ in futures.values()])
     try:
