@@ -62,7 +62,8 @@ def _run(args) -> int:
             continue
         except Exception as exc:  # noqa: BLE001 - whatever one dataset raises, the others are built
             msg = " ".join(str(exc).split())[:300]
-            print(f"error: dataset {ds.name!r}: {type(exc).__name__}: {msg}", file=sys.stderr, flush=True)
+            print(f"error: dataset {ds.name!r} ({ds.raw}): {type(exc).__name__}: {msg}", file=sys.stderr,
+                  flush=True)
             failed.append(ds.name)
             continue
         print(f"[{ds.name}] " + (f"ran {', '.join(done)}" if done else "up to date"), flush=True)
