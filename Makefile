@@ -49,11 +49,12 @@ datasets: $(STAMP)
 	@$(PY) -m pipeline run --list --shared '$(SHARED)'
 
 # One dataset: make dataset D=NAME.  D reaches the shell only as the quoted environment variable "$$D",
-# which the shell never re-parses (no expansion of $$(...), backquotes or spaces inside it).
+# which the shell never re-parses (no expansion of $$(...), backquotes or spaces inside it), joined to
+# its option (--dataset=NAME) so that a name starting with "-" is never read as an option.
 D ?= virtual
 export D
 dataset: $(STAMP)
-	$(PY) -m pipeline run --dataset "$$D" --shared '$(SHARED)'
+	$(PY) -m pipeline run --dataset="$$D" --shared '$(SHARED)'
 
 # ---------------------------------------------------------------- reports, tests, benchmarks
 reports: $(STAMP)

@@ -13,16 +13,21 @@ holding the SHA-256 of (a) the content of every input file (raw files, or the up
 output folders) and (b) the source of every ``pipeline`` module the stage's command imports,
 directly or indirectly, found by reading the imports of the code (:func:`import_closure`; function-
 level imports count).  So a change to ``pipeline/config.py``, ``model.py``, ``io.py``, ``cli/`` or any
-module a stage uses reruns that stage and everything downstream; nothing else reruns.
+module a stage uses reruns that stage and everything downstream; nothing else reruns.  The stamp's
+second line is the SHA-256 of the stage's own outputs as it left them (:func:`output_key`): an output
+deleted, truncated or edited since reruns the stage.  A stage's ``timing.json`` is in neither hash.
 """
 
 from __future__ import annotations
 
 import ast
 import hashlib
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from pipeline.progress import heartbeat
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 VIRTUAL, HSVA, LOCAL = "virtual", "hsva", "local"
@@ -149,12 +154,14 @@ def _ingest_argv(ds: Dataset, root: Path) -> list[list[str]]:
     folder itself for 'local', else its parent; without it a ``run --raw DIR`` read the description
     under data/raw, so a full-scale folder's scale was not applied and ingest refused its files)."""
     files = [str(p) for p in raw_files(ds)]
-    return [["ingest", *files, "--out", str(root / ds.name / "runs"), "--dataset", ds.name,
-             "--raw", str(raw_root(ds))]]
+    return [["ingest", f"--out={root / ds.name / 'runs'}", f"--dataset={ds.name}", f"--raw={raw_root(ds)}",
+             "--", *files]]
 
 
 def _dataset_args(ds: Dataset, root: Path) -> list[str]:
-    return ["--dataset", ds.name, "--root", str(root)]
+    """``--dataset=NAME --root=ROOT``: a value joined to its option is never read as an option itself,
+    whatever it starts with (a folder called ``-x`` or ``--help``)."""
+    return [f"--dataset={ds.name}", f"--root={root}"]
 
 
 STAGES: tuple[Stage, ...] = (
@@ -172,6 +179,8 @@ STAGES: tuple[Stage, ...] = (
     Stage("diagnose", "pipeline.cli.diagnose", ("ingest",), ("diagnose/diagnosis.json",),
           lambda ds, root: [["diagnose", *_dataset_args(ds, root)]]),
 )
+#: a stage's run times, beside its results but never hashed or compared (docs/operations.md)
+TIMING_FILE = "timing.json"
 STAGE_DIRS = {"ingest": "runs", "identify": "identify", "validate": "validate", "indices": "indices",
               "control": "control", "diagnose": "diagnose"}
 
@@ -200,10 +209,7 @@ def stage_key(stage: Stage, ds: Dataset, root: Path) -> str:
         if toml.is_file():
             _hash_files(h, [("dataset.toml", toml)])
     for up in stage.after:
-        d = Path(root) / ds.name / STAGE_DIRS[up]
-        files = sorted(p for p in d.rglob("*") if p.is_file() and not p.name.startswith(".")) \
-            if d.is_dir() else []
-        _hash_files(h, [(str(p.relative_to(d.parent)), p) for p in files])
+        _hash_files(h, _stage_files(Path(root) / ds.name / STAGE_DIRS[up]))
     for argv in stage.argv(ds, root):
         h.update("\0".join(argv).encode("utf-8", "surrogateescape") + b"\n")
     return h.hexdigest()
@@ -213,18 +219,39 @@ def _stamp(ds: Dataset, root: Path, stage: Stage) -> Path:
     return Path(root) / ds.name / ".stamps" / stage.name
 
 
+def output_key(stage: Stage, ds: Dataset, root: Path) -> str:
+    """SHA-256 of every file the stage wrote (names and bytes, its folder ``STAGE_DIRS[stage]``, hidden
+    files and ``timing.json`` left out): a file deleted, truncated or edited since changes it."""
+    h = hashlib.sha256()
+    _hash_files(h, _stage_files(Path(root) / ds.name / STAGE_DIRS[stage.name]))
+    return h.hexdigest()
+
+
+def _stage_files(d: Path) -> list[tuple[str, Path]]:
+    """(name under the dataset, path) of a stage folder's result files, sorted; the stage's
+    ``timing.json`` (how long it took, not what it found: docs/operations.md) is not one of them."""
+    if not d.is_dir():
+        return []
+    files = sorted(p for p in d.rglob("*") if p.is_file() and not p.name.startswith(".")
+                   and p.name != TIMING_FILE and not any(q.startswith(".") for q in p.relative_to(d).parts))
+    return [(str(p.relative_to(d.parent)), p) for p in files]
+
+
 def up_to_date(stage: Stage, ds: Dataset, root: Path) -> bool:
+    """True when the stamp holds the stage's current input key and the key of the outputs as the stage
+    left them: a missing, truncated or edited output reruns the stage (and what reads it)."""
     stamp = _stamp(ds, root, stage)
     if not stamp.is_file() or not all((Path(root) / ds.name / o).is_file() for o in stage.outputs):
         return False
-    return stamp.read_text().strip() == stage_key(stage, ds, root)
+    lines = stamp.read_text().split()
+    return lines == [stage_key(stage, ds, root), output_key(stage, ds, root)]
 
 
 def _write_stamp(stage: Stage, ds: Dataset, root: Path) -> None:
     from pipeline.io import atomic_path
 
     with atomic_path(_stamp(ds, root, stage)) as tmp:
-        tmp.write_text(stage_key(stage, ds, root) + "\n")
+        tmp.write_text(f"{stage_key(stage, ds, root)}\n{output_key(stage, ds, root)}\n")
 
 
 def tank_up_to_date(raw: Path) -> bool:
@@ -238,10 +265,45 @@ def _tank_key() -> str:
     return h.hexdigest()
 
 
+def _write_timing(ds: Dataset, root: Path, stage: str, seconds: float, status: str) -> None:
+    """Record a stage's wall time (s) in ``ROOT/NAME/timing.json`` (``{"dataset", "stages": {stage:
+    {"seconds", "status"}}}``, the other stages' entries kept): the one place a build's timings go,
+    outside every folder that is hashed or compared (docs/operations.md)."""
+    import json
+
+    from pipeline.io import write_json
+
+    path = Path(root) / ds.name / TIMING_FILE
+    try:
+        doc = json.loads(path.read_text())
+        stages = doc["stages"] if isinstance(doc, dict) and isinstance(doc.get("stages"), dict) else {}
+    except (OSError, ValueError):
+        stages = {}                                  # none yet, or torn: timings are not results
+    stages[stage] = {"seconds": round(seconds, 3), "status": status}
+    order = {s.name: i for i, s in enumerate(STAGES)}
+    write_json(path, {"dataset": ds.name,
+                      "stages": dict(sorted(stages.items(), key=lambda kv: order.get(kv[0], 99)))})
+
+
+def _exit_code(run: Callable[[list[str]], int], argv: list[str]) -> int:
+    """``run(argv)``'s exit status; an argparse refusal (SystemExit) is a status too, not the end of the
+    build."""
+    try:
+        return run(argv)
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else 2
+
+
 def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str | None = None,
                   run: Callable[[list[str]], int] | None = None,
-                  say: Callable[[str], None] = print) -> list[str]:
+                  say: Callable[[str], None] = print,
+                  on_stage: Callable[[str, str, str, float], None] | None = None) -> list[str]:
     """Bring every stage of ``ds`` up to date (up to and including ``until``); returns the stages run.
+
+    Each stage run is said twice (its start, then its status and wall time in s), with a heartbeat
+    line every 30 s between in a log (:func:`pipeline.progress.heartbeat`); its time is kept in
+    ``ROOT/NAME/timing.json`` (:func:`_write_timing`) and handed to ``on_stage(dataset, stage, status,
+    seconds)``.
 
     ``run`` executes one argv list (default :func:`pipeline.cli.main`).  A stage whose command exits
     non-zero stops only the stages that read its outputs (directly or not, ``Stage.after``): the others
@@ -259,7 +321,7 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
     stages = STAGES[: names.index(until) + 1] if until else STAGES
     if ds.name == VIRTUAL and not tank_up_to_date(ds.raw):
         say(f"[{ds.name}] tank")
-        if run(["tank", "--out", str(ds.raw)]) != 0:
+        if _exit_code(run, ["tank", f"--out={ds.raw}"]) != 0:
             raise PipelineError(f"dataset {ds.name!r}: stage tank failed (see above)")
         from pipeline.io import atomic_path
 
@@ -285,10 +347,18 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
             continue
         say(f"[{ds.name}] {stage.name}")
         code = 0
-        for argv in stage.argv(ds, root):
-            code = run(argv)
-            if code != 0:
-                break
+        t0 = time.perf_counter()
+        with heartbeat(f"[{ds.name}] {stage.name}"):
+            for argv in stage.argv(ds, root):
+                code = _exit_code(run, argv)
+                if code != 0:
+                    break
+        secs = time.perf_counter() - t0
+        status = "ran" if code == 0 else f"failed (exit {code})"
+        say(f"[{ds.name}] {stage.name} {status} in {secs:.1f} s")
+        _write_timing(ds, root, stage.name, secs, status)
+        if on_stage is not None:
+            on_stage(ds.name, stage.name, status, secs)
         if code != 0:
             failed.append((stage.name, code))
             continue

@@ -325,6 +325,10 @@ class StudyConfig:
     workers: int = 2                     # local worker processes (one thread each) when no scheduler given
     retries: int = 1                     # dask retries of a case whose worker was lost (not of a case error)
     memory_limit: str = "auto"           # per local worker (dask syntax, e.g. "2GiB")
+    # s without a single worker before the study stops with an error naming it: a local cluster's nanny
+    # restarts a dead worker within seconds, so a minute with none means every worker died (or none
+    # could reach the scheduler) and waiting longer would be silent
+    no_worker_timeout_s: float = 60.0
 
 
 @dataclass(frozen=True)

@@ -139,6 +139,25 @@ def clean_stale_temporaries(dest: str | Path) -> list[Path]:
 
 
 @contextlib.contextmanager
+def _naming(tmp: Path, dest: Path) -> Iterator[None]:
+    """An OSError inside the block (disk full, a quota, a permission) names the file the user asked
+    for: ``dest`` (or the file under it) in place of the temporary, and ``dest`` when the error named
+    no file at all (a full disk's ENOSPC from ``write``, pyarrow's IOError)."""
+    try:
+        yield
+    except OSError as exc:
+        name = None if exc.filename is None else str(exc.filename)
+        if name is None or name == str(tmp):
+            where = str(dest)
+        elif name.startswith(str(tmp) + os.sep):
+            where = str(dest) + name[len(str(tmp)):]
+        else:
+            raise
+        why = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
+        raise OSError(exc.errno, why, where) from exc
+
+
+@contextlib.contextmanager
 def atomic_path(dest: str | Path, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path beside ``dest``; rename it onto ``dest`` only if the block succeeds."""
     dest = Path(dest)
@@ -149,9 +168,10 @@ def atomic_path(dest: str | Path, suffix: str | None = None) -> Iterator[Path]:
     os.close(fd)
     tmp_path = Path(tmp)
     try:
-        yield tmp_path
-        os.chmod(tmp_path, 0o666 & ~_UMASK)      # mkstemp makes 0600; give the usual mode
-        os.replace(tmp_path, dest)
+        with _naming(tmp_path, dest):
+            yield tmp_path
+            os.chmod(tmp_path, 0o666 & ~_UMASK)      # mkstemp makes 0600; give the usual mode
+            os.replace(tmp_path, dest)
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
@@ -240,13 +260,14 @@ def atomic_dir(dest: str | Path) -> Iterator[Path]:
     clean_stale_temporaries(dest)
     tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.out.{os.getpid()}.", dir=dest.parent))
     try:
-        yield tmp
-        os.chmod(tmp, 0o777 & ~_UMASK)           # mkdtemp makes 0700; give the usual mode
-        files = _listing(tmp)
-        if _owned(dest):
-            _swap_in(tmp, dest)
-        else:
-            _merge_in(tmp, dest, files)
+        with _naming(tmp, dest):
+            yield tmp
+            os.chmod(tmp, 0o777 & ~_UMASK)           # mkdtemp makes 0700; give the usual mode
+            files = _listing(tmp)
+            if _owned(dest):
+                _swap_in(tmp, dest)
+            else:
+                _merge_in(tmp, dest, files)
         write_json(set_manifest_path(dest), {"files": files})
     finally:
         if tmp.exists():

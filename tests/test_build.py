@@ -46,7 +46,7 @@ def test_make_passes_no_dataset_name_to_the_shell(tmp_path):
     env = {**os.environ, "MAKEFLAGS": ""}
     # `make dataset D=...`: shell metacharacters and spaces arrive intact (a `$` is make's own syntax
     # on its command line; folder names with `$` go through `make pipeline`, which never sees them)
-    by_hand = ("x;touch X", "x`touch X`", SPACED)
+    by_hand = ("x;touch X", "x`touch X`", SPACED, "-dash")
     for target in (["pipeline"], ["reports"], ["datasets"], *(["dataset", f"D={n}"] for n in by_hand)):
         res = subprocess.run(["make", "--no-print-directory", *target], cwd=tmp_path, env=env,
                              capture_output=True, text=True, timeout=60)
@@ -57,7 +57,7 @@ def test_make_passes_no_dataset_name_to_the_shell(tmp_path):
     assert ["-m", "pipeline", "report", "--all", "--changed", "--out", "reports"] in calls
     # a hostile or spaced name given to `make dataset` arrives as one intact argument
     for name in by_hand:
-        assert ["-m", "pipeline", "run", "--dataset", name, "--shared", "../shared"] in calls, name
+        assert ["-m", "pipeline", "run", f"--dataset={name}", "--shared", "../shared"] in calls, name
 
 
 def _write_zigzag(folder: Path, stem: str) -> None:

@@ -21,6 +21,8 @@ def register(sub) -> None:
     p.add_argument("--workers", type=int, default=None,
                    help="local worker processes, one thread each (default: the spec's study.workers)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--dashboard", action="store_true",
+                   help="start the local cluster's web dashboard (on 127.0.0.1 only; off by default)")
     p.set_defaults(func=_run)
 
 
@@ -32,7 +34,7 @@ def _run(args) -> int:
         raise InputError(f"--workers must be at least 1, got {args.workers}")
     spec = load_spec(args.spec)
     summary = run_study(spec, args.out, scheduler=args.scheduler, workers=args.workers,
-                        progress=not args.no_progress)
+                        progress=not args.no_progress, dashboard=args.dashboard)
     st = summary["study"]
     print(f"study {st['name']} ({st['kind']}): {st['cases']} cases, {st['ok']} ok, {st['failed']} failed; "
           f"written {args.out / 'results.parquet'} and {args.out / 'summary.json'}")

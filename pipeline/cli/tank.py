@@ -14,9 +14,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from tqdm import tqdm
-
 from pipeline.config import TankConfig
+from pipeline.progress import bar
 
 
 def register(sub) -> None:
@@ -42,7 +41,7 @@ def _run(args) -> int:
     if args.pull_out is not None:
         manoeuvres = [turning_circle(m.rudder_deg, m.side, m.duration, pull_out_s=args.pull_out)
                       if m.kind == "turning" else m for m in manoeuvres]
-    for m in tqdm(manoeuvres, desc="virtual tank", unit="run"):
+    for m in bar(manoeuvres, desc="virtual tank", unit="run"):
         run = simulate(m, cfg)
         write_csv(Path(args.out) / f"{m.file_stem}.csv", run)
     print(f"wrote {len(manoeuvres)} virtual-tank runs to {args.out}")

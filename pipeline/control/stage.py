@@ -24,7 +24,6 @@ from dataclasses import asdict
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from pipeline.config import ControlConfig
 from pipeline.control.design import (
@@ -41,6 +40,7 @@ from pipeline.control.disturbance import wave_sequence, wave_variance_theory, wi
 from pipeline.control.metrics import WORST, course_metrics, seed_statistics
 from pipeline.control.simulate import NomotoShip, kcs_available, make_kcs_ship, simulate_course
 from pipeline.errors import InputError
+from pipeline.progress import bar
 
 PAPER_CONTROL = {
     "rise_time": 24.0, "max_deviation": 1.46, "steady_mae": 0.86, "max_rudder_below": 25.0,
@@ -228,7 +228,7 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
 
     frames, per = [], {}
     jobs = [(p, d, s) for p in plants for d in designs for s in seeds]
-    for plant, dname, seed in tqdm(jobs, desc="control", unit="run", disable=not progress):
+    for plant, dname, seed in bar(jobs, desc="control", unit="run", progress=progress):
         if plant == "nomoto":
             cm = control_model
             ship = NomotoShip(cm["K"], cm["T1"], cm["T2"], cm["T3"],

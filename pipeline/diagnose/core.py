@@ -24,6 +24,7 @@ Nothing here knows the ship: scales come from the data.
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import multiprocessing
 import os
@@ -62,7 +63,9 @@ from pipeline.diagnose.fit import (
 from pipeline.diagnose.select import Fold, Search, Selection, _gain, heading_noise_deg, select
 from pipeline.errors import InputError, ModelError
 from pipeline.io import Run
+from pipeline.lifeline import die_with_parent
 from pipeline.model import PARAM_NAMES
+from pipeline.progress import bar as progress_bar
 
 
 @dataclass
@@ -325,7 +328,9 @@ def _nested_in_workers(folds, ctx, cfg, noise, workers: int):
         yield None
         return
     n = len(folds[0].train) + len(folds[0].val)
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+    # the workers end with this process on any signal (pipeline.lifeline; docs/operations.md)
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
+                             initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
         futures = [pool.submit(_nested_task, folds, i, ctx, cfg, noise, plain_active()) for i in range(n)]
         try:
             yield futures
@@ -337,21 +342,23 @@ def _nested_in_workers(folds, ctx, cfg, noise, workers: int):
 def _select_and_report(
     train, validate, test, cfg, progress, folds, te, ctx, noise, futures, rates
 ) -> Diagnosis:
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(desc="diagnose: fits", leave=False)
-    tick = (lambda _e: bar.update(1)) if bar is not None else None
+    # one bar over the whole stage (on a terminal only: pipeline.progress.bar): the main selection's
+    # fits, then each held-out run of the nested leave-one-run-out as it finishes
+    bar = progress_bar(desc="diagnose: fits", leave=False, progress=progress)
+    tick = (lambda _e: bar.update(1)) if progress else None
     search = Search(folds, ctx, cfg)
     ks = list(range(len(folds)))
     sel = select(search, ks, noise, progress=tick)
-    nested = None if futures is None else [f.result() for f in futures]
-    honest = _honest_gain(search, sel, folds, te, ctx, cfg, noise, nested)
+    bar.set_description("diagnose: held-out runs (nested selections)")
+    nested = None
+    if futures is not None:
+        for _ in concurrent.futures.as_completed(futures):
+            bar.update(1)
+        nested = [f.result() for f in futures]
+    honest = _honest_gain(search, sel, folds, te, ctx, cfg, noise, nested, tick=lambda: bar.update(1))
     # stability: each fold alone (with --test runs; otherwise the leave-one-run-out selections are the folds)
     per_fold = [select(search, [k], noise) for k in ks] if te and len(folds) > 1 else []
-    if bar is not None:
-        bar.close()
+    bar.close()
     report, base, ext, series = _report(
         search, sel, per_fold, honest, folds, te, ctx, cfg, noise, train + validate + test, rates
     )
@@ -487,7 +494,8 @@ def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
     return max(1, min(w, n_runs))
 
 
-def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nested_results=None) -> dict:
+def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nested_results=None,
+                 tick=None) -> dict:
     """The gain on runs no choice has seen, with its 95 % interval; and each rung of the ladder there.
     ``nested_results``: :func:`_nested_one` of every training and validation run, when already made
     (in worker processes); otherwise they are made here."""
@@ -540,7 +548,11 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
     pairs, nested, measured = [], [], []
     runs = folds[0].train + folds[0].val
     if nested_results is None:  # in this process, sharing the fits already made (the memo)
-        nested_results = [_nested_one(folds, held, ctx, cfg, noise) for held in runs]
+        nested_results = []
+        for held in runs:
+            nested_results.append(_nested_one(folds, held, ctx, cfg, noise))
+            if tick is not None:
+                tick()
     for held, res in zip(runs, nested_results, strict=True):
         if res is None:
             continue

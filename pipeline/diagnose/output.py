@@ -37,7 +37,9 @@ def plot_series(diag: Diagnosis, out_dir: Path) -> list[Path]:
         ax[2].plot(t, g["delta"], "k", lw=1)
         ax[2].set_ylabel("delta (deg)")
         ax[2].set_xlabel("time (s)")
-        fig.suptitle(f"{run_id}: free-run on held-out data  {banner}", fontsize=10)
+        # parse_math and usetex off: a run called "$x$ zz" is a name, not TeX to typeset (or refuse)
+        fig.suptitle(f"{run_id}: free-run on held-out data  {banner}", fontsize=10, parse_math=False,
+                     usetex=False)
         fig.tight_layout()
         p = out_dir / f"freerun_{_safe(run_id)}.png"
         fig.savefig(p, dpi=90)
@@ -56,7 +58,7 @@ def plot_series(diag: Diagnosis, out_dir: Path) -> list[Path]:
         ax[1].axhline(0, color="k", lw=0.5)
         ax[1].set_xlabel("measured r (deg/s)")
         ax[1].set_ylabel("r error (deg/s)")
-        fig.suptitle(f"{run_id}: residuals", fontsize=10)
+        fig.suptitle(f"{run_id}: residuals", fontsize=10, parse_math=False, usetex=False)
         fig.tight_layout()
         p = out_dir / f"residuals_{_safe(run_id)}.png"
         fig.savefig(p, dpi=90)

@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from pipeline import paper
 from pipeline.catalog import is_builtin_tank
@@ -49,6 +48,7 @@ from pipeline.indices.uncertainty import draw_validity, monte_carlo, propagate
 from pipeline.indices.zigzag import zigzag_metrics
 from pipeline.io import Run
 from pipeline.model import INDEX_NAMES
+from pipeline.progress import bar
 from pipeline.runinfo import choose_runs, parse_test_name
 
 UNITS = {"K": "1/s", "T1": "s", "T2": "s", "T3": "s", "T": "s", "K_prime": "-", "T_prime": "-",
@@ -314,7 +314,7 @@ def build_documents(index: dict[str, Any], runs: dict[str, Run], estimates: dict
     except ValueError as exc:
         raise InputError(str(exc), file="runs/index.json") from None
     results = []
-    for e in tqdm(entries, desc="indices: runs", disable=not progress, leave=False):
+    for e in bar(entries, desc="indices: runs", progress=progress, leave=False):
         run = runs[e["run_id"]]
         for k, v in e.items():
             run.meta.setdefault(k, v)

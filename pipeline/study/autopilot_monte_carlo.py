@@ -32,16 +32,30 @@ def _control(cfg: AutopilotStudyConfig) -> ControlConfig:
     return dc.replace(ControlConfig(), **cfg.control)
 
 
-def cases(cfg: AutopilotStudyConfig) -> list[dict[str, Any]]:
+def check(cfg: AutopilotStudyConfig) -> None:
+    """Refuse settings no case could run with, naming the key (the spec's ``check``)."""
+    t = "autopilot_monte_carlo"
     for p in cfg.plants:
         if p not in PLANTS:
-            raise InputError(f"unknown plant {p!r} in autopilot_monte_carlo.plants "
-                             f"(known: {', '.join(PLANTS)})")
+            raise InputError(f"key '{t}.plants': unknown plant {p!r} (known: {', '.join(PLANTS)})")
     if cfg.design not in ("first_order", "second_order"):
-        raise InputError("autopilot_monte_carlo.design must be first_order or second_order, "
-                         f"got {cfg.design!r}")
+        raise InputError(f"key '{t}.design': must be first_order or second_order, got {cfg.design!r}")
     if cfg.seeds < 1:
-        raise InputError("autopilot_monte_carlo.seeds must be at least 1")
+        raise InputError(f"key '{t}.seeds': must be at least 1, got {cfg.seeds}")
+    for tw in cfg.tw:                                 # a closed-loop time constant
+        if not tw > 0:
+            raise InputError(f"key '{t}.tw': time constants must be > 0 s, got {tw}")
+    for key in ("K", "T1", "T2", "T3"):               # a stable ship's Nomoto indices
+        if not getattr(cfg, key) > 0:
+            raise InputError(f"key '{t}.{key}': must be > 0, got {getattr(cfg, key)}")
+    for key in ("duration", "dt"):
+        v = cfg.control.get(key)
+        if v is not None and not (isinstance(v, int | float) and not isinstance(v, bool) and v > 0):
+            raise InputError(f"key '{t}.control.{key}': must be > 0 s, got {v!r}")
+
+
+def cases(cfg: AutopilotStudyConfig) -> list[dict[str, Any]]:
+    check(cfg)
     return [{"plant": p, "tw": float(tw), "wind_rudder": float(w), "replicate": k}
             for p in cfg.plants for tw in cfg.tw for w in cfg.wind_rudder for k in range(cfg.seeds)]
 
@@ -138,5 +152,5 @@ def summarise(frame: pd.DataFrame, cfg: AutopilotStudyConfig, study_seed: int) -
 
 
 KIND = StudyKind(name="autopilot_monte_carlo", config=AutopilotStudyConfig, cases=cases, run_case=run_case,
-                 summarise=summarise, warm=warm, summary_only=("worst",),
+                 summarise=summarise, warm=warm, check=check, summary_only=("worst",),
                  grid=("plants", "tw", "wind_rudder", "seeds"))

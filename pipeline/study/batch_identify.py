@@ -46,7 +46,19 @@ def files(cfg: BatchIdentifyConfig) -> list[Path]:
     return out
 
 
+def check(cfg: BatchIdentifyConfig) -> None:
+    """Refuse settings no case could run with, naming the key (the spec's ``check``)."""
+    t = "batch_identify"
+    if cfg.samples < 2:                               # a filter run needs at least two samples
+        raise InputError(f"key '{t}.samples': must be at least 2, got {cfg.samples}")
+    if not cfg.dt > 0:
+        raise InputError(f"key '{t}.dt': the resampling step must be > 0 s, got {cfg.dt}")
+    if cfg.scale is not None and not cfg.scale >= 1:  # full/model: a model is never larger than its ship
+        raise InputError(f"key '{t}.scale': must be at least 1 (full/model), got {cfg.scale}")
+
+
 def cases(cfg: BatchIdentifyConfig) -> list[dict[str, Any]]:
+    check(cfg)
     out = []
     for f in files(cfg):
         sha = hashlib.sha256(f.read_bytes()).hexdigest()
@@ -174,5 +186,5 @@ def summarise(frame: pd.DataFrame, cfg: BatchIdentifyConfig, study_seed: int) ->
 
 
 KIND = StudyKind(name="batch_identify", config=BatchIdentifyConfig, cases=cases, run_case=run_case,
-                 summarise=summarise, warm=warm,
+                 summarise=summarise, warm=warm, check=check,
                  grid=("inputs", "pattern"))

@@ -161,6 +161,40 @@ def _effects(cfg: DetectionPowerConfig) -> tuple[str, ...]:
     return cat
 
 
+def check(cfg: DetectionPowerConfig) -> None:
+    """Refuse settings no case could run with, naming the key (the spec's ``check``)."""
+    cat = catalogue_effects()
+    t = "detection_power"
+    for key in ("effects", "tank_own_effects"):
+        for e in getattr(cfg, key):
+            if e not in cat:
+                raise InputError(f"key '{t}.{key}': unknown effect {e!r} (known: {', '.join(cat)})")
+    for e, mags in cfg.magnitudes.items():
+        if e not in cat:
+            raise InputError(f"key '{t}.magnitudes.{e}': unknown effect {e!r} (known: {', '.join(cat)})")
+        for m in mags:
+            if not m > 0:             # a magnitude is the size of an effect that is there
+                raise InputError(f"key '{t}.magnitudes.{e}': magnitudes must be > 0, got {m}")
+    for p in cfg.plants:
+        if p not in PLANTS:
+            raise InputError(f"key '{t}.plants': unknown plant {p!r} (known: {', '.join(PLANTS)})")
+    if not cfg.duration_s > 0:
+        raise InputError(f"key '{t}.duration_s': a run lasts > 0 s, got {cfg.duration_s}")
+    for key in ("rudder_deg", "tank_rudder_deg"):    # a zigzag needs a rudder order, within hard over
+        if not 0 < getattr(cfg, key) <= 35.0:
+            raise InputError(f"key '{t}.{key}': must be in (0, 35] deg, got {getattr(cfg, key)}")
+    if cfg.runs_per_side not in (1, 2):
+        raise InputError(f"key '{t}.runs_per_side': must be 1 or 2, got {cfg.runs_per_side}")
+    for key in ("seeds", "clean_seeds"):
+        if getattr(cfg, key) < 0:
+            raise InputError(f"key '{t}.{key}': must be 0 or more, got {getattr(cfg, key)}")
+    for key in ("level", "confidence"):              # probabilities
+        if not 0 < getattr(cfg, key) < 1:
+            raise InputError(f"key '{t}.{key}': must be in (0, 1), got {getattr(cfg, key)}")
+    if cfg.bootstrap < 1:
+        raise InputError(f"key '{t}.bootstrap': must be at least 1, got {cfg.bootstrap}")
+
+
 def not_studied(cfg: DetectionPowerConfig) -> dict[str, dict[str, str]]:
     """{plant: {effect: reason}} for effects of the study that a plant cannot take."""
     out: dict[str, dict[str, str]] = {}
@@ -179,9 +213,7 @@ def not_studied(cfg: DetectionPowerConfig) -> dict[str, dict[str, str]]:
 
 
 def cases(cfg: DetectionPowerConfig) -> list[dict[str, Any]]:
-    for p in cfg.plants:
-        if p not in PLANTS:
-            raise InputError(f"unknown plant {p!r} in detection_power.plants (known: {', '.join(PLANTS)})")
+    check(cfg)
     skip = not_studied(cfg)
     out = []
     for plant in cfg.plants:
@@ -191,8 +223,6 @@ def cases(cfg: DetectionPowerConfig) -> list[dict[str, Any]]:
             if e in skip.get(plant, {}):
                 continue
             for m in cfg.magnitudes[e]:
-                if not m > 0:
-                    raise InputError(f"detection_power.magnitudes.{e}: magnitudes must be > 0, got {m}")
                 for rep in range(cfg.seeds):
                     out.append({"plant": plant, "effect": e, "magnitude": float(m), "replicate": rep})
     return out
@@ -506,6 +536,6 @@ def _page(summary: dict) -> str:
 
 
 KIND = StudyKind(name="detection_power", config=DetectionPowerConfig, cases=cases, run_case=run_case,
-                 summarise=summarise, render=render, warm=warm,
+                 summarise=summarise, render=render, warm=warm, check=check,
                  summary_only=("level", "confidence", "bootstrap"),
                  grid=("effects", "magnitudes", "plants", "seeds", "clean_seeds"))

@@ -35,6 +35,7 @@ import pandas as pd
 
 from pipeline.errors import InputError
 from pipeline.io import write_frame, write_json
+from pipeline.progress import bar as progress_bar
 from pipeline.study.spec import Spec
 
 log = logging.getLogger(__name__)
@@ -136,7 +137,7 @@ class WarmKernels(WorkerPlugin):
 # ---------------------------------------------------------------- client side
 
 
-def _client(scheduler: str | None, workers: int, memory_limit: str):
+def _client(scheduler: str | None, workers: int, memory_limit: str, dashboard: bool = False):
     from distributed import Client
 
     from pipeline.study.cluster import local_cluster
@@ -148,7 +149,10 @@ def _client(scheduler: str | None, workers: int, memory_limit: str):
         except (OSError, TimeoutError) as exc:
             raise InputError(f"cannot reach the dask scheduler at {address} ({type(exc).__name__}: "
                              f"{' '.join(str(exc).split())[:200]})") from None
-    return local_cluster(workers, memory_limit)
+    client, cluster = local_cluster(workers, memory_limit, dashboard=dashboard)
+    if dashboard:
+        log.warning("dask dashboard (loopback only): %s", cluster.dashboard_link)
+    return client, cluster
 
 
 def _read_case(path: Path) -> dict[str, Any] | None:
@@ -178,11 +182,12 @@ def plan(spec: Spec) -> list[dict[str, Any]]:
 
 
 def run_study(spec: Spec, out: str | Path, *, scheduler: str | None = None, workers: int | None = None,
-              progress: bool = True, client=None) -> dict[str, Any]:
+              progress: bool = True, client=None, dashboard: bool = False) -> dict[str, Any]:
     """Run (or resume) a study; write DIR/results.parquet, DIR/summary.json, DIR/timings.json.
 
     ``client``: an existing dask Client to use (else one is made from ``scheduler`` /
-    DASK_SCHEDULER_ADDRESS, or a LocalCluster of ``workers`` processes).  Returns the summary.
+    DASK_SCHEDULER_ADDRESS, or a LocalCluster of ``workers`` processes listening on 127.0.0.1 only;
+    ``dashboard`` starts its web dashboard, also on 127.0.0.1).  Returns the summary.
     """
     from pipeline.study import get_kind
 
@@ -203,7 +208,7 @@ def run_study(spec: Spec, out: str | Path, *, scheduler: str | None = None, work
         own = client is None
         cluster = None
         if own:
-            client, cluster = _client(scheduler, n_workers, spec.study.memory_limit)
+            client, cluster = _client(scheduler, n_workers, spec.study.memory_limit, dashboard)
         try:
             cases_dir.mkdir(parents=True, exist_ok=True)      # only once there is a cluster to run on
             _register_warm(client, kind, spec.settings)
@@ -251,19 +256,18 @@ def _register_warm(client, kind, settings) -> None:
 
 def _fan_out(client, kind, spec: Spec, pending, cases_dir: Path, lost: dict, progress: bool) -> dict:
     from distributed import as_completed
-    from tqdm import tqdm
-
     futures = {}
     for c in pending:
         fut = client.submit(run_case_task, kind.name, c["params"], c["seed"], spec.settings,
                             key=f"{kind.name}-{c['case_id']}", retries=spec.study.retries, pure=False)
         futures[fut.key] = (fut, c)
     got = {}
-    bar = tqdm(total=len(pending), desc=f"study {spec.study.name}", unit="case", disable=not progress,
-               dynamic_ncols=True)
+    bar = progress_bar(total=len(pending), desc=f"study {spec.study.name}", unit="case", progress=progress,
+                       dynamic_ncols=True)
     errors = 0
+    ac = as_completed([f for f, _ in futures.values()])
     try:
-        for fut in as_completed([f for f, _ in futures.values()]):
+        for fut in _finished(client, ac, spec, len(pending), got):
             _, c = futures[fut.key]
             try:
                 res = fut.result()
@@ -281,13 +285,41 @@ def _fan_out(client, kind, spec: Spec, pending, cases_dir: Path, lost: dict, pro
             bar.update(1)
             if errors:
                 bar.set_postfix(failed=errors)
-    except KeyboardInterrupt:
+    except BaseException:            # Ctrl-C, no worker left: nothing keeps running on the cluster
         for f, _ in futures.values():
             f.cancel()
         raise
     finally:
         bar.close()
     return got
+
+
+#: s between two looks at the scheduler while no case finishes (a cheap call; a tenth of the default
+#: no-worker timeout, so the timeout is kept to within 10 %)
+POLL_S = 0.5
+
+
+def _finished(client, ac, spec: Spec, n: int, got: dict):
+    """The futures of ``ac`` as they finish; a PipelineError once the cluster has had no worker for
+    ``spec.study.no_worker_timeout_s`` seconds (every worker died, or none reached the scheduler),
+    instead of waiting for ever."""
+    from pipeline.errors import PipelineError
+
+    limit = spec.study.no_worker_timeout_s
+    last_worker = time.monotonic()
+    while not ac.is_empty():
+        batch = ac.next_batch(block=False)
+        if batch:
+            yield from batch
+            continue
+        if client.nthreads():
+            last_worker = time.monotonic()
+        elif time.monotonic() - last_worker > limit:
+            raise PipelineError(
+                f"study {spec.study.name}: no dask worker for {limit:g} s (every worker died, or none "
+                f"reached the scheduler; see the workers' logs; key 'study.no_worker_timeout_s'); {len(got)} "
+                f"of {n} cases finished and kept, a rerun resumes", file=spec.path)
+        time.sleep(POLL_S)
 
 
 def results_frame(todo: list[dict], done: dict[str, dict], lost: dict[str, str]) -> pd.DataFrame:

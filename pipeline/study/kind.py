@@ -24,6 +24,9 @@ class StudyKind:
     summarise : (results frame sorted by case_id, settings, study seed) -> summary dict (JSON).
     render : optional (results frame, summary, output dir) -> None, writes figures / HTML atomically.
     warm : optional (settings) -> None, compiles the numba kernels a case uses (once per worker).
+    check : optional (settings) -> None, refuses settings no case could run with (a negative duration,
+        an effect name the catalogue has not) by raising :class:`pipeline.errors.InputError` whose
+        message starts with ``key '<table>.<key>'``; called when the spec is read, before any work.
     summary_only : settings fields that only change the summary (not the cases' results); they are
         left out of the case fingerprint, so changing them reuses the done cases.
     grid : settings fields that only say which cases exist (ranges, seed counts); every case's
@@ -38,5 +41,6 @@ class StudyKind:
     summarise: Callable[[pd.DataFrame, Any, int], dict[str, Any]]
     render: Callable[[pd.DataFrame, dict[str, Any], Path], None] | None = None
     warm: Callable[[Any], None] | None = None
+    check: Callable[[Any], None] | None = None
     summary_only: tuple[str, ...] = field(default_factory=tuple)
     grid: tuple[str, ...] = field(default_factory=tuple)
