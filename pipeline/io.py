@@ -349,9 +349,39 @@ def read_frame(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
         raise InputError("file not found", file=path) from None
     except (pa.ArrowInvalid, OSError) as exc:
         raise InputError(f"not a readable Parquet file ({exc})", file=path) from None
-    md = table.schema.metadata or {}
-    meta = json.loads(md[RUN_META_KEY]) if RUN_META_KEY in md else {}
-    return table.to_pandas(), meta
+    return table.to_pandas(), _run_meta(table.schema.metadata, path)
+
+
+def _run_meta(md: dict | None, path: Path) -> dict[str, Any]:
+    """The ``tanktest.run`` JSON of a Parquet schema's metadata ({} when there is none)."""
+    md = md or {}
+    if RUN_META_KEY not in md:
+        return {}
+    try:
+        meta = json.loads(md[RUN_META_KEY])
+    except (ValueError, UnicodeDecodeError):
+        raise InputError("the run metadata (tanktest.run) is not valid JSON: the file is damaged; "
+                         "ingest the raw file again", file=path) from None
+    if not isinstance(meta, dict):
+        raise InputError("the run metadata (tanktest.run) is not a JSON object: the file is damaged; "
+                         "ingest the raw file again", file=path)
+    return meta
+
+
+def read_meta(path: str | Path) -> dict[str, Any] | None:
+    """The run metadata of a Parquet file, read from its schema only; None when the file has none
+    (a Parquet file that is not a processed run).  Raises :class:`InputError` naming the file when it
+    is not readable Parquet or its metadata is damaged."""
+    path = Path(path)
+    try:
+        schema = pq.read_schema(path)
+    except FileNotFoundError:
+        raise InputError("file not found", file=path) from None
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise InputError(f"not a readable Parquet file ({exc})", file=path) from None
+    if RUN_META_KEY not in (schema.metadata or {}):
+        return None
+    return _run_meta(schema.metadata, path)
 
 
 def write_run(path: str | Path, run: Run) -> Path:
