@@ -40,6 +40,7 @@ from pipeline.dataset import (
     DEFAULT_RAW,
     TOML_NAME,
     Dataset,
+    check_run_ids,
     dataset_folder,
     is_tank_file,
     load_dataset,
@@ -120,6 +121,8 @@ def _run(args) -> int:
         candidates = list(args.files)
     else:
         candidates = ds.raw_files()
+        if ds.toml_path is not None:
+            check_run_ids(ds, {run_id_of(f) for f in ds.raw_files(with_skipped=True)}, roles=False)
         if not candidates:
             raise InputError(f"no tank files in dataset {args.dataset!r}"
                              + (" (run `python -m pipeline tank --out data/raw/virtual` first)"
@@ -183,6 +186,14 @@ def _run(args) -> int:
     else:
         index.update({k: previous[k] for k in ("ship", "roles", "identify") if k in previous})
     index["runs"] = [entries[k] for k in sorted(entries)]
+    if ds is not None and ds.toml_path is not None:
+        if args.files:
+            try:
+                check_run_ids(ds, set(entries), roles=True)
+            except InputError as exc:           # the named run may come with a later ingest
+                _notice(f"note: {exc.message} (identify will refuse until it is ingested)")
+        else:
+            check_run_ids(ds, set(entries), roles=True)
     with atomic_dir(args.out) as tmp:
         for run in runs:
             write_run(tmp / f"{run.meta['run_id']}.parquet", run)

@@ -297,8 +297,9 @@ def check_rudder_sign(frame: pd.DataFrame, name: str) -> dict[str, Any]:
     if total < 0 and against > agree and -total > SIGN_NOISE_FACTOR * max(noise, 1e-3):
         raise InputError(f"rudder sign is reversed: positive delta gives negative yaw rate in {against} of "
                          f"{agree + against} rudder phases (SPEC: positive delta makes r positive); if the "
-                         "file's rudder is positive to port, ingest with --rudder-sign -1", file=name,
-                         column="delta")
+                         "file's rudder is positive to port, ingest with --rudder-sign -1 (or "
+                         "rudder_sign = -1 in dataset.toml, under [data] or the run's [runs.<id>])",
+                         file=name, column="delta")
     return evidence
 
 
