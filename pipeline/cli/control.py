@@ -46,7 +46,8 @@ def paper_indices() -> dict:
 def _run(args) -> int:
     from pipeline.control.stage import run_control
 
-    cat = catalog(args)
+    # the catalog only where a default comes from it (--indices/--paper with --out need none)
+    cat = catalog(args) if args.out is None or (args.indices is None and not args.paper) else None
     cfg = ControlConfig()
     changes = {}
     if args.seeds is not None:

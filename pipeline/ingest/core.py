@@ -8,6 +8,7 @@ model scale.  Optional columns: phi deg, p deg/s, thrust N, torque N m.
 from __future__ import annotations
 
 import hashlib
+import os
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -73,16 +74,23 @@ def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = Non
     """
     path = Path(path)
     name = path.name
+    full = os.path.abspath(path)                 # messages name the file by its full path
     try:
         data = path.read_bytes()
     except FileNotFoundError:
-        raise InputError("file not found", file=name) from None
+        raise InputError("file not found", file=full) from None
     except IsADirectoryError:
-        raise InputError("is a directory, not a tank file", file=name) from None
+        raise InputError("is a directory, not a tank file", file=full) from None
     except OSError as exc:
-        raise InputError(f"cannot read file ({exc.strerror})", file=name) from None
-    return parse_raw(data, name=name, fmt=fmt, scale=scale, config=config, rudder_sign=rudder_sign,
-                     ship=ship, lpp_full=lpp_full, model_scale=model_scale, test_name=test_name)
+        raise InputError(f"cannot read file ({exc.strerror})", file=full) from None
+    try:
+        return parse_raw(data, name=name, fmt=fmt, scale=scale, config=config, rudder_sign=rudder_sign,
+                         ship=ship, lpp_full=lpp_full, model_scale=model_scale, test_name=test_name)
+    except InputError as exc:
+        if exc.file == name:
+            exc.file = full
+            exc.args = (str(exc),)
+        raise
 
 
 def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None, scale: float | None = None,
