@@ -27,7 +27,8 @@ def add_dataset_args(p: argparse.ArgumentParser) -> None:
 def catalog(args: argparse.Namespace) -> Catalog:
     """The catalog of ``--dataset`` under ``--root``; refused (one line) when no dataset is given."""
     if not getattr(args, "dataset", None):
-        raise PipelineError(f"{args.stage}: give --dataset NAME (`python -m pipeline datasets` lists them) "
+        stage = getattr(args, "stage", None) or "this stage"
+        raise PipelineError(f"{stage}: give --dataset NAME (`python -m pipeline datasets` lists them) "
                             "or the files to work on; there is no default dataset")
     return Catalog(root=args.root, dataset=args.dataset)
 
