@@ -312,8 +312,8 @@ _RUN_KEYS: dict[str, tuple[str, Any]] = {
     "kind": ("'zigzag', 'turning' or 'other'", _choice("zigzag", "turning", "other")),
 }
 # Sections whose keys another module reads: [control] (the autopilot, pipeline/control) is checked
-# here only for its shape (a table of numbers, strings or booleans).
-_OTHER_SECTIONS = ("control",)
+# here only for its shape (a table of numbers, strings or booleans); [columns] by pipeline.ingest.columns.
+_OTHER_SECTIONS = ("control", "columns")
 _KNOWN = ", ".join([*_SECTIONS, "runs", *_OTHER_SECTIONS])
 
 
@@ -419,6 +419,10 @@ def parse_dataset_toml(text: str, *, name: str, folder: Path, path: Path) -> Dat
         if isinstance(v, (dict, list)):
             raise InputError(f"[control] {k} must be a number, string or boolean, got {_what(v)}", file=path)
     columns = None
+    if "columns" in doc:
+        from pipeline.ingest.columns import parse_columns
+
+        columns = parse_columns(_table(doc, "columns", path), path)
     return Dataset(name=name, folder=folder, files_dir=files_dir, ship=ship, scale=float(scale),
                    model_scale=model_scale, tank=data.get("tank"), source=data.get("source"),
                    files=tuple(data.get("files", ())), format=fmt, rudder_sign=sign, provenance=prov,

@@ -148,6 +148,13 @@ def _run(args) -> int:
         kw = {"rudder_sign": (over.rudder_sign if over and over.rudder_sign is not None else sign)}
         if over and over.test_name is not None:
             kw["test_name"] = over.test_name
+        if over and over.kind is not None:
+            kw["kind"] = over.kind
+        if ds is not None and ds.columns is not None:
+            if fmt is not None:
+                raise InputError("a format and a [columns] mapping are both given: the mapping reads the "
+                                 "logger's table, give one", file=ds.toml_path)
+            kw["columns"] = ds.columns
         if ds is not None and ds.toml_path is not None:
             kw.update(ship=ds.ship.name, lpp_full=ds.ship.lpp_m, model_scale=ds.model_scale)
         run = ingest_file(f, fmt=fmt, scale=scale, config=config, **kw)
