@@ -247,12 +247,19 @@ def _finite_positive(v: Any) -> float:
     return v
 
 
-def _positive_int(v: Any) -> int:
-    if isinstance(v, bool) or not isinstance(v, int):
-        raise TypeError
-    if v < 1:
-        raise ValueError
-    return v
+def _integer(ok):
+    """An integer check (booleans are not integers) with a range ``ok``."""
+    def check(v: Any) -> int:
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise TypeError
+        if not ok(v):
+            raise ValueError
+        return v
+    return check
+
+
+_positive_int = _integer(lambda v: v >= 1)
+_sign = _integer(lambda v: v in (1, -1))
 
 
 def _string(v: Any) -> str:
@@ -267,14 +274,6 @@ def _string_list(v: Any) -> list[str]:
     if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
         raise TypeError
     return list(v)
-
-
-def _sign(v: Any) -> int:
-    if isinstance(v, bool) or not isinstance(v, int):
-        raise TypeError
-    if v not in (1, -1):
-        raise ValueError
-    return v
 
 
 def _boolean(v: Any) -> bool:

@@ -343,13 +343,18 @@ def write_frame(path: str | Path, frame: pd.DataFrame, meta: dict[str, Any] | No
 def read_frame(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Read a Parquet file written by :func:`write_frame`; returns (frame, meta)."""
     path = Path(path)
+    table = _parquet(pq.read_table, path)
+    return table.to_pandas(), _run_meta(table.schema.metadata, path)
+
+
+def _parquet(reader, path: Path):
+    """``reader(path)`` (pyarrow's read_table or read_schema), its failures one line naming the file."""
     try:
-        table = pq.read_table(path)
+        return reader(path)
     except FileNotFoundError:
         raise InputError("file not found", file=path) from None
     except (pa.ArrowInvalid, OSError) as exc:
         raise InputError(f"not a readable Parquet file ({exc})", file=path) from None
-    return table.to_pandas(), _run_meta(table.schema.metadata, path)
 
 
 def _run_meta(md: dict | None, path: Path) -> dict[str, Any]:
@@ -373,12 +378,7 @@ def read_meta(path: str | Path) -> dict[str, Any] | None:
     (a Parquet file that is not a processed run).  Raises :class:`InputError` naming the file when it
     is not readable Parquet or its metadata is damaged."""
     path = Path(path)
-    try:
-        schema = pq.read_schema(path)
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except (pa.ArrowInvalid, OSError) as exc:
-        raise InputError(f"not a readable Parquet file ({exc})", file=path) from None
+    schema = _parquet(pq.read_schema, path)
     if RUN_META_KEY not in (schema.metadata or {}):
         return None
     return _run_meta(schema.metadata, path)

@@ -499,3 +499,92 @@ def test_per_run_rudder_sign_applies_to_that_run_only(tmp_path, capsys):
     out = tmp_path / "q"
     assert _ingest(raw / "d" / "flipped.csv", "--dataset", "d", "--raw", raw, "--out", out) == 0
     assert json.loads((out / "index.json").read_text())["runs"][0]["rudder_sign"] == -1
+
+
+# ------------------------------------------------------------------ the documentation's examples run
+_RUNNABLE = "# example for "
+
+
+def _runnable_examples() -> list[tuple[str, int, str, str]]:
+    """(file, block number, folder, text) of every ```toml block in README.md and docs/*.md whose first
+    line is ``# example for <folder>`` (a folder of raw files, from the project root)."""
+    import re
+
+    found = []
+    for doc in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        if not doc.is_file():
+            continue
+        blocks = re.findall(r"^```toml\n(.*?)^```", doc.read_text(encoding="utf-8"), flags=re.S | re.M)
+        for k, text in enumerate(blocks):
+            first = text.splitlines()[0] if text.strip() else ""
+            if first.startswith(_RUNNABLE):
+                found.append((doc.name, k, first[len(_RUNNABLE):].strip(), text))
+    return found
+
+
+def test_there_is_a_runnable_example():
+    assert any(f == "dataset.md" for f, *_ in _runnable_examples())
+
+
+@pytest.mark.parametrize("doc,k,folder,text", _runnable_examples(),
+                         ids=[f"{d}-{k}" for d, k, *_ in _runnable_examples()])
+def test_runnable_examples(doc, k, folder, text, tmp_path, capsys):
+    """The block, saved as data/raw/<name>/dataset.toml of a project beside the folder's own parent
+    (so that its files_dir, written for data/raw/<name>/ of this project, finds the same files),
+    ingests the folder and its roles resolve as identify and diagnose resolve them."""
+    from pipeline.cli.diagnose import roles_design
+    from pipeline.runinfo import choose_runs
+
+    source = (ROOT / folder).resolve()
+    if not source.is_dir():
+        pytest.skip(f"{folder} (the example's files) is absent: {source}")
+    # rebuild the example's layout: a project deep enough for the folder's '..', and the folder (a
+    # link to the real one) where it is from that project
+    import os
+
+    rel = Path(folder)
+    project = tmp_path.joinpath(*[f"up{i}" for i in range(rel.parts.count(".."))], "project")
+    target = Path(os.path.normpath(project / rel))
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.symlink_to(source, target_is_directory=True)
+    (project / "data" / "raw" / "ex").mkdir(parents=True)
+    (project / "data" / "raw" / "ex" / "dataset.toml").write_text(text)
+    ds = load_dataset("ex", project / "data" / "raw")
+    assert ds.raw_files(), f"the example's files_dir finds no files ({ds.files_dir})"
+    raw = project / "data" / "raw"
+    rc = main(["ingest", "--dataset", "ex", "--raw", str(raw), "--root", str(tmp_path / "p")])
+    assert rc == 0, capsys.readouterr().err
+    index = json.loads((tmp_path / "p" / "ex" / "runs" / "index.json").read_text())
+    ident, _ = choose_runs(index["runs"], index["roles"]["identify"])
+    if ds.roles.identify:
+        assert ident == ds.roles.identify
+    design = roles_design(index)
+    if ds.roles.train:
+        assert design is not None and design[0] == list(ds.roles.train)
+
+
+def test_the_build_reads_the_hsva_description_and_goes_stale_when_it_changes(hsva_dir, tmp_path, capsys):
+    """`run` (make pipeline) ingests the HSVA files with data/raw/hsva/dataset.toml of its raw root, as
+    `ingest --dataset hsva` does, and an edit of that file makes ingest stale and changes its output."""
+    from pipeline.build import STAGES, discover, up_to_date
+
+    raw, root = tmp_path / "raw", tmp_path / "proc"
+    (raw / "hsva").mkdir(parents=True)
+    toml = raw / "hsva" / "dataset.toml"
+    toml.write_text(BUILTIN["hsva"])
+    argv = ["run", "--dataset", "hsva", "--raw", str(raw), "--root", str(root), "--shared",
+            str(hsva_dir.parents[1]), "--until", "ingest"]
+    assert main(argv) == 0, capsys.readouterr().err
+    index = json.loads((root / "hsva" / "runs" / "index.json").read_text())
+    assert index["ship"]["dataset_toml"] == str(toml) and Path(index["ship"]["dataset_toml"]).is_file()
+    assert index["identify"] == {"half_periods": 3.4} and index["ship"]["tank"] == "HSVA"
+    ds = next(d for d in discover(raw, hsva_dir.parents[1]) if d.name == "hsva")
+    assert up_to_date(STAGES[0], ds, root)
+    toml.write_text(BUILTIN["hsva"].replace('tank = "HSVA"', 'tank = "HSVA Hamburg"')
+                    .replace("half_periods = 3.4", "half_periods = 3.0"))
+    assert not up_to_date(STAGES[0], ds, root)
+    capsys.readouterr()
+    assert main(argv) == 0
+    assert "ran ingest" in capsys.readouterr().out
+    index = json.loads((root / "hsva" / "runs" / "index.json").read_text())
+    assert index["identify"] == {"half_periods": 3.0} and index["ship"]["tank"] == "HSVA Hamburg"

@@ -132,6 +132,25 @@ def test_missing_samples_are_noted_not_silently_bridged(tmp_path):
         "ingest_notes", []))
 
 
+def test_mixed_rate_and_strong_jitter_are_not_missing_samples(tmp_path):
+    """A logger that changes its rate (0.04 s steps, then 0.08 s) or whose stamps jitter by up to 0.4
+    of a step has no samples missing; a dropped sample in the slower part still is one."""
+    frame = _synthetic(n=800, dt=0.04)
+    mixed = pd.concat([frame.iloc[:400], frame.iloc[400::2]], ignore_index=True)
+    notes = ingest_file(_write_csv(tmp_path / "mixed.csv", mixed)).meta.get("ingest_notes", [])
+    assert not any("missing" in n for n in notes), notes
+    holed = mixed.drop(mixed.index[500])
+    notes = ingest_file(_write_csv(tmp_path / "mholed.csv", holed)).meta.get("ingest_notes", [])
+    assert [n for n in notes if "missing" in n] == [
+        "1 gap in time (samples missing), the longest 0.16 s after 23.92 s; interpolated over by the "
+        "resampling"], notes
+    jit = _synthetic()
+    jit["time"] = jit["time"] + np.random.default_rng(2).uniform(-0.032, 0.032, len(jit))
+    assert np.max(np.diff(jit["time"])) > 1.5 * 0.08                 # steps beyond 1.5 of the median
+    notes = ingest_file(_write_csv(tmp_path / "jit.csv", jit)).meta.get("ingest_notes", [])
+    assert not any("missing" in n for n in notes), notes
+
+
 def test_detect_format():
     assert detect_format(TANK_HEADER.splitlines() + ["time,psi,r,delta", "0,0,0,0"]) == "csv"
     assert detect_format(MARIN_FILE.read_text().splitlines()) == "marin"
