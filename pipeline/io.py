@@ -190,17 +190,21 @@ def _listing(root: Path) -> list[str]:
     return sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file() or p.is_symlink())
 
 
-def _read_manifest(dest: Path) -> list[str] | None:
+def _read_manifest(dest: Path, writer: str = "") -> list[str] | None:
+    """The files of the last set written into ``dest`` by ``writer`` (None: none, or another's; a
+    manifest that names no writer, written before writers were recorded, is taken as anyone's)."""
     try:
         data = json.loads(set_manifest_path(dest).read_text())
         files = data.get("files")
+        if data.get("writer", writer) != writer:
+            return None
         return [str(f) for f in files] if isinstance(files, list) else None
     except (OSError, ValueError, AttributeError):
         return None
 
 
-def _owned(dest: Path) -> bool:
-    """True when everything in ``dest`` belongs to the last set written there (or it is empty)."""
+def _owned(dest: Path, writer: str = "") -> bool:
+    """True when everything in ``dest`` belongs to the last set ``writer`` wrote there (or it is empty)."""
     if not dest.exists():
         return True
     if not dest.is_dir():
@@ -212,12 +216,12 @@ def _owned(dest: Path) -> bool:
     dirs_only = not present and not any(dest.iterdir())
     if dirs_only:
         return True
-    listed = _read_manifest(dest)
+    listed = _read_manifest(dest, writer)
     return listed is not None and set(present) <= set(listed)
 
 
 @contextlib.contextmanager
-def atomic_dir(dest: str | Path) -> Iterator[Path]:
+def atomic_dir(dest: str | Path, writer: str = "") -> Iterator[Path]:
     """Yield a temporary directory beside ``dest``; its files become ``dest`` as one set, or nothing.
 
     SPEC section 8: a stage's outputs appear together or not at all, earlier outputs stay intact when
@@ -233,6 +237,9 @@ def atomic_dir(dest: str | Path) -> Iterator[Path]:
     - When ``dest`` also holds files this function did not write (a user's folder given as
       ``--out``), nothing of theirs is removed: the new files are renamed in one by one, files of the
       previous set that the new set does not have are removed, and the manifest is written last.
+    - ``writer`` names the command writing the set (a user's ``--out`` folder may receive the sets of
+      several commands: ingest's runs, then identify's estimates): only a set of the same writer
+      counts as the previous set, so one command never removes another's files.
     - Temporaries of killed runs beside ``dest`` are removed first (:func:`clean_stale_temporaries`).
     """
     dest = Path(os.path.abspath(dest))          # '.' has no name to put a temporary beside
@@ -243,11 +250,11 @@ def atomic_dir(dest: str | Path) -> Iterator[Path]:
         yield tmp
         os.chmod(tmp, 0o777 & ~_UMASK)           # mkdtemp makes 0700; give the usual mode
         files = _listing(tmp)
-        if _owned(dest):
+        if _owned(dest, writer):
             _swap_in(tmp, dest)
         else:
-            _merge_in(tmp, dest, files)
-        write_json(set_manifest_path(dest), {"files": files})
+            _merge_in(tmp, dest, files, writer)
+        write_json(set_manifest_path(dest), {"files": files, "writer": writer})
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
@@ -279,8 +286,8 @@ def _swap_in(tmp: Path, dest: Path) -> None:
     raise OSError(f"could not replace {dest} (another run keeps writing it)")
 
 
-def _merge_in(tmp: Path, dest: Path, files: list[str]) -> None:
-    previous = set(_read_manifest(dest) or [])
+def _merge_in(tmp: Path, dest: Path, files: list[str], writer: str = "") -> None:
+    previous = set(_read_manifest(dest, writer) or [])
     for rel in files:
         target = dest / rel
         target.parent.mkdir(parents=True, exist_ok=True)

@@ -484,3 +484,18 @@ def test_cli_damaged_run_in_the_folder_is_named(tmp_path, capsys):
     assert [e["run_id"] for e in read_json(out / "index.json")["runs"]] == ["b"]
     assert pq.read_table(out / "a.parquet").column_names == ["x"]
     assert "not a processed run" in capsys.readouterr().err
+
+
+def test_commands_writing_into_one_out_folder_keep_each_others_files(tmp_path):
+    """ingest, identify and ingest again into the same --out: nothing of either is removed."""
+    out = tmp_path / "D"
+    a = _write_csv(tmp_path / "a.csv", _synthetic(n=700))
+    assert main(["ingest", str(a), "--out", str(out)]) == 0
+    assert main(["identify", str(out / "a.parquet"), "--out", str(out), "--samples", "300"]) == 0
+    b = _write_csv(tmp_path / "b.csv", _synthetic(n=700, seed=4))
+    assert main(["ingest", str(b), "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["a.parquet", "b.parquet", "estimates.json", "index.json",
+                                                     "trace.parquet"]
+    assert main(["identify", str(out / "b.parquet"), "--out", str(out), "--samples", "300"]) == 0
+    assert read_json(out / "estimates.json")["run_id"] == "b"
+    assert [e["run_id"] for e in read_json(out / "index.json")["runs"]] == ["a", "b"]

@@ -72,7 +72,7 @@ def _run(args) -> int:
                               progress=not args.no_progress)
     metrics["indices_source"] = source
     out = args.out or cat.control_dir
-    with atomic_dir(out) as tmp:
+    with atomic_dir(out, writer="control") as tmp:
         write_json(tmp / "metrics.json", metrics)
         write_frame(tmp / "timeseries.parquet", ts,
                     meta={"dataset": metrics["dataset"], "provenance": metrics["provenance"],

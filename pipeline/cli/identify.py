@@ -55,7 +55,7 @@ def load_run(path: Path, scale: float | None = None) -> Run:
 def _write(out_dir: Path, ident, meta: dict, cfg: FilterConfig, dataset: str | None) -> None:
     from pipeline.identify import estimates_json
 
-    with atomic_dir(out_dir) as tmp:
+    with atomic_dir(out_dir, writer="identify") as tmp:
         write_frame(tmp / "trace.parquet", ident.trace, {"run_id": meta.get("run_id"),
                                                          "algorithm": ident.algorithm,
                                                          "provenance": meta.get("provenance")})

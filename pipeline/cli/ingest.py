@@ -201,7 +201,7 @@ def _run(args) -> int:
                 _notice(f"note: {exc.message} (identify will refuse until it is ingested)")
         else:
             check_run_ids(ds, set(entries), roles=True)
-    with atomic_dir(args.out) as tmp:
+    with atomic_dir(args.out, writer="ingest") as tmp:
         for run in runs:
             write_run(tmp / f"{run.meta['run_id']}.parquet", run)
         for path, _ in kept.values():
@@ -213,7 +213,7 @@ def _run(args) -> int:
               f"{m['dt']:g} s, {m['duration']:.1f} s, scale {m['scale_factor']:g}")
     for path, meta in (kept[k] for k in sorted(kept)):
         if meta is None:
-            _notice(f"{path} is not a processed run (no run metadata): kept, not in the index")
+            _notice(f"{path} is not a processed run (no ingest metadata): kept, not in the index")
     if dropped:
         _notice(f"removed {len(dropped)} run(s) whose raw file is not in the dataset: "
                 + ", ".join(dropped))
@@ -234,7 +234,7 @@ def _read_index(out: Path) -> dict:
 
 def _runs_in(out: Path, *, exclude: set[str]) -> dict[str, tuple[Path, dict | None]]:
     """The Parquet files already in ``out`` other than the runs ``exclude`` names: run id ->
-    (path, run metadata, or None for a Parquet file that is not a processed run).  A damaged run
+    (path, run metadata, or None for a Parquet file that is not a processed run of ingest).  A damaged run
     (unreadable Parquet or metadata) is refused, naming it: the index cannot be rebuilt without it."""
     found: dict[str, tuple[Path, dict | None]] = {}
     if not out.is_dir():
@@ -244,8 +244,12 @@ def _runs_in(out: Path, *, exclude: set[str]) -> dict[str, tuple[Path, dict | No
         if rid in exclude or not path.is_file() or path.is_symlink():
             continue
         meta = read_meta(path)
+        # a processed run says where it came from (other stages' Parquet files, e.g. identify's
+        # trace.parquet, carry metadata too, but not a source file)
+        if meta is not None and not ("source_sha256" in meta and "source_format" in meta):
+            meta = None
         if meta is not None:
-            meta = {**meta, "run_id": meta.get("run_id") or rid}
+            meta = {**meta, "run_id": rid}
         found[rid] = (path, meta)
     return found
 
