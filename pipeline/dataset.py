@@ -429,12 +429,12 @@ def parse_dataset_toml(text: str, *, name: str, folder: Path, path: Path) -> Dat
                    toml_path=path, text=text)
 
 
-def check_run_ids(ds: Dataset, known: list[str] | set[str], *, roles: bool = True) -> None:
-    """Refuse a ``[runs.<id>]`` (and, with ``roles``, a role) that names no run of ``known``; the
-    message names the known ids."""
+def check_run_ids(ds: Dataset, known: list[str] | set[str], *, roles: bool = True, runs: bool = True) -> None:
+    """Refuse a ``[runs.<id>]`` (with ``runs``) or a role (with ``roles``) that names no run of
+    ``known``; the message names the known ids."""
     known = set(known)
     shown = ", ".join(sorted(known)[:20]) + (" ..." if len(known) > 20 else "")
-    for rid in ds.runs:
+    for rid in (ds.runs if runs else ()):
         if rid not in known:
             raise InputError(f"[runs.{rid}] names no run of the dataset (run ids: {shown})",
                              file=ds.toml_path)

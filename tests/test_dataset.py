@@ -480,6 +480,22 @@ def test_runs_and_roles_naming_no_run_are_refused_naming_the_known_ids(tmp_path,
     # a skipped run is no run of the dataset for a role
     (raw / "d" / "dataset.toml").write_text(toml + "[roles]\ntrain = ['zz_a']\n[runs.zz_a]\nskip = true\n")
     assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 2
+    capsys.readouterr()
+    # files given (as make pipeline gives them): the roles may name the folder's other runs, not others
+    shutil.copy(MARIN, raw / "d" / "zz_b.dat")
+    (raw / "d" / "dataset.toml").write_text(toml + "[roles]\nidentify = 'zz_b'\n[runs.zz_c]\nskip = true\n")
+    out = tmp_path / "q"
+    assert _ingest(raw / "d" / "zz_a.dat", "--dataset", "d", "--raw", raw, "--out", out) == 2
+    assert "[runs.zz_c] names no run of the dataset (run ids: zz_a, zz_b)" in capsys.readouterr().err
+    (raw / "d" / "dataset.toml").write_text(toml + "[roles]\nidentify = 'zz_b'\n")
+    assert _ingest(raw / "d" / "zz_a.dat", "--dataset", "d", "--raw", raw, "--out", out) == 0
+    (raw / "d" / "dataset.toml").write_text(toml + "[roles]\nidentify = 'zz_20_s'\n")
+    assert _ingest(raw / "d" / "zz_a.dat", "--dataset", "d", "--raw", raw, "--out", out) == 2
+    assert "[roles] identify names run 'zz_20_s', which the dataset has not (run ids: zz_a, zz_b)" in \
+        capsys.readouterr().err
+    # a [runs.<id>] skip of a run in the folder is no error
+    (raw / "d" / "dataset.toml").write_text(toml + "[runs.zz_b]\nskip = true\n")
+    assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 0, capsys.readouterr().err
 
 
 def test_per_run_rudder_sign_applies_to_that_run_only(tmp_path, capsys):

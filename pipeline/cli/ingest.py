@@ -194,13 +194,14 @@ def _run(args) -> int:
         index.update({k: previous[k] for k in ("ship", "roles", "identify") if k in previous})
     index["runs"] = [entries[k] for k in sorted(entries)]
     if ds is not None and ds.toml_path is not None:
-        if args.files:
-            try:
-                check_run_ids(ds, set(entries), roles=True)
-            except InputError as exc:           # the named run may come with a later ingest
-                _notice(f"note: {exc.message} (identify will refuse until it is ingested)")
-        else:
-            check_run_ids(ds, set(entries), roles=True)
+        # the runs a description may name: those in the output folder, and (files given) those of
+        # the dataset's own folder, which a later ingest may bring (a skipped one only for [runs])
+        mine = set(entries)
+        if args.files and ds.files_dir.is_dir():
+            listed = {run_id_of(f) for f in ds.raw_files()}
+            check_run_ids(ds, mine | {run_id_of(f) for f in ds.raw_files(with_skipped=True)}, roles=False)
+            mine |= listed
+        check_run_ids(ds, mine, runs=False)
     with atomic_dir(args.out, writer="ingest") as tmp:
         for run in runs:
             write_run(tmp / f"{run.meta['run_id']}.parquet", run)
