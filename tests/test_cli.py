@@ -73,3 +73,11 @@ def test_missing_file_is_named_by_its_full_path(tmp_path, capsys, monkeypatch):
     assert main(["ingest", "rel.dat", "--out", "o"]) == 2
     assert capsys.readouterr().err.strip() == f"error: {tmp_path / 'rel.dat'}: file not found"
     assert not (tmp_path / "o").exists()
+
+
+def test_a_missing_run_is_named_by_its_full_path_in_identify_and_diagnose(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["identify", "gone.parquet", "--out", "o"]) == 2
+    assert capsys.readouterr().err.strip() == f"error: {tmp_path / 'gone.parquet'}: file not found"
+    assert main(["diagnose", "--train", "gone.dat", "--validate", "gone.dat", "--out", "o"]) == 2
+    assert capsys.readouterr().err.strip() == f"error: {tmp_path / 'gone.dat'}: file not found"

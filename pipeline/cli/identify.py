@@ -10,6 +10,7 @@ Writes estimates.json and trace.parquet (catalog: data/processed/D/identify/<alg
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 
 from pipeline.cli._common import add_dataset_args, catalog
@@ -41,7 +42,7 @@ def register(sub) -> None:
 def load_run(path: Path, scale: float | None = None) -> Run:
     """A processed Parquet run, or a raw file through the ingest stage."""
     if not path.exists():
-        raise InputError("file not found", file=path)
+        raise InputError("file not found", file=os.path.abspath(path))
     if path.suffix.lower() == ".parquet":
         return read_run(path)
     try:
