@@ -312,3 +312,40 @@ def test_a_loggers_folder_gives_the_canonical_files_results(tmp_path, monkeypatc
     assert dc["cause"] == dl["cause"]
     print("K, T (identified canon, logger; graphical canon, logger):", measured,
           "effects:", dc["extended"]["effects"], dl["extended"]["effects"])
+
+
+def test_property_columns_entries_of_any_shape_are_read_or_refused_in_one_line():
+    """Any value for an entry's keys: the description is read (and then each entry has a source, a
+    known unit and a sign of 1 or -1) or refused in one line naming [columns]; never another error."""
+    from hypothesis import given
+    from hypothesis import strategies as st
+
+    text = st.text(alphabet="abcdegmnrs/[] 1", max_size=8)
+    value = st.one_of(st.integers(-3, 3), st.floats(allow_nan=True), st.booleans(), text,
+                      st.lists(st.integers(), max_size=2))
+    keys = st.sampled_from(["source", "unit", "sign", "wrapped", "offset"])
+    entry = st.dictionaries(keys, value, max_size=4)
+
+    def toml_value(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, float):
+            return "nan" if v != v else ("inf" if v > 1e308 else "-inf" if v < -1e308 else repr(v))
+        if isinstance(v, list):
+            return "[" + ", ".join(map(str, v)) + "]"
+        return json.dumps(v) if isinstance(v, str) else str(v)
+
+    @given(st.dictionaries(st.sampled_from(["time", "psi", "r", "delta", "u", "wind"]), entry, min_size=1))
+    def check(entries):
+        lines = ["[columns]"] + [f"{k} = {{{', '.join(f'{a} = {toml_value(b)}' for a, b in e.items())}}}"
+                                 for k, e in entries.items()]
+        try:
+            ds = parse_dataset_toml("\n".join(lines) + "\n", name="x", folder=Path("/d"), path=TOML)
+        except InputError as exc:
+            assert "\n" not in str(exc) and "[columns]" in str(exc), str(exc)
+            return
+        for spec in ds.columns.specs:
+            assert spec.source.strip() and spec.sign in (1, -1)
+            assert np.isfinite(spec.factor) and spec.factor > 0
+
+    check()
