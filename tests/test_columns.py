@@ -241,6 +241,7 @@ def test_a_source_column_missing_from_the_file_is_named():
 
 # ------------------------------------------------------------------ end to end
 LEGS = ((20, "starboard"), (10, "port"), (20, "port"), (10, "starboard"))
+E2E_DURATION_S = 60.0          # s of each zigzag after its execute (45 s leave identify too few half-periods)
 
 
 def _tag(a, side):
@@ -262,16 +263,23 @@ def test_a_loggers_folder_gives_the_canonical_files_results(tmp_path, monkeypatc
     10 Hz, accelerating from rest, wind and roll columns, empty rows at the end, no test names).
     Both folders go through `run` (ingest to diagnose); the results agree within what resampling
     10 Hz to 0.08 s and starting the trimmed run up to 0.24 s earlier on the speed ramp allow."""
+    import dataclasses
+
     from selection_only import SELECTION_ONLY
 
+    from pipeline.config import ControlConfig
+
     monkeypatch.setattr("pipeline.cli.diagnose.DiagnoseConfig", lambda: SELECTION_ONLY)   # CI time
+    # the autopilot is run but not compared here: 2 wave seeds instead of 20 (CI time)
+    two_seeds = dataclasses.replace(ControlConfig(), seeds=2)
+    monkeypatch.setattr("pipeline.cli.control.ControlConfig", lambda: two_seeds)
     raw, root = tmp_path / "raw", tmp_path / "proc"
     canon_files, logger_files = tmp_path / "canon_files", tmp_path / "logger_files"
     canon_files.mkdir()
     logger_files.mkdir()
     kinds = ""
     for a, side in LEGS:
-        fine = zigzag_with_approach(a, side)
+        fine = zigzag_with_approach(a, side, E2E_DURATION_S)
         write_canonical(fine, canon_files / f"{_tag(a, side)}.csv", f"zigzag {a}/{a} {side}")
         write_logger(logger_frame(fine), logger_files / f"{_tag(a, side)}.csv")
         kinds += f'[runs.{_tag(a, side)}]\nkind = "zigzag"\n\n'
