@@ -241,7 +241,7 @@ def test_a_source_column_missing_from_the_file_is_named():
 
 # ------------------------------------------------------------------ end to end
 LEGS = ((20, "starboard"), (10, "port"), (20, "port"), (10, "starboard"))
-E2E_DURATION_S = 60.0          # s of each zigzag after its execute (45 s leave identify too few half-periods)
+E2E_DURATION_S = 60.0          # s of each zigzag after its execute (with 45 s a stage of the build failed)
 
 
 def _tag(a, side):
