@@ -33,12 +33,20 @@ the files are.  The SPEC keys, and the project's own (marked *)::
                               #   at model scale; or samples = 585, the paper setting and the default)
     measurement_noise = "data"  # R measured from the run ('paper': the paper's R, the default)
 
-    [runs.zz_20_p]            # * per-run overrides
+    [runs.zz_20_p]            # * per-run overrides (the id must be a run of the dataset)
     rudder_sign = -1
     test_name = "zigzag 20/20 port"
+    kind = "zigzag"           # * the test when the file's title says none
     skip = false
 
-Unknown keys are refused (a misspelt key must not be ignored silently).  A folder without the file
+    [columns]                 # a logger's own table (pipeline.ingest.columns)
+    psi = {source = "Heading [rad]", unit = "rad", wrapped = true}
+
+    [control]                 # the autopilot's settings (read by pipeline/control)
+
+Unknown keys are refused (a misspelt key must not be ignored silently), and every key is checked
+for its type and range: a description of the wrong shape is one line naming the file, the key and
+what it must be.  docs/dataset.md lists every key with its type, unit and default.  A folder without the file
 still runs with the defaults (model scale, ship unknown): :func:`load_dataset` says so in one line
 and writes a short ``dataset.toml`` beside the files for the user to edit.
 
