@@ -498,9 +498,10 @@ def parse_csv(lines: list[str], file=None) -> RawTable:
         raise InputError("empty column name in the header", file=file, row=i + 1)
     for c in CSV_REQUIRED:
         if c not in names:
-            have = ", ".join(names[:8])
-            raise InputError(f"required column is missing from the header (columns found: {have})",
-                             file=file, row=i + 1, column=c)
+            have = f"columns found: {', '.join(names[:8])}; " if ECHO_CONTENT.get() else ""
+            raise InputError(f"required column is missing from the header ({have}a logger's own layout is "
+                             "described by [columns] in dataset.toml, docs/dataset.md)", file=file, row=i + 1,
+                             column=c)
     rows, linenos, decimal = data_block(lines, i + 1, sep, file, notes)
     optional = frozenset(n for n in names if n not in USED_COLUMNS)
     frame = _numeric_block(rows, linenos, tuple(names), sep, file, decimal=decimal, optional=optional,
