@@ -182,7 +182,7 @@ def test_twelve_column_marin_file_is_named_as_such():
     with pytest.raises(PipelineError) as err:
         parse_raw(_marin_lines(True), name="m.dat")
     assert str(err.value) == ("m.dat: the header says MARIN .dat, whose rows have 11 columns, but row 4 "
-                              "has 12: not a MARIN file of the layout the reader knows (SPEC section 3); "
+                              "has 12: not a MARIN file of the layout the reader knows (docs/dataset.md); "
                               "give --format to read it as another")
     with pytest.raises(PipelineError, match=r"m.dat, row 4: a MARIN .dat has 11 columns, this row has 12"):
         parse_raw(_marin_lines(True), name="m.dat", fmt="marin")

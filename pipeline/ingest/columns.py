@@ -12,9 +12,9 @@
 
 Each entry is an inline table: ``source`` (the column's header text, exactly as written, or its
 name without the bracketed unit, compared without case), ``unit`` (default: the unit in brackets
-in the header when it is one the reader knows, else the canonical unit of SPEC section 2), ``sign``
+in the header when it is one the reader knows, else the canonical unit), ``sign``
 (+1 or -1: multiplies the values, after the unit), and for the heading ``wrapped`` (true: the
-logger wraps it to (-180, 180] deg or (-pi, pi] rad; it is unwrapped either way, SPEC section 4,
+logger wraps it to (-180, 180] deg or (-pi, pi] rad; it is unwrapped either way, as every heading is,
 and the flag is recorded).  ``time``, ``psi``, ``r`` and ``delta`` are required (time from a
 column or from ``sample_rate_hz``); ``x0, y0, u, v, rpm`` are taken when mapped; any other name
 becomes an optional column in the unit of its kind (deg, deg/s, m/s, m, N, N m, 1/min), or as
@@ -50,7 +50,7 @@ from pipeline.ingest.formats import (
 )
 
 REQUIRED = ("time", "psi", "r", "delta")
-# Canonical unit of each kind (SPEC section 2): the default unit, and what optional columns become.
+# Canonical unit of each kind (docs/dataset.md): the default unit, and what optional columns become.
 CANONICAL_UNIT = {"time": "s", "length": "m", "angle": "deg", "rate": "deg/s", "velocity": "m/s",
                   "frequency": "rpm", "force": "n", "moment": "nm"}
 UNITLESS = "1"

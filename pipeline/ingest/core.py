@@ -71,7 +71,7 @@ def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = Non
     kind : 'zigzag', 'turning' or 'other' when the title says none (dataset.toml ``[runs.<id>] kind``);
         the rudder angle, heading trigger and side are then read from the rudder signal.
     columns : a :class:`pipeline.ingest.columns.ColumnMap` (dataset.toml ``[columns]``): the file is a
-        logger's own table, read through that mapping instead of a format of SPEC section 3.
+        logger's own table, read through that mapping instead of a format (docs/dataset.md).
 
     Returns a Run in canonical units and signs, model scale, original (possibly non-uniform) time
     steps, heading unwrapped.  Raises :class:`InputError` naming the file, row (1-based line in the

@@ -227,7 +227,7 @@ def detect_format(lines: list[str], file: str | Path | None = None) -> str:
         if said is not None and ntok != counts[said]:
             raise InputError(f"the header says {said.upper()} .dat, whose rows have {counts[said]} columns, "
                              f"but row {j + 1} has {ntok}: not a {said.upper()} file of the layout the "
-                             "reader knows (SPEC section 3); give --format to read it as another", file=file)
+                             "reader knows (docs/dataset.md); give --format to read it as another", file=file)
         if said is not None:
             return said
         if ntok == 12 and j >= 3:
@@ -535,7 +535,7 @@ def _check_count(rows: list[str], linenos: np.ndarray, names: tuple[str, ...], f
     """The first data row of a fixed-layout .dat must have the format's column count (named)."""
     if rows and len(rows[0].split()) != len(names):
         raise InputError(f"a {fmt} .dat has {len(names)} columns, this row has {len(rows[0].split())}: "
-                         f"not the {fmt} layout (SPEC section 3)", file=file, row=int(linenos[0]))
+                         f"not the {fmt} layout (docs/dataset.md)", file=file, row=int(linenos[0]))
 
 
 def parse_marin(lines: list[str], file=None) -> RawTable:
