@@ -433,7 +433,7 @@ def steady_start(frame: pd.DataFrame, name: str, config: IngestConfig) -> tuple[
             f"{', ' if u_app is not None else ''}rudder {d_app:.3g} deg")
         raise InputError(f"no steady approach before the first rudder execute at {t[k_e] - t[0]:.4g} s: "
                          f"{why} ({what}; speed within {STEADY_SPEED_SHARE:.0%}, rudder within "
-                         f"{quiet:.3g} deg) until {steady:.3g} s before it, at least "
+                         f"{quiet:.3g} deg), steady for only {steady:.3g} s before it, at least "
                          f"{config.approach_window:g} s needed", file=name)
     note = (f"start trimmed to the steady approach: {t[start] - t[0]:.4g} s removed before the first "
             f"execute at {t[k_e] - t[0]:.4g} s ({why} until then: speed within {STEADY_SPEED_SHARE:.0%} "
