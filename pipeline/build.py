@@ -39,6 +39,7 @@ NOT_TANK_SUFFIXES = {".md", ".stamp", ".gitkeep", ".txt", ".json", ".pdf", ".png
 class Dataset:
     name: str
     raw: Path              # folder holding the raw files
+    described_in: Path | None = None   # raw root holding <name>/dataset.toml, when not raw's parent
 
 
 def is_tank_file(path: Path) -> bool:
@@ -48,7 +49,10 @@ def is_tank_file(path: Path) -> bool:
 
 def raw_root(ds: Dataset) -> Path:
     """The raw root the dataset's description is found under (pipeline.dataset.load_dataset): the
-    folder itself for 'local' (files straight in data/raw), else its parent."""
+    folder itself for 'local' (files straight in data/raw), else its parent; for 'hsva', whose files
+    are in the shared folder, the project's raw root (data/raw/hsva/dataset.toml)."""
+    if ds.described_in is not None:
+        return ds.described_in
     return ds.raw if ds.name == LOCAL else ds.raw.parent
 
 
@@ -75,7 +79,7 @@ def discover(raw_root: Path = Path("data/raw"), shared: Path = Path("../shared")
     out = [Dataset(VIRTUAL, raw_root / VIRTUAL)]
     hsva = Path(shared) / "data" / "kvlcc2_hsva"
     if hsva.is_dir() and any(hsva.glob("*.dat")):
-        out.append(Dataset(HSVA, hsva))
+        out.append(Dataset(HSVA, hsva, described_in=raw_root))
     if raw_root.is_dir():
         for d in sorted(p for p in raw_root.iterdir() if p.is_dir() and not p.name.startswith(".")):
             if d.name not in (VIRTUAL, HSVA, LOCAL):
@@ -205,14 +209,23 @@ def stage_key(stage: Stage, ds: Dataset, root: Path) -> str:
     _hash_files(h, _code(code))
     if stage.name == "ingest":
         _hash_files(h, [(p.name, p) for p in raw_files(ds)])
-        toml = ds.raw / "dataset.toml"
-        if toml.is_file():
-            _hash_files(h, [("dataset.toml", toml)])
+        h.update(b"dataset.toml\0" + _description(ds) + b"\0")
     for up in stage.after:
         _hash_files(h, _stage_files(Path(root) / ds.name / STAGE_DIRS[up]))
     for argv in stage.argv(ds, root):
         h.update("\0".join(argv).encode("utf-8", "surrogateescape") + b"\n")
     return h.hexdigest()
+
+
+def _description(ds: Dataset) -> bytes:
+    """The dataset description ingest reads (pipeline.dataset.load_dataset): its dataset.toml under
+    the raw root, else the built-in text, else nothing."""
+    from pipeline.dataset import BUILTIN, TOML_NAME, dataset_folder
+
+    path = dataset_folder(ds.name, raw_root(ds)) / TOML_NAME
+    if path.is_file():
+        return path.read_bytes()
+    return BUILTIN.get(ds.name, "").encode()
 
 
 def _stamp(ds: Dataset, root: Path, stage: Stage) -> Path:

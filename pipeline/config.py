@@ -56,6 +56,9 @@ class IngestConfig:
     approach_window: float = 2.0         # s, approach_speed = mean u over the first this-many seconds
     filter_order: int = 8                # Butterworth order of the anti-alias low-pass (run both ways)
     cutoff_ratio: float = 0.8            # low-pass corner as a fraction of the new Nyquist frequency 0.5/dt
+    # full/model scale factors accepted: a model is not larger than its ship (1), and 1 m models of the
+    # largest ships (about 500 m) are 1:500; beyond 1000 no tank model is meant (a typo or a unit)
+    scale_range: tuple[float, float] = (1.0, 1000.0)
 
 
 @dataclass(frozen=True)

@@ -33,12 +33,20 @@ the files are.  The SPEC keys, and the project's own (marked *)::
                               #   at model scale; or samples = 585, the paper setting and the default)
     measurement_noise = "data"  # R measured from the run ('paper': the paper's R, the default)
 
-    [runs.zz_20_p]            # * per-run overrides
+    [runs.zz_20_p]            # * per-run overrides (the id must be a run of the dataset)
     rudder_sign = -1
     test_name = "zigzag 20/20 port"
+    kind = "zigzag"           # * the test when the file's title says none
     skip = false
 
-Unknown keys are refused (a misspelt key must not be ignored silently).  A folder without the file
+    [columns]                 # a logger's own table (pipeline.ingest.columns)
+    psi = {source = "Heading [rad]", unit = "rad", wrapped = true}
+
+    [control]                 # the autopilot's settings (read by pipeline/control)
+
+Unknown keys are refused (a misspelt key must not be ignored silently), and every key is checked
+for its type and range: a description of the wrong shape is one line naming the file, the key and
+what it must be.  docs/dataset.md lists every key with its type, unit and default.  A folder without the file
 still runs with the defaults (model scale, ship unknown): :func:`load_dataset` says so in one line
 and writes a short ``dataset.toml`` beside the files for the user to edit.
 
@@ -53,11 +61,13 @@ missing (``make clean`` keeps them: it removes only the virtual tank's generated
 from __future__ import annotations
 
 import fnmatch
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pipeline.config import IngestConfig
 from pipeline.errors import InputError
 
 TOML_NAME = "dataset.toml"
@@ -150,9 +160,13 @@ class IdentifySettings:
 
 @dataclass(frozen=True)
 class RunOverride:
+    """``[runs.<id>]``: the run's rudder sign (+1/-1), its test title (read as a file's title would
+    be), whether to leave it out, and its kind when its title says none ('zigzag', 'turning', 'other')."""
+
     rudder_sign: int | None = None
     test_name: str | None = None
     skip: bool = False
+    kind: str | None = None
 
 
 @dataclass(frozen=True)
@@ -174,7 +188,10 @@ class Dataset:
     roles: Roles = field(default_factory=Roles)
     identify: IdentifySettings = field(default_factory=IdentifySettings)
     runs: dict[str, RunOverride] = field(default_factory=dict)
+    control: dict[str, Any] = field(default_factory=dict)   # [control], read by pipeline/control
+    columns: Any = None                   # [columns]: a pipeline.ingest.columns.ColumnMap, or None
     toml_path: Path | None = None         # None: nothing was read (defaults assumed)
+    text: str | None = None               # the description's text as read (None: nothing was read)
 
     @property
     def lpp_model_m(self) -> float | None:
@@ -183,8 +200,9 @@ class Dataset:
             return None
         return self.ship.lpp_m / (self.model_scale or self.scale)
 
-    def raw_files(self) -> list[Path]:
-        """The dataset's raw tank files, sorted by name (discovered here, never through a shell)."""
+    def raw_files(self, *, with_skipped: bool = False) -> list[Path]:
+        """The dataset's raw tank files, sorted by name (discovered here, never through a shell);
+        those a ``[runs.<id>] skip = true`` leaves out only ``with_skipped``."""
         if not self.files_dir.is_dir():
             raise InputError("the dataset's files folder does not exist"
                              + (f" (files_dir in {self.toml_path})" if self.toml_path else ""),
@@ -195,7 +213,7 @@ class Dataset:
                 continue
             if self.files and not any(fnmatch.fnmatch(p.name, g) for g in self.files):
                 continue
-            if self.runs.get(run_id_of(p), RunOverride()).skip:
+            if self.runs.get(run_id_of(p), RunOverride()).skip and not with_skipped:
                 continue
             out.append(p)
         return out
@@ -226,74 +244,167 @@ def is_tank_file(path: Path) -> bool:
 
 
 # ------------------------------------------------------------------ reading
-_SECTIONS = {
-    "ship": {"name": str, "lpp_m": float, "beam_m": float, "draught_m": float, "design_speed_kn": float},
-    "data": {"scale": float, "model_scale": float, "tank": str, "source": str, "files_dir": str,
-             "files": list, "format": str, "rudder_sign": int, "provenance": str},
-    "roles": {"identify": str, "train": list, "validate": list, "test": list},
-    "identify": {"samples": int, "window_s": float, "half_periods": float, "measurement_noise": str},
+# What each key must be: a short phrase for the message ("a positive number"), and a check that
+# returns the value (converted) or raises TypeError/ValueError.  Every key's unit is in docs/dataset.md.
+def _finite_positive(v: Any) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise TypeError
+    v = float(v)
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError
+    return v
+
+
+def _integer(ok):
+    """An integer check (booleans are not integers) with a range ``ok``."""
+    def check(v: Any) -> int:
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise TypeError
+        if not ok(v):
+            raise ValueError
+        return v
+    return check
+
+
+_positive_int = _integer(lambda v: v >= 1)
+_sign = _integer(lambda v: v in (1, -1))
+
+
+def _string(v: Any) -> str:
+    if not isinstance(v, str):
+        raise TypeError
+    return v
+
+
+def _string_list(v: Any) -> list[str]:
+    if isinstance(v, str):
+        return [v]
+    if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+        raise TypeError
+    return list(v)
+
+
+def _boolean(v: Any) -> bool:
+    if not isinstance(v, bool):
+        raise TypeError
+    return v
+
+
+def _choice(*options: str):
+    def check(v: Any) -> str:
+        if not isinstance(v, str):
+            raise TypeError
+        if v not in options:
+            raise ValueError
+        return v
+    return check
+
+
+_POS = ("a positive finite number", _finite_positive)
+_STR = ("a string", _string)
+_STRS = ("a string or a list of strings", _string_list)
+_SIGN = ("1 or -1 (an integer)", _sign)
+_SECTIONS: dict[str, dict[str, tuple[str, Any]]] = {
+    "ship": {"name": _STR, "lpp_m": _POS, "beam_m": _POS, "draught_m": _POS, "design_speed_kn": _POS},
+    "data": {"scale": _POS, "model_scale": _POS, "tank": _STR, "source": _STR, "files_dir": _STR,
+             "files": _STRS, "format": None, "rudder_sign": _SIGN,
+             "provenance": ("'measured' or 'virtual'", _choice("measured", "virtual"))},
+    "roles": {"identify": _STR, "train": _STRS, "validate": _STRS, "test": _STRS},
+    "identify": {"samples": ("a positive integer (samples)", _positive_int), "window_s": _POS,
+                 "half_periods": _POS,
+                 "measurement_noise": ("'paper' or 'data'", _choice("paper", "data"))},
 }
-_RUN_KEYS = {"rudder_sign": int, "test_name": str, "skip": bool}
+_RUN_KEYS: dict[str, tuple[str, Any]] = {
+    "rudder_sign": _SIGN, "test_name": _STR, "skip": ("true or false", _boolean),
+    "kind": ("'zigzag', 'turning' or 'other'", _choice("zigzag", "turning", "other")),
+}
+# Sections whose keys another module reads: [control] (the autopilot, pipeline/control) is checked
+# here only for its shape (a table of numbers, strings or booleans); [columns] by pipeline.ingest.columns.
+_OTHER_SECTIONS = ("control", "columns")
+_KNOWN = ", ".join([*_SECTIONS, "runs", *_OTHER_SECTIONS])
 
 
-def _typed(value: Any, typ: type, where: str, path: Path) -> Any:
-    if typ is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if typ is list and isinstance(value, str):
-        value = [value]
-    if not isinstance(value, typ) or (typ is int and isinstance(value, bool)):
-        raise InputError(f"{where} must be {typ.__name__}, got {value!r}", file=path)
-    if typ is list and not all(isinstance(v, str) for v in value):
-        raise InputError(f"{where} must be a list of strings", file=path)
-    return value
+def _what(value: Any) -> str:
+    """A value named for a message without echoing a large or deep structure."""
+    if isinstance(value, dict):
+        return "a table"
+    if isinstance(value, list):
+        return f"an array of {len(value)}"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        shown = value[:30] + ("..." if len(value) > 30 else "")
+        return f"the string {shown!r}"
+    if isinstance(value, (int, float)):
+        return f"{value!r}"
+    return type(value).__name__
+
+
+def _key(section: str, key: str) -> str:
+    return f"[{section}] {key}" if section else key
+
+
+def _checked(table: dict, keys: dict[str, tuple[str, Any] | None], section: str, path: Path) -> dict:
+    out = {}
+    for k, v in table.items():
+        if k not in keys:
+            raise InputError(f"unknown key {k!r} in [{section}] (known: {', '.join(keys)})", file=path)
+        spec = keys[k]
+        if spec is None:                         # checked by its reader below
+            out[k] = v
+            continue
+        expected, check = spec
+        try:
+            out[k] = check(v)
+        except (TypeError, ValueError):
+            raise InputError(f"{_key(section, k)} must be {expected}, got {_what(v)}", file=path) from None
+    return out
+
+
+def _table(doc: dict, section: str, path: Path) -> dict:
+    table = doc.get(section, {})
+    if not isinstance(table, dict):
+        raise InputError(f"{section} must be a table ([{section}]), got {_what(table)}", file=path)
+    return table
 
 
 def parse_dataset_toml(text: str, *, name: str, folder: Path, path: Path) -> Dataset:
-    """A :class:`Dataset` from the text of a dataset.toml (``path`` for messages and files_dir)."""
+    """A :class:`Dataset` from the text of a dataset.toml (``path`` for messages and files_dir).
+
+    Every key is checked for its type and range: a description of the wrong shape is refused with
+    one line naming the file, the key and what it must be (docs/dataset.md lists every key)."""
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not valid TOML ({exc})", file=path) from None
-    for key in doc:
-        if key not in _SECTIONS and key != "runs":
-            raise InputError(f"unknown section [{key}] (known: ship, data, roles, identify, runs)", file=path)
-    vals: dict[str, dict[str, Any]] = {}
-    for sec, keys in _SECTIONS.items():
-        table = doc.get(sec, {})
-        if not isinstance(table, dict):
-            raise InputError(f"[{sec}] must be a table", file=path)
-        vals[sec] = {}
-        for k, v in table.items():
-            if k not in keys:
-                raise InputError(f"unknown key {k!r} in [{sec}] (known: {', '.join(keys)})", file=path)
-            vals[sec][k] = _typed(v, keys[k], f"[{sec}] {k}", path)
+    except RecursionError:
+        raise InputError("not a dataset description: tables or arrays nested too deep", file=path) from None
+    for key, value in doc.items():
+        if key not in _SECTIONS and key not in ("runs", *_OTHER_SECTIONS):
+            what = f"section [{key}]" if isinstance(value, dict) else f"key {key!r}"
+            raise InputError(f"unknown {what} (known sections: {_KNOWN})", file=path)
+    vals = {sec: _checked(_table(doc, sec, path), keys, sec, path) for sec, keys in _SECTIONS.items()}
     ship = Ship(**vals["ship"])
-    for k in ("lpp_m", "beam_m", "draught_m", "design_speed_kn"):
-        v = getattr(ship, k)
-        if v is not None and not v > 0:
-            raise InputError(f"[ship] {k} must be positive, got {v}", file=path)
     data = vals["data"]
     scale = data.get("scale", 1.0)
-    if not scale > 0:
-        raise InputError(f"[data] scale must be positive, got {scale}", file=path)
+    lo, hi = IngestConfig().scale_range
+    for k in ("scale", "model_scale"):
+        if k in data and not lo <= data[k] <= hi:
+            raise InputError(f"[data] {k} must be a scale factor full/model between {lo:g} and {hi:g}, got "
+                             f"{data[k]:g}", file=path)
     model_scale = data.get("model_scale")
-    if model_scale is not None and not model_scale > 0:
-        raise InputError(f"[data] model_scale must be positive, got {model_scale}", file=path)
     if scale != 1.0 and model_scale is not None and abs(model_scale - scale) > 1e-9 * scale:
         raise InputError(f"[data] scale {scale:g} (files at full scale) and model_scale {model_scale:g} "
                          "differ: full-scale files are brought to the model of that same scale", file=path)
     sign = data.get("rudder_sign", 1)
-    if sign not in (1, -1):
-        raise InputError(f"[data] rudder_sign must be 1 or -1, got {sign}", file=path)
     fmt = data.get("format")
     if fmt is not None:
         from pipeline.ingest.formats import FORMATS
 
-        if fmt not in FORMATS:
-            raise InputError(f"[data] format must be one of {', '.join(FORMATS)}, got {fmt!r}", file=path)
+        if not isinstance(fmt, str) or fmt not in FORMATS:
+            raise InputError(f"[data] format must be one of {', '.join(FORMATS)}, got {_what(fmt)}",
+                             file=path)
     prov = data.get("provenance")
-    if prov is not None and prov not in ("measured", "virtual"):
-        raise InputError(f"[data] provenance must be 'measured' or 'virtual', got {prov!r}", file=path)
     files_dir = (path.parent / data["files_dir"]) if "files_dir" in data else folder
     r = vals["roles"]
     roles = Roles(identify=r.get("identify"), train=tuple(r.get("train", ())),
@@ -302,30 +413,48 @@ def parse_dataset_toml(text: str, *, name: str, folder: Path, path: Path) -> Dat
     given = [k for k in ("samples", "window_s", "half_periods") if k in idv]
     if len(given) > 1:
         raise InputError(f"[identify] gives {' and '.join(given)}: give one identification window", file=path)
-    for k in given:
-        if not idv[k] > 0:
-            raise InputError(f"[identify] {k} must be positive, got {idv[k]}", file=path)
-    if idv.get("measurement_noise", "paper") not in ("paper", "data"):
-        raise InputError(f"[identify] measurement_noise must be 'paper' or 'data', got "
-                         f"{idv['measurement_noise']!r}", file=path)
     ident = IdentifySettings(**idv)
+    runs_table = _table(doc, "runs", path)
     runs: dict[str, RunOverride] = {}
-    for rid, table in (doc.get("runs") or {}).items():
+    for rid, table in runs_table.items():
         if not isinstance(table, dict):
-            raise InputError(f"[runs.{rid}] must be a table", file=path)
-        kw = {}
-        for k, v in table.items():
-            if k not in _RUN_KEYS:
-                raise InputError(f"unknown key {k!r} in [runs.{rid}] (known: {', '.join(_RUN_KEYS)})",
-                                 file=path)
-            kw[k] = _typed(v, _RUN_KEYS[k], f"[runs.{rid}] {k}", path)
-        if kw.get("rudder_sign", 1) not in (1, -1):
-            raise InputError(f"[runs.{rid}] rudder_sign must be 1 or -1", file=path)
-        runs[str(rid)] = RunOverride(**kw)
+            raise InputError(f"runs.{rid} must be a table ([runs.{rid}] of per-run keys), got {_what(table)}",
+                             file=path)
+        runs[str(rid)] = RunOverride(**_checked(table, _RUN_KEYS, f"runs.{rid}", path))
+    control = _table(doc, "control", path)
+    for k, v in control.items():
+        if isinstance(v, (dict, list)):
+            raise InputError(f"[control] {k} must be a number, string or boolean, got {_what(v)}", file=path)
+    columns = None
+    if "columns" in doc:
+        from pipeline.ingest.columns import parse_columns
+
+        columns = parse_columns(_table(doc, "columns", path), path)
     return Dataset(name=name, folder=folder, files_dir=files_dir, ship=ship, scale=float(scale),
                    model_scale=model_scale, tank=data.get("tank"), source=data.get("source"),
                    files=tuple(data.get("files", ())), format=fmt, rudder_sign=sign, provenance=prov,
-                   roles=roles, identify=ident, runs=runs, toml_path=path)
+                   roles=roles, identify=ident, runs=runs, control=dict(control), columns=columns,
+                   toml_path=path, text=text)
+
+
+def check_run_ids(ds: Dataset, known: list[str] | set[str], *, roles: bool = True, runs: bool = True) -> None:
+    """Refuse a ``[runs.<id>]`` (with ``runs``) or a role (with ``roles``) that names no run of
+    ``known``; the message names the known ids."""
+    known = set(known)
+    shown = ", ".join(sorted(known)[:20]) + (" ..." if len(known) > 20 else "")
+    for rid in (ds.runs if runs else ()):
+        if rid not in known:
+            raise InputError(f"[runs.{rid}] names no run of the dataset (run ids: {shown})",
+                             file=ds.toml_path)
+    if not roles:
+        return
+    r = ds.roles
+    for role, ids in (("identify", (r.identify,) if r.identify else ()), ("train", r.train),
+                      ("validate", r.validate), ("test", r.test)):
+        for rid in ids:
+            if rid not in known:
+                raise InputError(f"[roles] {role} names run {rid!r}, which the dataset has not (run ids: "
+                                 f"{shown})", file=ds.toml_path)
 
 
 def dataset_folder(name: str, raw_root: Path = DEFAULT_RAW) -> Path:

@@ -210,17 +210,21 @@ def _listing(root: Path) -> list[str]:
     return sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file() or p.is_symlink())
 
 
-def _read_manifest(dest: Path) -> list[str] | None:
+def _read_manifest(dest: Path, writer: str = "") -> list[str] | None:
+    """The files of the last set written into ``dest`` by ``writer`` (None: none, or another's; a
+    manifest that names no writer, written before writers were recorded, is taken as anyone's)."""
     try:
         data = json.loads(set_manifest_path(dest).read_text())
         files = data.get("files")
+        if data.get("writer", writer) != writer:
+            return None
         return [str(f) for f in files] if isinstance(files, list) else None
     except (OSError, ValueError, AttributeError):
         return None
 
 
-def _owned(dest: Path) -> bool:
-    """True when everything in ``dest`` belongs to the last set written there (or it is empty)."""
+def _owned(dest: Path, writer: str = "") -> bool:
+    """True when everything in ``dest`` belongs to the last set ``writer`` wrote there (or it is empty)."""
     if not dest.exists():
         return True
     if not dest.is_dir():
@@ -232,12 +236,12 @@ def _owned(dest: Path) -> bool:
     dirs_only = not present and not any(dest.iterdir())
     if dirs_only:
         return True
-    listed = _read_manifest(dest)
+    listed = _read_manifest(dest, writer)
     return listed is not None and set(present) <= set(listed)
 
 
 @contextlib.contextmanager
-def atomic_dir(dest: str | Path) -> Iterator[Path]:
+def atomic_dir(dest: str | Path, writer: str = "") -> Iterator[Path]:
     """Yield a temporary directory beside ``dest``; its files become ``dest`` as one set, or nothing.
 
     docs/contract.md#bad-input: a stage's outputs appear together or not at all, earlier outputs stay
@@ -253,6 +257,9 @@ def atomic_dir(dest: str | Path) -> Iterator[Path]:
     - When ``dest`` also holds files this function did not write (a user's folder given as
       ``--out``), nothing of theirs is removed: the new files are renamed in one by one, files of the
       previous set that the new set does not have are removed, and the manifest is written last.
+    - ``writer`` names the command writing the set (a user's ``--out`` folder may receive the sets of
+      several commands: ingest's runs, then identify's estimates): only a set of the same writer
+      counts as the previous set, so one command never removes another's files.
     - Temporaries of killed runs beside ``dest`` are removed first (:func:`clean_stale_temporaries`).
     """
     dest = Path(os.path.abspath(dest))          # '.' has no name to put a temporary beside
@@ -264,11 +271,11 @@ def atomic_dir(dest: str | Path) -> Iterator[Path]:
             yield tmp
             os.chmod(tmp, 0o777 & ~_UMASK)           # mkdtemp makes 0700; give the usual mode
             files = _listing(tmp)
-            if _owned(dest):
+            if _owned(dest, writer):
                 _swap_in(tmp, dest)
             else:
-                _merge_in(tmp, dest, files)
-        write_json(set_manifest_path(dest), {"files": files})
+                _merge_in(tmp, dest, files, writer)
+        write_json(set_manifest_path(dest), {"files": files, "writer": writer})
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
@@ -300,8 +307,8 @@ def _swap_in(tmp: Path, dest: Path) -> None:
     raise OSError(f"could not replace {dest} (another run keeps writing it)")
 
 
-def _merge_in(tmp: Path, dest: Path, files: list[str]) -> None:
-    previous = set(_read_manifest(dest) or [])
+def _merge_in(tmp: Path, dest: Path, files: list[str], writer: str = "") -> None:
+    previous = set(_read_manifest(dest, writer) or [])
     for rel in files:
         target = dest / rel
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -364,15 +371,45 @@ def write_frame(path: str | Path, frame: pd.DataFrame, meta: dict[str, Any] | No
 def read_frame(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Read a Parquet file written by :func:`write_frame`; returns (frame, meta)."""
     path = Path(path)
+    table = _parquet(pq.read_table, path)
+    return table.to_pandas(), _run_meta(table.schema.metadata, path)
+
+
+def _parquet(reader, path: Path):
+    """``reader(path)`` (pyarrow's read_table or read_schema), its failures one line naming the file."""
     try:
-        table = pq.read_table(path)
+        return reader(path)
     except FileNotFoundError:
         raise InputError("file not found", file=path) from None
     except (pa.ArrowInvalid, OSError) as exc:
         raise InputError(f"not a readable Parquet file ({exc})", file=path) from None
-    md = table.schema.metadata or {}
-    meta = json.loads(md[RUN_META_KEY]) if RUN_META_KEY in md else {}
-    return table.to_pandas(), meta
+
+
+def _run_meta(md: dict | None, path: Path) -> dict[str, Any]:
+    """The ``tanktest.run`` JSON of a Parquet schema's metadata ({} when there is none)."""
+    md = md or {}
+    if RUN_META_KEY not in md:
+        return {}
+    try:
+        meta = json.loads(md[RUN_META_KEY])
+    except (ValueError, UnicodeDecodeError):
+        raise InputError("the run metadata (tanktest.run) is not valid JSON: the file is damaged; "
+                         "ingest the raw file again", file=path) from None
+    if not isinstance(meta, dict):
+        raise InputError("the run metadata (tanktest.run) is not a JSON object: the file is damaged; "
+                         "ingest the raw file again", file=path)
+    return meta
+
+
+def read_meta(path: str | Path) -> dict[str, Any] | None:
+    """The run metadata of a Parquet file, read from its schema only; None when the file has none
+    (a Parquet file that is not a processed run).  Raises :class:`InputError` naming the file when it
+    is not readable Parquet or its metadata is damaged."""
+    path = Path(path)
+    schema = _parquet(pq.read_schema, path)
+    if RUN_META_KEY not in (schema.metadata or {}):
+        return None
+    return _run_meta(schema.metadata, path)
 
 
 def write_run(path: str | Path, run: Run) -> Path:

@@ -41,6 +41,9 @@ rudder_sign = -1
 test_name = "zigzag 20/20 port"
 """
 
+# the example for a folder holding the one MARIN zigzag zz_20_s (roles and overrides name only its runs)
+ONE_RUN = EXAMPLE.split("[roles]")[0] + '[roles]\nidentify = "zz_20_s"\n'
+
 
 def test_example_parses_into_typed_description(tmp_path):
     ds = parse_dataset_toml(EXAMPLE, name="marin", folder=tmp_path, path=tmp_path / "dataset.toml")
@@ -53,8 +56,8 @@ def test_example_parses_into_typed_description(tmp_path):
 
 @pytest.mark.parametrize("text,msg", [
     ("[ship]\nlpp = 320.0\n", "unknown key 'lpp' in [ship]"),
-    ("[data]\nscale = -1\n", "scale must be positive"),
-    ("[data]\nscale = 'big'\n", "[data] scale must be float"),
+    ("[data]\nscale = -1\n", "[data] scale must be a positive finite number, got -1"),
+    ("[data]\nscale = 'big'\n", "[data] scale must be a positive finite number, got the string 'big'"),
     ("[shipp]\nname = 'x'\n", "unknown section [shipp]"),
     ("[data\nscale = 1\n", "not valid TOML"),
     ("[runs.a]\nrudder_sign = 2\n", "rudder_sign must be 1 or -1"),
@@ -101,7 +104,7 @@ def test_full_scale_folder_scaled_by_its_toml(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert rc == 2 and "look full scale" in err and "zz_20_s.dat" in err
     assert not (tmp_path / "proc" / "marin").exists()
-    (raw / "marin" / "dataset.toml").write_text(EXAMPLE)
+    (raw / "marin" / "dataset.toml").write_text(ONE_RUN)
     rc = _ingest("--dataset", "marin", "--raw", raw, "--root", tmp_path / "proc")
     assert rc == 0, capsys.readouterr().err
     index = json.loads((tmp_path / "proc" / "marin" / "runs" / "index.json").read_text())
@@ -124,7 +127,7 @@ def test_run_with_another_raw_root_applies_the_folders_toml(tmp_path, capsys):
     raw = tmp_path / "elsewhere"
     (raw / "marin").mkdir(parents=True)
     shutil.copy(MARIN, raw / "marin" / "zz_20_s.dat")
-    (raw / "marin" / "dataset.toml").write_text(EXAMPLE)
+    (raw / "marin" / "dataset.toml").write_text(ONE_RUN)
     rc = main(["run", "--dataset", "marin", "--raw", str(raw), "--root", str(tmp_path / "proc"),
                "--until", "ingest"])
     assert rc == 0, capsys.readouterr().err
@@ -189,7 +192,7 @@ def test_hsva_dataset_by_description(hsva_dir, tmp_path, capsys, monkeypatch):
 
 @pytest.mark.parametrize("text,msg", [
     ("[identify]\nsamples = 585\nhalf_periods = 3\n", "give one identification window"),
-    ("[identify]\nwindow_s = -4.0\n", "[identify] window_s must be positive"),
+    ("[identify]\nwindow_s = -4.0\n", "[identify] window_s must be a positive finite number, got -4.0"),
     ("[identify]\nmeasurement_noise = 'guess'\n", "measurement_noise must be 'paper' or 'data'"),
     ("[identify]\nwindow = 40\n", "unknown key 'window' in [identify]"),
 ])
@@ -323,3 +326,281 @@ def test_a_users_simulated_ship_through_every_stage(tmp_path, monkeypatch, capsy
     assert diag["training_runs"] == ["ferry_zz20_S", "ferry_zz10_P"]
     assert diag["validation_runs"] == ["ferry_zz20_P", "ferry_zz10_S"]
     assert "design (the dataset's [roles])" in cap.out
+
+
+# ------------------------------------------------------------------ descriptions of the wrong shape
+def _refused_one_line(text: str, *needles: str) -> str:
+    with pytest.raises(InputError) as err:
+        parse_dataset_toml(text, name="x", folder=Path("/d"), path=Path("/d/dataset.toml"))
+    msg = str(err.value)
+    assert "\n" not in msg and msg.startswith("/d/dataset.toml: "), msg
+    for n in needles:
+        assert n in msg, (n, msg)
+    return msg
+
+
+@pytest.mark.parametrize("text,needles", [
+    ("runs = 5\n", ("runs must be a table", "got 5")),
+    ("runs = \"a\"\n", ("runs must be a table", "the string 'a'")),
+    ("[[runs]]\nskip = true\n", ("runs must be a table", "an array of 1")),
+    ("ship = 3\n", ("ship must be a table", "got 3")),
+    ("[runs]\nzz = 1\n", ("runs.zz must be a table",)),
+    ("[identify]\nwindow_s = inf\n", ("[identify] window_s must be a positive finite number", "got inf")),
+    ("[identify]\nhalf_periods = nan\n", ("[identify] half_periods must be a positive finite number", "nan")),
+    ("[identify]\nsamples = 2.5\n", ("[identify] samples must be a positive integer", "2.5")),
+    ("[identify]\nsamples = 0\n", ("[identify] samples must be a positive integer", "got 0")),
+    ("[ship]\nlpp_m = inf\n", ("[ship] lpp_m must be a positive finite number", "inf")),
+    ("[ship]\nbeam_m = -58\n", ("[ship] beam_m must be a positive finite number", "-58")),
+    ("[ship]\nname = 5\n", ("[ship] name must be a string", "got 5")),
+    ("[data]\nmodel_scale = inf\n", ("[data] model_scale must be a positive finite number", "inf")),
+    ("[data]\nscale = 1e300\n", ("[data] scale must be a scale factor full/model between 1 and 1000",
+                                 "1e+300")),
+    ("[data]\nscale = true\n", ("[data] scale must be a positive finite number", "got true")),
+    ("[data]\nrudder_sign = 1.0\n", ("[data] rudder_sign must be 1 or -1",)),
+    ("[data]\nfiles = [1, 2]\n", ("[data] files must be a string or a list of strings",)),
+    ("[data]\nprovenance = 'guess'\n", ("[data] provenance must be 'measured' or 'virtual'",)),
+    ("[roles]\ntrain = {a = 1}\n", ("[roles] train must be a string or a list of strings", "a table")),
+    ("[runs.a]\nskip = 'yes'\n", ("[runs.a] skip must be true or false",)),
+    ("[runs.a]\nkind = 'spiral'\n", ("[runs.a] kind must be 'zigzag', 'turning' or 'other'",)),
+    ("[control]\ntw_s = [1, 2]\n", ("[control] tw_s must be a number, string or boolean",)),
+    ("x = " + "{a = " * 3000 + "1" + "}" * 3000 + "\n", ("nested too deep",)),
+    ("[data]\nfiles = " + "[" * 3000 + "]" * 3000 + "\n", ("nested too deep",)),
+    ("[runs." + ".".join(["a"] * 3000) + "]\nb = 1\n", ("unknown key 'a' in [runs.a]",)),
+    ("[" + ".".join(["a"] * 3000) + "]\nb = 1\n", ("unknown section [a]",)),
+    ("wrong = 1\n", ("unknown key 'wrong'",)),
+])
+def test_description_of_the_wrong_shape_is_one_line_naming_the_key(text, needles):
+    _refused_one_line(text, *needles)
+
+
+def test_control_table_is_accepted_for_the_autopilot():
+    ds = parse_dataset_toml("[control]\ntw_s = 2.5\n", name="x", folder=Path("/d"),
+                            path=Path("/d/dataset.toml"))
+    assert ds.control == {"tw_s": 2.5}
+
+
+def _toml_value(v) -> str:
+    """A value written as TOML (the test's own writer: strings JSON-escaped ASCII, floats with nan/inf)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        if v != v:
+            return "nan"
+        return "inf" if v == float("inf") else "-inf" if v == -float("inf") else repr(v)
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=True)
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
+
+
+def _wrong_values():
+    """Per kind of key, values that are not of that kind (by construction, not by the reader's test)."""
+    from hypothesis import strategies as st
+
+    text = st.text(alphabet=st.characters(codec="ascii", categories=("L", "N", "P", "Zs")), max_size=12)
+    scalars = st.one_of(st.integers(), st.floats(allow_nan=True), text, st.booleans())
+    arrays = st.lists(scalars, max_size=3)
+    tables = st.dictionaries(st.sampled_from(["a", "b", "k"]), scalars, min_size=1, max_size=2)
+    not_number = st.one_of(text, st.booleans(), arrays, tables)
+    bad_number = st.one_of(st.floats(max_value=0.0), st.integers(max_value=0),
+                           st.sampled_from([float("nan"), float("inf"), float("-inf")]))
+    return {
+        "positive": st.one_of(not_number, bad_number),
+        "string": st.one_of(st.integers(), st.floats(allow_nan=True), st.booleans(),
+                            st.lists(st.integers(), min_size=1, max_size=3), tables),
+        "strings": st.one_of(st.integers(), st.floats(allow_nan=True), st.booleans(), tables,
+                             st.lists(st.one_of(st.integers(), st.booleans()), min_size=1, max_size=3)),
+        "sign": st.one_of(not_number, st.floats(allow_nan=True), st.integers().filter(lambda i: abs(i) != 1)),
+        "count": st.one_of(not_number, st.floats(allow_nan=True), st.integers(max_value=0)),
+        "bool": st.one_of(st.integers(), st.floats(allow_nan=True), text, arrays, tables),
+    }
+
+
+_KEY_KINDS = [
+    ("ship", "name", "string"), ("ship", "lpp_m", "positive"), ("ship", "beam_m", "positive"),
+    ("ship", "draught_m", "positive"), ("ship", "design_speed_kn", "positive"),
+    ("data", "scale", "positive"), ("data", "model_scale", "positive"), ("data", "tank", "string"),
+    ("data", "source", "string"), ("data", "files_dir", "string"), ("data", "files", "strings"),
+    ("data", "rudder_sign", "sign"), ("roles", "identify", "string"), ("roles", "train", "strings"),
+    ("roles", "validate", "strings"), ("roles", "test", "strings"), ("identify", "samples", "count"),
+    ("identify", "window_s", "positive"), ("identify", "half_periods", "positive"),
+    ("runs.r1", "rudder_sign", "sign"), ("runs.r1", "test_name", "string"), ("runs.r1", "skip", "bool"),
+]
+
+
+def test_property_every_wrong_value_is_refused_naming_its_key():
+    from hypothesis import given
+    from hypothesis import strategies as st
+
+    wrong = _wrong_values()
+    cases = st.sampled_from(_KEY_KINDS).flatmap(
+        lambda skk: st.tuples(st.just(skk[0]), st.just(skk[1]), wrong[skk[2]]))
+
+    @given(cases)
+    def check(case):
+        section, key, value = case
+        text = f"[{section}]\n{key} = {_toml_value(value)}\n"
+        _refused_one_line(text, f"[{section}] {key} must be ")
+
+    check()
+
+
+def test_property_sections_of_the_wrong_shape_are_refused():
+    from hypothesis import given
+    from hypothesis import strategies as st
+
+    scalars = st.one_of(st.integers(), st.floats(allow_nan=True), st.booleans(),
+                        st.text(alphabet="abc xyz", max_size=5))
+
+    @given(st.sampled_from(["ship", "data", "roles", "identify", "runs", "control"]),
+           st.one_of(scalars, st.lists(scalars, max_size=3)))
+    def check(section, value):
+        _refused_one_line(f"{section} = {_toml_value(value)}\n", f"{section} must be a table")
+
+    check()
+
+
+def test_runs_and_roles_naming_no_run_are_refused_naming_the_known_ids(tmp_path, capsys):
+    raw = tmp_path / "raw"
+    (raw / "d").mkdir(parents=True)
+    shutil.copy(MARIN, raw / "d" / "zz_a.dat")
+    toml = "[data]\nscale = 45.7\n"
+    (raw / "d" / "dataset.toml").write_text(toml + "[runs.zz_20_s]\nskip = true\n")
+    assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 2
+    err = capsys.readouterr().err.strip()
+    assert "[runs.zz_20_s] names no run of the dataset (run ids: zz_a)" in err and "\n" not in err
+    (raw / "d" / "dataset.toml").write_text(toml + "[roles]\nidentify = 'zz_20_s'\n")
+    assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 2
+    err = capsys.readouterr().err.strip()
+    assert "[roles] identify names run 'zz_20_s', which the dataset has not (run ids: zz_a)" in err
+    assert not (tmp_path / "p" / "d" / "runs").exists()
+    # a skipped run is no run of the dataset for a role
+    (raw / "d" / "dataset.toml").write_text(toml + "[roles]\ntrain = ['zz_a']\n[runs.zz_a]\nskip = true\n")
+    assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 2
+    capsys.readouterr()
+    # files given (as make pipeline gives them): the roles may name the folder's other runs, not others
+    shutil.copy(MARIN, raw / "d" / "zz_b.dat")
+    (raw / "d" / "dataset.toml").write_text(toml + "[roles]\nidentify = 'zz_b'\n[runs.zz_c]\nskip = true\n")
+    out = tmp_path / "q"
+    assert _ingest(raw / "d" / "zz_a.dat", "--dataset", "d", "--raw", raw, "--out", out) == 2
+    assert "[runs.zz_c] names no run of the dataset (run ids: zz_a, zz_b)" in capsys.readouterr().err
+    (raw / "d" / "dataset.toml").write_text(toml + "[roles]\nidentify = 'zz_b'\n")
+    assert _ingest(raw / "d" / "zz_a.dat", "--dataset", "d", "--raw", raw, "--out", out) == 0
+    (raw / "d" / "dataset.toml").write_text(toml + "[roles]\nidentify = 'zz_20_s'\n")
+    assert _ingest(raw / "d" / "zz_a.dat", "--dataset", "d", "--raw", raw, "--out", out) == 2
+    assert "[roles] identify names run 'zz_20_s', which the dataset has not (run ids: zz_a, zz_b)" in \
+        capsys.readouterr().err
+    # a [runs.<id>] skip of a run in the folder is no error
+    (raw / "d" / "dataset.toml").write_text(toml + "[runs.zz_b]\nskip = true\n")
+    assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 0, capsys.readouterr().err
+
+
+def test_per_run_rudder_sign_applies_to_that_run_only(tmp_path, capsys):
+    raw = tmp_path / "raw"
+    (raw / "d").mkdir(parents=True)
+    shutil.copy(PROBES / "rudder_sign_flipped.csv", raw / "d" / "flipped.csv")
+    shutil.copy(PROBES / "rudder_sign_flipped.csv", raw / "d" / "again.csv")
+    (raw / "d" / "dataset.toml").write_text("[data]\nscale = 1\n\n[runs.flipped]\nrudder_sign = -1\n")
+    assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 2
+    err = capsys.readouterr().err
+    assert "again.csv" in err and "[runs.<id>]" in err
+    (raw / "d" / "again.csv").unlink()
+    assert _ingest("--dataset", "d", "--raw", raw, "--root", tmp_path / "p") == 0
+    index = json.loads((tmp_path / "p" / "d" / "runs" / "index.json").read_text())
+    assert index["runs"][0]["rudder_sign"] == -1
+    # the same through the FILE form with --dataset
+    out = tmp_path / "q"
+    assert _ingest(raw / "d" / "flipped.csv", "--dataset", "d", "--raw", raw, "--out", out) == 0
+    assert json.loads((out / "index.json").read_text())["runs"][0]["rudder_sign"] == -1
+
+
+# ------------------------------------------------------------------ the documentation's examples run
+_RUNNABLE = "# example for "
+
+
+def _runnable_examples() -> list[tuple[str, int, str, str]]:
+    """(file, block number, folder, text) of every ```toml block in README.md and docs/*.md whose first
+    line is ``# example for <folder>`` (a folder of raw files, from the project root)."""
+    import re
+
+    found = []
+    for doc in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        if not doc.is_file():
+            continue
+        blocks = re.findall(r"^```toml\n(.*?)^```", doc.read_text(encoding="utf-8"), flags=re.S | re.M)
+        for k, text in enumerate(blocks):
+            first = text.splitlines()[0] if text.strip() else ""
+            if first.startswith(_RUNNABLE):
+                found.append((doc.name, k, first[len(_RUNNABLE):].strip(), text))
+    return found
+
+
+def test_there_is_a_runnable_example():
+    assert any(f == "dataset.md" for f, *_ in _runnable_examples())
+
+
+@pytest.mark.parametrize("doc,k,folder,text", _runnable_examples(),
+                         ids=[f"{d}-{k}" for d, k, *_ in _runnable_examples()])
+def test_runnable_examples(doc, k, folder, text, tmp_path, capsys):
+    """The block, saved as data/raw/<name>/dataset.toml of a project beside the folder's own parent
+    (so that its files_dir, written for data/raw/<name>/ of this project, finds the same files),
+    ingests the folder and its roles resolve as identify and diagnose resolve them."""
+    from pipeline.cli.diagnose import roles_design
+    from pipeline.runinfo import choose_runs
+
+    source = (ROOT / folder).resolve()
+    if not source.is_dir():
+        pytest.skip(f"{folder} (the example's files) is absent: {source}")
+    # rebuild the example's layout: a project deep enough for the folder's '..', and the folder (a
+    # link to the real one) where it is from that project
+    import os
+
+    rel = Path(folder)
+    project = tmp_path.joinpath(*[f"up{i}" for i in range(rel.parts.count(".."))], "project")
+    target = Path(os.path.normpath(project / rel))
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.symlink_to(source, target_is_directory=True)
+    (project / "data" / "raw" / "ex").mkdir(parents=True)
+    (project / "data" / "raw" / "ex" / "dataset.toml").write_text(text)
+    ds = load_dataset("ex", project / "data" / "raw")
+    assert ds.raw_files(), f"the example's files_dir finds no files ({ds.files_dir})"
+    raw = project / "data" / "raw"
+    rc = main(["ingest", "--dataset", "ex", "--raw", str(raw), "--root", str(tmp_path / "p")])
+    assert rc == 0, capsys.readouterr().err
+    index = json.loads((tmp_path / "p" / "ex" / "runs" / "index.json").read_text())
+    ident, _ = choose_runs(index["runs"], index["roles"]["identify"])
+    if ds.roles.identify:
+        assert ident == ds.roles.identify
+    design = roles_design(index)
+    if ds.roles.train:
+        assert design is not None and design[0] == list(ds.roles.train)
+
+
+def test_the_build_reads_the_hsva_description_and_goes_stale_when_it_changes(hsva_dir, tmp_path, capsys):
+    """`run` (make pipeline) ingests the HSVA files with data/raw/hsva/dataset.toml of its raw root, as
+    `ingest --dataset hsva` does, and an edit of that file makes ingest stale and changes its output."""
+    from pipeline.build import STAGES, discover, up_to_date
+
+    raw, root = tmp_path / "raw", tmp_path / "proc"
+    (raw / "hsva").mkdir(parents=True)
+    toml = raw / "hsva" / "dataset.toml"
+    toml.write_text(BUILTIN["hsva"])
+    argv = ["run", "--dataset", "hsva", "--raw", str(raw), "--root", str(root), "--shared",
+            str(hsva_dir.parents[1]), "--until", "ingest"]
+    assert main(argv) == 0, capsys.readouterr().err
+    index = json.loads((root / "hsva" / "runs" / "index.json").read_text())
+    assert index["ship"]["dataset_toml"] == str(toml) and Path(index["ship"]["dataset_toml"]).is_file()
+    assert index["identify"] == {"half_periods": 3.4} and index["ship"]["tank"] == "HSVA"
+    ds = next(d for d in discover(raw, hsva_dir.parents[1]) if d.name == "hsva")
+    assert up_to_date(STAGES[0], ds, root)
+    toml.write_text(BUILTIN["hsva"].replace('tank = "HSVA"', 'tank = "HSVA Hamburg"')
+                    .replace("half_periods = 3.4", "half_periods = 3.0"))
+    assert not up_to_date(STAGES[0], ds, root)
+    capsys.readouterr()
+    assert main(argv) == 0
+    assert "ran ingest" in capsys.readouterr().out
+    index = json.loads((root / "hsva" / "runs" / "index.json").read_text())
+    assert index["identify"] == {"half_periods": 3.0} and index["ship"]["tank"] == "HSVA Hamburg"

@@ -132,6 +132,25 @@ def test_missing_samples_are_noted_not_silently_bridged(tmp_path):
         "ingest_notes", []))
 
 
+def test_mixed_rate_and_strong_jitter_are_not_missing_samples(tmp_path):
+    """A logger that changes its rate (0.04 s steps, then 0.08 s) or whose stamps jitter by up to 0.4
+    of a step has no samples missing; a dropped sample in the slower part still is one."""
+    frame = _synthetic(n=800, dt=0.04)
+    mixed = pd.concat([frame.iloc[:400], frame.iloc[400::2]], ignore_index=True)
+    notes = ingest_file(_write_csv(tmp_path / "mixed.csv", mixed)).meta.get("ingest_notes", [])
+    assert not any("missing" in n for n in notes), notes
+    holed = mixed.drop(mixed.index[500])
+    notes = ingest_file(_write_csv(tmp_path / "mholed.csv", holed)).meta.get("ingest_notes", [])
+    assert [n for n in notes if "missing" in n] == [
+        "1 gap in time (samples missing), the longest 0.16 s after 23.92 s; interpolated over by the "
+        "resampling"], notes
+    jit = _synthetic()
+    jit["time"] = jit["time"] + np.random.default_rng(2).uniform(-0.032, 0.032, len(jit))
+    assert np.max(np.diff(jit["time"])) > 1.5 * 0.08                 # steps beyond 1.5 of the median
+    notes = ingest_file(_write_csv(tmp_path / "jit.csv", jit)).meta.get("ingest_notes", [])
+    assert not any("missing" in n for n in notes), notes
+
+
 def test_detect_format():
     assert detect_format(TANK_HEADER.splitlines() + ["time,psi,r,delta", "0,0,0,0"]) == "csv"
     assert detect_format(MARIN_FILE.read_text().splitlines()) == "marin"
@@ -392,3 +411,91 @@ def test_marin_rounding_is_not_a_spike(tmp_path):
     assert np.max(np.abs(wrapped.frame["psi"].to_numpy()[late] - true[late])) < 1.0
     with pytest.raises(InputError, match="spike"):
         ingest_file(_marin_circle(tmp_path, spike_at=3800, spike_deg=5.0, wrap=True))
+
+
+# ------------------------------------------------------------------ ingest never overwrites
+def _tree_bytes(root: Path) -> dict[str, bytes]:
+    """Every file under ``root`` (hidden ones and those beside it included) with its bytes."""
+    return {str(p.relative_to(root.parent)): p.read_bytes()
+            for p in sorted(root.parent.rglob("*")) if p.is_file()}
+
+
+def test_cli_ingest_one_file_at_a_time_keeps_both(tmp_path, capsys):
+    a = _write_csv(tmp_path / "a.csv", _synthetic())
+    b = _write_csv(tmp_path / "b.csv", _synthetic(seed=4),
+                   TANK_HEADER.replace("20/20 starboard", "10/10 port"))
+    out = tmp_path / "D"
+    out.mkdir()
+    (out / "notes.txt").write_text("the user's own notes")
+    assert main(["ingest", str(a), "--out", str(out)]) == 0
+    a_bytes = (out / "a.parquet").read_bytes()
+    assert main(["ingest", str(b), "--out", str(out)]) == 0
+    index = read_json(out / "index.json")
+    assert [e["run_id"] for e in index["runs"]] == ["a", "b"]
+    assert (out / "a.parquet").read_bytes() == a_bytes            # kept unchanged
+    assert index["runs"][0]["source_sha256"] == hashlib.sha256(a.read_bytes()).hexdigest()
+    assert index["runs"][1]["heading_deg"] == 10.0
+    assert (out / "notes.txt").read_text() == "the user's own notes"
+    assert "2 runs, 1 kept" in capsys.readouterr().out
+    # re-ingesting a with another step replaces only a
+    assert main(["ingest", str(a), "--out", str(out), "--dt", "0.16"]) == 0
+    assert np.allclose(np.diff(read_run(out / "a.parquet").frame["time"]), 0.16)
+    assert np.allclose(np.diff(read_run(out / "b.parquet").frame["time"]), 0.08)
+    assert [e["run_id"] for e in read_json(out / "index.json")["runs"]] == ["a", "b"]
+
+
+def test_cli_refused_file_leaves_the_folder_byte_for_byte(tmp_path, capsys):
+    a = _write_csv(tmp_path / "a.csv", _synthetic())
+    out = tmp_path / "processed" / "D"
+    assert main(["ingest", str(a), "--out", str(out)]) == 0
+    (out / "mine.csv").write_text("1,2,3\n")
+    before = _tree_bytes(out)
+    frame = _synthetic()
+    frame.loc[100, "r"] = np.nan
+    bad = _write_csv(tmp_path / "bad.csv", frame)
+    good = _write_csv(tmp_path / "c.csv", _synthetic(seed=5))
+    assert main(["ingest", str(good), str(bad), "--out", str(out)]) == 2
+    assert "bad.csv" in capsys.readouterr().err
+    assert _tree_bytes(out) == before
+
+
+def test_cli_damaged_run_in_the_folder_is_named(tmp_path, capsys):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    a = _write_csv(tmp_path / "a.csv", _synthetic())
+    out = tmp_path / "processed" / "D"
+    assert main(["ingest", str(a), "--out", str(out)]) == 0
+    table = pq.read_table(out / "a.parquet")
+    table = table.replace_schema_metadata({b"tanktest.run": b"{not json"})
+    pq.write_table(table, out / "a.parquet")
+    before = _tree_bytes(out)
+    b = _write_csv(tmp_path / "b.csv", _synthetic(seed=4))
+    assert main(["ingest", str(b), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "a.parquet" in err[0] and "tanktest.run" in err[0]
+    assert "Traceback" not in err[0]
+    assert _tree_bytes(out) == before
+    with pytest.raises(InputError, match="not valid JSON"):
+        read_run(out / "a.parquet")
+    # a Parquet file of the user's that is not a run is kept and left out of the index
+    pq.write_table(pa.table({"x": [1.0, 2.0]}), out / "a.parquet")
+    assert main(["ingest", str(b), "--out", str(out)]) == 0
+    assert [e["run_id"] for e in read_json(out / "index.json")["runs"]] == ["b"]
+    assert pq.read_table(out / "a.parquet").column_names == ["x"]
+    assert "not a processed run" in capsys.readouterr().err
+
+
+def test_commands_writing_into_one_out_folder_keep_each_others_files(tmp_path):
+    """ingest, identify and ingest again into the same --out: nothing of either is removed."""
+    out = tmp_path / "D"
+    a = _write_csv(tmp_path / "a.csv", _synthetic(n=700))
+    assert main(["ingest", str(a), "--out", str(out)]) == 0
+    assert main(["identify", str(out / "a.parquet"), "--out", str(out), "--samples", "300"]) == 0
+    b = _write_csv(tmp_path / "b.csv", _synthetic(n=700, seed=4))
+    assert main(["ingest", str(b), "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["a.parquet", "b.parquet", "estimates.json", "index.json",
+                                                     "trace.parquet"]
+    assert main(["identify", str(out / "b.parquet"), "--out", str(out), "--samples", "300"]) == 0
+    assert read_json(out / "estimates.json")["run_id"] == "b"
+    assert [e["run_id"] for e in read_json(out / "index.json")["runs"]] == ["a", "b"]

@@ -129,3 +129,96 @@ def test_damaged_real_layouts_give_run_or_pipeline_error(cut, junk, fmt):
     except PipelineError:
         return
     assert isinstance(run, Run)
+
+
+# ------------------------------------------------------------------ headers, scales, formats, echoes
+TEST_ROWS = "\n".join(f"{k * 0.08:.2f},{k * 0.08:.4f},1.0,5.0" for k in range(80)) + "\n"
+
+
+@pytest.mark.parametrize("line,msg", [
+    ("# scale: 0", "header value 'scale' must be a positive finite number, got 0"),
+    ("# scale: -45.7", "header value 'scale' must be a positive finite number, got -45.7"),
+    ("# scale: nan", "header value 'scale' must be a positive finite number, got nan"),
+    ("# scale: 0.5", "header value 'scale' must be a scale factor full/model between 1 and 1000, got 0.5"),
+    ("# Lpp: 0", "header value 'lpp' must be a positive finite number, got 0"),
+    ("# lpp: inf", "header value 'lpp' must be a positive finite number, got inf"),
+    ("# dt: -0.1", "header value 'dt' must be a positive finite number, got -0.1"),
+])
+def test_header_values_that_cannot_be_are_refused(line, msg):
+    with pytest.raises(PipelineError) as err:
+        parse_raw(f"{line}\n# test: zigzag 10/10 starboard\ntime,psi,r,delta\n" + TEST_ROWS, name="h.csv")
+    assert str(err.value) == f"h.csv: {msg}"
+
+
+@pytest.mark.parametrize("argv,msg", [
+    (["--scale", "1e300"], "scale factor must be full/model between 1 and 1000, got 1e+300"),
+    (["--scale", "inf"], "scale factor must be a positive finite number, got inf"),
+])
+def test_scales_that_cannot_be_give_the_right_message(tmp_path, capsys, argv, msg):
+    path = tmp_path / "g.csv"
+    path.write_text(GOOD)
+    assert main(["ingest", str(path), "--out", str(tmp_path / "o"), *argv]) == 2
+    assert capsys.readouterr().err.strip() == f"error: {path}: {msg}"
+
+
+def test_model_scale_inf_in_the_description_names_the_key(tmp_path, capsys):
+    (tmp_path / "raw" / "d").mkdir(parents=True)
+    (tmp_path / "raw" / "d" / "g.csv").write_text(GOOD)
+    (tmp_path / "raw" / "d" / "dataset.toml").write_text("[data]\nmodel_scale = inf\n")
+    argv = ["ingest", "--dataset", "d", "--raw", str(tmp_path / "raw"), "--root", str(tmp_path / "p")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("dataset.toml: [data] model_scale must be a positive finite number, got inf"), err
+
+
+def _marin_lines(extra_column: bool) -> str:
+    lines = MARIN_FILE.read_text().splitlines()
+    if extra_column:
+        lines = lines[:3] + [ln + "\t0.00E+00" if ln.strip() else ln for ln in lines[3:]]
+    return "\n".join(lines) + "\n"
+
+
+def test_twelve_column_marin_file_is_named_as_such():
+    with pytest.raises(PipelineError) as err:
+        parse_raw(_marin_lines(True), name="m.dat")
+    assert str(err.value) == ("m.dat: the header says MARIN .dat, whose rows have 11 columns, but row 4 "
+                              "has 12: not a MARIN file of the layout the reader knows (docs/dataset.md); "
+                              "give --format to read it as another")
+    with pytest.raises(PipelineError, match=r"m.dat, row 4: a MARIN .dat has 11 columns, this row has 12"):
+        parse_raw(_marin_lines(True), name="m.dat", fmt="marin")
+
+
+def test_eleven_column_hsva_file_is_named_as_such(hsva_dir):
+    lines = sorted(hsva_dir.glob("*.dat"))[0].read_bytes().decode("latin-1").splitlines()
+    cut = lines[:4] + [" ".join(ln.split()[:11]) for ln in lines[4:] if ln.strip()]
+    with pytest.raises(PipelineError) as err:
+        parse_raw("\n".join(cut) + "\n", name="h.dat")
+    assert "the header says HSVA .dat, whose rows have 12 columns, but row 5 has 11" in str(err.value)
+    with pytest.raises(PipelineError, match=r"h.dat, row 5: a HSVA .dat has 12 columns, this row has 11"):
+        parse_raw("\n".join(cut) + "\n", name="h.dat", fmt="hsva")
+
+
+def test_refusals_do_not_quote_files_reached_through_links_or_outside(tmp_path, capsys, monkeypatch):
+    secret = tmp_path / "outside" / "secret.txt.dat"
+    secret.parent.mkdir()
+    secret.write_text("password=hunter2 and more\nline two\n")
+    project = tmp_path / "project"
+    (project / "data" / "raw" / "d").mkdir(parents=True)
+    monkeypatch.chdir(project)
+    # a files_dir outside the project
+    toml = project / "data" / "raw" / "d" / "dataset.toml"
+    toml.write_text('[data]\nfiles_dir = "../../../../outside"\n')
+    assert main(["ingest", "--dataset", "d"]) == 2
+    err = capsys.readouterr().err
+    assert "secret.txt.dat" in err and "hunter2" not in err and "password" not in err, err
+    # a symbolic link inside the project
+    (project / "data" / "raw" / "d" / "dataset.toml").unlink()
+    (project / "data" / "raw" / "d" / "link.dat").symlink_to(secret)
+    assert main(["ingest", "--dataset", "d"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown format" in err and "hunter2" not in err, err
+    # the same text in a file of the project is quoted (the user's own file)
+    (project / "data" / "raw" / "d" / "link.dat").unlink()
+    (project / "data" / "raw" / "d" / "own.dat").write_text(secret.read_text())
+    assert main(["ingest", "--dataset", "d"]) == 2
+    assert "first line 'password=hunter2 and more'" in capsys.readouterr().err

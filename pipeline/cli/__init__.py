@@ -4,6 +4,9 @@ Each module in this package is one stage's command: it defines ``register(subpar
 its sub-command and sets ``func`` (taking the parsed arguments, returning an exit code).  Commands
 read files, call the pure functions of the stage packages, and write files atomically.
 
+Every parser is :class:`Parser`: options are never abbreviated, help is plain text, ``--version``
+prints the version, and the program is named ``tanktest`` when run as the installed script.
+
 Any :class:`pipeline.errors.PipelineError` becomes one line on stderr and exit status 2.  The output
 location of every command (``--out``, ``--root``) is checked before any work
 (:func:`pipeline.cli._common.check_args_outputs`); an operating-system error while writing (disk
@@ -14,19 +17,58 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
+import re
 import sys
 
 from pipeline.cli._common import check_args_outputs
 from pipeline.errors import PipelineError
 
+_RST = [
+    (re.compile(r":[a-z]+:`~?([^`]+)`"), r"\1"),       # :func:`pipeline.x` -> pipeline.x
+    (re.compile(r"``([^`]+)``"), r"\1"),               # ``literal`` -> literal
+    (re.compile(r"\*\*([^*]+)\*\*"), r"\1"),           # **strong** -> strong
+]
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="python -m pipeline",
+
+def plain(text: str) -> str:
+    """Help text without reStructuredText markup (the docstrings that describe the commands use it)."""
+    for pattern, repl in _RST:
+        text = pattern.sub(repl, text)
+    return text
+
+
+class Parser(argparse.ArgumentParser):
+    """The parser of every command: no abbreviated options (``--scal`` is not taken as ``--scale``),
+    help and usage as plain text."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs["allow_abbrev"] = False
+        super().__init__(*args, **kwargs)
+
+    def format_help(self) -> str:
+        return plain(super().format_help())
+
+    def format_usage(self) -> str:
+        return plain(super().format_usage())
+
+
+def prog_name(argv0: str | None = None) -> str:
+    """``tanktest`` when run as the installed script, else ``python -m pipeline``."""
+    name = os.path.basename(argv0 if argv0 is not None else (sys.argv[0] if sys.argv else ""))
+    return "tanktest" if name in ("tanktest", "tanktest.exe") else "python -m pipeline"
+
+
+def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
+    from pipeline import __version__
+
+    parser = Parser(
+        prog=prog or prog_name(),
         description="Tank-test analysis pipeline (see README.md and SPEC.md).",
     )
-    sub = parser.add_subparsers(dest="stage", metavar="STAGE", required=True)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="stage", metavar="STAGE", required=True, parser_class=Parser)
     package = sys.modules[__name__]
     for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):

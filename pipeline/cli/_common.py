@@ -15,13 +15,21 @@ class OutputError(PipelineError):
 
 
 def add_dataset_args(p: argparse.ArgumentParser) -> None:
-    """``--dataset NAME`` and ``--root DIR`` select the catalog (data/processed/<NAME>/...)."""
-    p.add_argument("--dataset", default="virtual", help="dataset name (default: virtual)")
+    """``--dataset NAME`` and ``--root DIR`` select the catalog (data/processed/<NAME>/...).  There is
+    no default dataset: a stage run bare refuses (:func:`catalog`) rather than overwrite the virtual
+    tank's outputs."""
+    p.add_argument("--dataset", default=None,
+                   help="dataset name (required unless files are given; `datasets` lists them)")
     p.add_argument("--root", type=Path, default=Path("data/processed"),
                    help="processed-data root (default: data/processed)")
 
 
 def catalog(args: argparse.Namespace) -> Catalog:
+    """The catalog of ``--dataset`` under ``--root``; refused (one line) when no dataset is given."""
+    if not getattr(args, "dataset", None):
+        stage = getattr(args, "stage", None) or "this stage"
+        raise PipelineError(f"{stage}: give --dataset NAME (`python -m pipeline datasets` lists them) "
+                            "or the files to work on; there is no default dataset")
     return Catalog(root=args.root, dataset=args.dataset)
 
 

@@ -46,7 +46,8 @@ def paper_indices() -> dict:
 def _run(args) -> int:
     from pipeline.control.stage import run_control
 
-    cat = catalog(args)
+    # the catalog only where a default comes from it (--indices/--paper with --out need none)
+    cat = catalog(args) if args.out is None or (args.indices is None and not args.paper) else None
     cfg = ControlConfig()
     changes = {}
     if args.seeds is not None:
@@ -71,7 +72,7 @@ def _run(args) -> int:
                               progress=not args.no_progress)
     metrics["indices_source"] = source
     out = args.out or cat.control_dir
-    with atomic_dir(out) as tmp:
+    with atomic_dir(out, writer="control") as tmp:
         write_json(tmp / "metrics.json", metrics)
         write_frame(tmp / "timeseries.parquet", ts,
                     meta={"dataset": metrics["dataset"], "provenance": metrics["provenance"],

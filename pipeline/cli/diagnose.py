@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 import sys
 from pathlib import Path
 
@@ -29,7 +30,7 @@ def load_run(path: str | Path, scale: float | None = None) -> Run:
     """A processed Parquet run, or a raw file read by the ingest stage."""
     path = Path(path)
     if not path.exists():
-        raise InputError("file not found", file=path)
+        raise InputError("file not found", file=os.path.abspath(path))
     if path.suffix.lower() == ".parquet":
         return read_run(path)
     try:

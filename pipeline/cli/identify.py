@@ -10,6 +10,7 @@ Writes estimates.json and trace.parquet (catalog: data/processed/D/identify/<alg
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 
 from pipeline.cli._common import add_dataset_args, catalog
@@ -41,7 +42,7 @@ def register(sub) -> None:
 def load_run(path: Path, scale: float | None = None) -> Run:
     """A processed Parquet run, or a raw file through the ingest stage."""
     if not path.exists():
-        raise InputError("file not found", file=path)
+        raise InputError("file not found", file=os.path.abspath(path))
     if path.suffix.lower() == ".parquet":
         return read_run(path)
     try:
@@ -55,7 +56,7 @@ def load_run(path: Path, scale: float | None = None) -> Run:
 def _write(out_dir: Path, ident, meta: dict, cfg: FilterConfig, dataset: str | None) -> None:
     from pipeline.identify import estimates_json
 
-    with atomic_dir(out_dir) as tmp:
+    with atomic_dir(out_dir, writer="identify") as tmp:
         write_frame(tmp / "trace.parquet", ident.trace, {"run_id": meta.get("run_id"),
                                                          "algorithm": ident.algorithm,
                                                          "provenance": meta.get("provenance")})

@@ -15,8 +15,13 @@ if there is one, is applied too.
 All files are read and validated first; only if every one is good are ``<run_id>.parquet``
 (run_id = file name without extension) and ``index.json`` written, as one set
 (:func:`pipeline.io.atomic_dir`).  A bad file: one line naming the file and the problem, exit
-status 2, nothing written, earlier outputs untouched.  Files that are not tank data (README.md,
-dataset.toml, .stamp, hidden files) are skipped with a note.
+status 2, nothing written, the output folder byte for byte as it was.
+
+The second form adds or replaces only the runs it writes: the other runs already in ``--out`` are
+kept unchanged, and ``index.json`` is rebuilt from every run in the folder (other files of the
+user's stay).  The first form writes the dataset's whole set: runs in the folder whose raw file is
+no longer part of the dataset are removed, with a notice naming them.  Files that are not tank
+data (README.md, dataset.toml, .stamp, hidden files) are skipped with a note.
 
 ``index.json`` (pipeline/catalog.py): ``{"dataset", "provenance", "ship": {...particulars, scale},
 "roles", "runs": [{"run_id", "file", ...meta}]}``.
@@ -24,6 +29,8 @@ dataset.toml, .stamp, hidden files) are skipped with a note.
 
 from __future__ import annotations
 
+import os
+import shutil
 import sys
 from pathlib import Path
 
@@ -33,6 +40,7 @@ from pipeline.dataset import (
     DEFAULT_RAW,
     TOML_NAME,
     Dataset,
+    check_run_ids,
     dataset_folder,
     is_tank_file,
     load_dataset,
@@ -40,7 +48,7 @@ from pipeline.dataset import (
 )
 from pipeline.errors import InputError
 from pipeline.ingest import FORMATS, ingest_file, with_dt
-from pipeline.io import atomic_dir, write_json, write_run
+from pipeline.io import atomic_dir, read_json, read_meta, write_json, write_run
 
 __all__ = ["is_tank_file", "register"]
 
@@ -113,6 +121,8 @@ def _run(args) -> int:
         candidates = list(args.files)
     else:
         candidates = ds.raw_files()
+        if ds.toml_path is not None:
+            check_run_ids(ds, {run_id_of(f) for f in ds.raw_files(with_skipped=True)}, roles=False)
         if not candidates:
             raise InputError(f"no tank files in dataset {args.dataset!r}"
                              + (" (run `python -m pipeline tank --out data/raw/virtual` first)"
@@ -138,6 +148,13 @@ def _run(args) -> int:
         kw = {"rudder_sign": (over.rudder_sign if over and over.rudder_sign is not None else sign)}
         if over and over.test_name is not None:
             kw["test_name"] = over.test_name
+        if over and over.kind is not None:
+            kw["kind"] = over.kind
+        if ds is not None and ds.columns is not None:
+            if fmt is not None:
+                raise InputError("a format and a [columns] mapping are both given: the mapping reads the "
+                                 "logger's table, give one", file=ds.toml_path)
+            kw["columns"] = ds.columns
         if ds is not None and ds.toml_path is not None:
             kw.update(ship=ds.ship.name, lpp_full=ds.ship.lpp_m, model_scale=ds.model_scale)
         run = ingest_file(f, fmt=fmt, scale=scale, config=config, **kw)
@@ -145,8 +162,25 @@ def _run(args) -> int:
             # the description's word on what the files are, before anything (the index below) reads it
             run.meta["provenance"] = ds.provenance
         runs.append(run)
-    dataset = args.dataset or args.out.resolve().parent.name
-    provs = {r.meta.get("provenance") for r in runs}
+    previous = _read_index(args.out)
+    dataset = args.dataset or previous.get("dataset") or args.out.resolve().parent.name
+    new_ids = {run_id_of(f) for f in files}
+    # FILE... adds or replaces only its runs; the dataset form writes the dataset's whole set
+    kept = _runs_in(args.out, exclude=new_ids) if args.files else {}
+    dropped = [] if args.files or not args.out.is_dir() else sorted(
+        p.stem for p in args.out.glob("*.parquet") if p.stem not in new_ids)
+    for f, run in zip(files, runs, strict=True):
+        run.meta["run_id"] = run_id_of(f)
+        run.meta["dataset"] = dataset
+        if ds is not None:
+            for k, v in ds.particulars().items():
+                if v is not None:
+                    run.meta.setdefault(k, v)
+    entries = {run.meta["run_id"]: {"run_id": run.meta["run_id"], "file": f"{run.meta['run_id']}.parquet",
+                                    **run.meta} for run in runs}
+    entries.update({rid: {"run_id": rid, "file": path.name, **meta}
+                    for rid, (path, meta) in kept.items() if meta is not None})
+    provs = {e.get("provenance") for e in entries.values()}
     index = {
         "dataset": dataset,
         "provenance": provs.pop() if len(provs) == 1 else "mixed",
@@ -156,22 +190,74 @@ def _run(args) -> int:
         index["roles"] = {"identify": ds.roles.identify, "train": list(ds.roles.train),
                           "validate": list(ds.roles.validate), "test": list(ds.roles.test)}
         index["identify"] = ds.identify.as_dict()
-    index["runs"] = []
-    with atomic_dir(args.out) as tmp:
-        for f, run in zip(files, runs, strict=True):
-            run_id = run_id_of(f)
-            run.meta["run_id"] = run_id
-            run.meta["dataset"] = dataset
-            if ds is not None:
-                for k, v in ds.particulars().items():
-                    if v is not None:
-                        run.meta.setdefault(k, v)
-            write_run(tmp / f"{run_id}.parquet", run)
-            index["runs"].append({"run_id": run_id, "file": f"{run_id}.parquet", **run.meta})
+    else:
+        index.update({k: previous[k] for k in ("ship", "roles", "identify") if k in previous})
+    index["runs"] = [entries[k] for k in sorted(entries)]
+    if ds is not None and ds.toml_path is not None:
+        # the runs a description may name: those in the output folder, and (files given) those of
+        # the dataset's own folder, which a later ingest may bring (a skipped one only for [runs])
+        mine = set(entries)
+        if args.files and ds.files_dir.is_dir():
+            listed = {run_id_of(f) for f in ds.raw_files()}
+            check_run_ids(ds, mine | {run_id_of(f) for f in ds.raw_files(with_skipped=True)}, roles=False)
+            mine |= listed
+        check_run_ids(ds, mine, runs=False)
+    with atomic_dir(args.out, writer="ingest") as tmp:
+        for run in runs:
+            write_run(tmp / f"{run.meta['run_id']}.parquet", run)
+        for path, _ in kept.values():
+            _carry(path, tmp / path.name)
         write_json(tmp / "index.json", index)
     for run in runs:
         m = run.meta
         print(f"ingest: {m['run_id']}: {m['source_format']} {m['test_name']!r}, {m['samples']} samples at "
               f"{m['dt']:g} s, {m['duration']:.1f} s, scale {m['scale_factor']:g}")
-    print(f"written {len(runs)} runs and index.json to {args.out}")
+    for path, meta in (kept[k] for k in sorted(kept)):
+        if meta is None:
+            _notice(f"{path} is not a processed run (no ingest metadata): kept, not in the index")
+    if dropped:
+        _notice(f"removed {len(dropped)} run(s) whose raw file is not in the dataset: "
+                + ", ".join(dropped))
+    kept_runs = sum(meta is not None for _, meta in kept.values())
+    print(f"written {len(runs)} runs and index.json ({len(index['runs'])} runs"
+          + (f", {kept_runs} kept from earlier ingests" if kept_runs else "") + f") to {args.out}")
     return 0
+
+
+def _read_index(out: Path) -> dict:
+    """The index.json already in ``out`` ({} when there is none or it is unreadable: it is rebuilt)."""
+    try:
+        index = read_json(out / "index.json")
+    except InputError:
+        return {}
+    return index if isinstance(index, dict) else {}
+
+
+def _runs_in(out: Path, *, exclude: set[str]) -> dict[str, tuple[Path, dict | None]]:
+    """The Parquet files already in ``out`` other than the runs ``exclude`` names: run id ->
+    (path, run metadata, or None for a Parquet file that is not a processed run of ingest).  A damaged run
+    (unreadable Parquet or metadata) is refused, naming it: the index cannot be rebuilt without it."""
+    found: dict[str, tuple[Path, dict | None]] = {}
+    if not out.is_dir():
+        return found
+    for path in sorted(out.glob("*.parquet")):
+        rid = path.stem
+        if rid in exclude or not path.is_file() or path.is_symlink():
+            continue
+        meta = read_meta(path)
+        # a processed run says where it came from (other stages' Parquet files, e.g. identify's
+        # trace.parquet, carry metadata too, but not a source file)
+        if meta is not None and not ("source_sha256" in meta and "source_format" in meta):
+            meta = None
+        if meta is not None:
+            meta = {**meta, "run_id": rid}
+        found[rid] = (path, meta)
+    return found
+
+
+def _carry(src: Path, dst: Path) -> None:
+    """Put an earlier run into the new set unchanged (a hard link; a copy across file systems)."""
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copy2(src, dst)

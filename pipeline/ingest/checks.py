@@ -46,6 +46,23 @@ Spikes (issue 14 item 5; SPEC section 8: the run is refused, naming the row)
     added to the threshold: a heading beyond 999 deg is written to 10 deg, and a turning circle's third turn
     flickering across a rounding boundary is the format, not the ship.
 
+Steady approach (docs/dataset.md, "The start of a run")
+    A test starts from a steady straight approach; a logger may start earlier (the model
+    accelerating from rest, the helmsman's rudder before the test).  The first rudder execute is
+    where the rudder starts its swing into the first held rudder phase (``rudder_phases``, half the
+    largest angle): back from the phase for as long as every step moves the rudder toward that side.
+    A record that starts less than ``approach_window`` (2 s) before it is taken as it is (tank files
+    often start at the execute).  Otherwise the approach values are the mean surge speed and median
+    rudder over the last ``approach_window`` before the execute.  When the record's start departs
+    from them (the speed, averaged over ``SPEED_SMOOTH_S``, by more than ``STEADY_SPEED_SHARE`` = 3 %
+    of the approach speed: a model held at constant propeller rpm keeps its approach speed to about
+    1 %, a model accelerating from rest departs by up to 100 %; or the rudder by more than
+    ``QUIET_RUDDER_SHARE`` = 10 % of the test's largest angle: a course-keeping trim of 1-2 deg stays
+    inside 10 % of a 10-35 deg test), the run is trimmed to start at the first sample after the last
+    departure.  At least ``approach_window`` of steady approach must remain (what the approach speed
+    is measured over), otherwise the run is refused, naming why.  A run that starts steady is not
+    touched.
+
 Scale (issue 13 item 2)
     With the model length L (from the dataset's Lpp over the scale, the file, or a known ship) the
     approach Froude number Fn = U / sqrt(g L) must be in ``FROUDE_BAND`` (0.05-0.45: displacement
@@ -77,6 +94,9 @@ SIGN_NOISE_FACTOR = 5.0
 SPIKE_MAD_FACTOR = 30.0
 SPIKE_FLOOR_PSI_DEG = 2.0
 SPIKE_FLOOR_R_DEG_S = 2.0
+QUIET_RUDDER_SHARE = 0.10
+STEADY_SPEED_SHARE = 0.03
+SPEED_SMOOTH_S = 1.0
 FROUDE_BAND = (0.05, 0.45)
 MODEL_LPP_BAND = (1.0, 15.0)
 MODEL_SPEED_BAND = (0.15, 5.0)
@@ -114,7 +134,8 @@ def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray) ->
     """What the rudder signal says the test is, when the title does not.
 
     Zigzag: at least two held phases of alternating side; rudder = median of their largest angles;
-    heading trigger = median heading change from the start at the executes after the first.
+    heading trigger = median heading change from the start of the first held phase to the executes
+    after it (the last sample of each held phase still at its held angle).
     Turning: rudder held to one side only while the heading turns through 90 deg or more.
     Returns ``{"kind", "rudder_deg", "heading_deg", "first_side"}`` (kind 'other' when neither).
     """
@@ -130,8 +151,16 @@ def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray) ->
     signs = [s for _, _, s in ph]
     if len(ph) >= 2 and all(signs[i] != signs[i + 1] for i in range(len(signs) - 1)):
         out["kind"] = "zigzag"
+        # the heading at each execute: the last sample of a held phase where the rudder is still at
+        # its held angle (within 5 % of the largest), before it swings to the other side
+        peak = float(np.max(np.abs(delta)))
+        execs = []
+        for a, b, _ in ph[:-1]:
+            held = float(np.median(delta[a:b + 1]))
+            at = np.flatnonzero(np.abs(delta[a:b + 1] - held) <= 0.05 * peak)
+            execs.append(a + int(at[-1]) if at.size else b)
         psi0 = psi[ph[0][0]]
-        trig = [abs(psi[a] - psi0) for a, _, _ in ph[1:]]
+        trig = [abs(psi[k] - psi0) for k in execs]
         out["heading_deg"] = float(np.round(np.median(trig))) if trig else None
     elif len(set(signs)) == 1 and np.ptp(psi[ph[0][0]:ph[-1][1] + 1]) >= 90.0:
         out["kind"] = "turning"         # one side held while the ship turns through 90 deg or more
@@ -297,8 +326,9 @@ def check_rudder_sign(frame: pd.DataFrame, name: str) -> dict[str, Any]:
     if total < 0 and against > agree and -total > SIGN_NOISE_FACTOR * max(noise, 1e-3):
         raise InputError(f"rudder sign is reversed: positive delta gives negative yaw rate in {against} of "
                          f"{agree + against} rudder phases (SPEC: positive delta makes r positive); if the "
-                         "file's rudder is positive to port, ingest with --rudder-sign -1", file=name,
-                         column="delta")
+                         "file's rudder is positive to port, ingest with --rudder-sign -1 (or "
+                         "rudder_sign = -1 in dataset.toml, under [data] or the run's [runs.<id>])",
+                         file=name, column="delta")
     return evidence
 
 
@@ -347,3 +377,68 @@ def check_scale(meta: dict, frame: pd.DataFrame, name: str, scale: float, lpp_mo
                              f"{scale:g}): {hint_full if u > hi else hint_twice}", file=name,
                              column="u" if "u" in frame.columns else None)
     return out
+
+
+# ------------------------------------------------------------------ steady approach
+def _speed(frame: pd.DataFrame, t: np.ndarray) -> np.ndarray | None:
+    """Surge speed (m/s): u, else the speed over ground from x0, y0; None without either."""
+    if "u" in frame.columns:
+        return frame["u"].to_numpy(dtype=float)
+    if {"x0", "y0"} <= set(frame.columns) and len(t) >= 3:
+        x, y = frame["x0"].to_numpy(dtype=float), frame["y0"].to_numpy(dtype=float)
+        return np.hypot(np.gradient(x, t), np.gradient(y, t))
+    return None
+
+
+def steady_start(frame: pd.DataFrame, name: str, config: IngestConfig) -> tuple[int, str | None]:
+    """Where the test's steady approach starts (module docstring): (first sample to keep, a note
+    saying what was trimmed, or None when the run starts steady).  Raises :class:`InputError` when
+    less than ``config.approach_window`` of steady approach precedes the first execute."""
+    t = frame["time"].to_numpy(dtype=float)
+    delta = frame["delta"].to_numpy(dtype=float)
+    phases = rudder_phases(t, delta)
+    if not phases or phases[0][0] == 0:
+        return 0, None
+    p0, sgn = phases[0][0], phases[0][2]
+    peak = float(np.max(np.abs(delta)))
+    quiet = QUIET_RUDDER_SHARE * peak
+    # the execute: back from the phase along the rudder's swing toward it (each step moving the
+    # rudder toward the phase's side) to where the swing starts
+    k_e = p0
+    while k_e > 0 and sgn * (delta[k_e] - delta[k_e - 1]) > 0:
+        k_e -= 1
+    if t[k_e] - t[0] < config.approach_window:
+        return 0, None                  # the record starts at its test: no pre-test stretch to judge
+    app = t[:k_e + 1] >= t[k_e] - config.approach_window
+    d_app = float(np.median(delta[:k_e + 1][app]))
+    bad_rudder = np.abs(delta[:k_e + 1] - d_app) > quiet
+    u = _speed(frame, t)
+    bad_speed = np.zeros(k_e + 1, dtype=bool)
+    u_app = None
+    if u is not None:
+        h = float(np.median(np.diff(t)))
+        w = max(1, int(round(SPEED_SMOOTH_S / h)))
+        us = np.convolve(u, np.ones(w) / w, mode="same") if len(u) >= w else u
+        us[: w // 2] = us[w // 2]                 # the average's edge: take the first full window
+        u_app = float(np.mean(u[:k_e + 1][app]))
+        bad_speed = np.abs(us[:k_e + 1] - u_app) > STEADY_SPEED_SHARE * abs(u_app)
+    bad = np.flatnonzero(bad_rudder | bad_speed)
+    if not bad.size:
+        return 0, None
+    start = int(bad[-1]) + 1
+    why = ("the speed" if bad_speed[bad[-1]] else "the rudder") + " departs from its approach value"
+    steady = t[k_e] - t[start] if start <= k_e else 0.0
+    if steady < config.approach_window - 1e-9:
+        what = (f"u {u_app:.3g} m/s" if u_app is not None else "") + (
+            f"{', ' if u_app is not None else ''}rudder {d_app:.3g} deg")
+        raise InputError(f"no steady approach before the first rudder execute at {t[k_e] - t[0]:.4g} s: "
+                         f"{why} ({what}; speed within {STEADY_SPEED_SHARE:.0%}, rudder within "
+                         f"{quiet:.3g} deg), steady for only {steady:.3g} s before it, at least "
+                         f"{config.approach_window:g} s needed", file=name)
+    note = (f"start trimmed to the steady approach: {t[start] - t[0]:.4g} s removed before the first "
+            f"execute at {t[k_e] - t[0]:.4g} s ({why} until then: speed within {STEADY_SPEED_SHARE:.0%} "
+            f"of {u_app:.3g} m/s and rudder within {quiet:.3g} deg of {d_app:.3g} deg kept)"
+            if u_app is not None else
+            f"start trimmed to the steady approach: {t[start] - t[0]:.4g} s removed before the first "
+            f"execute at {t[k_e] - t[0]:.4g} s ({why} until then)")
+    return start, note

@@ -8,6 +8,7 @@ model scale.  Optional columns: phi deg, p deg/s, thrust N, torque N m.
 from __future__ import annotations
 
 import hashlib
+import os
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,7 @@ from pipeline.config import IngestConfig
 from pipeline.errors import InputError
 from pipeline.ingest import checks
 from pipeline.ingest.formats import (
+    ECHO_CONTENT,
     FORMATS,
     KNOWN_SHIPS_LPP_FULL,
     PARSERS,
@@ -49,7 +51,7 @@ def _sha256(data: bytes) -> str:
 def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = None,
              config: IngestConfig = DEFAULT_CONFIG, *, rudder_sign: int = 1, ship: str | None = None,
              lpp_full: float | None = None, model_scale: float | None = None,
-             test_name: str | None = None) -> Run:
+             test_name: str | None = None, kind: str | None = None, columns=None) -> Run:
     """Read one raw tank file into a :class:`Run` at its original sampling.
 
     Parameters
@@ -66,6 +68,10 @@ def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = Non
     model_scale : full/model of the tank model (default: ``scale``); with model-scale files
         (scale 1) it is what makes a full-scale Lpp a model Lpp.
     test_name : overrides the test title of the file (dataset.toml per-run override).
+    kind : 'zigzag', 'turning' or 'other' when the title says none (dataset.toml ``[runs.<id>] kind``);
+        the rudder angle, heading trigger and side are then read from the rudder signal.
+    columns : a :class:`pipeline.ingest.columns.ColumnMap` (dataset.toml ``[columns]``): the file is a
+        logger's own table, read through that mapping instead of a format (docs/dataset.md).
 
     Returns a Run in canonical units and signs, model scale, original (possibly non-uniform) time
     steps, heading unwrapped.  Raises :class:`InputError` naming the file, row (1-based line in the
@@ -73,22 +79,44 @@ def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = Non
     """
     path = Path(path)
     name = path.name
+    full = os.path.abspath(path)                 # messages name the file by its full path
     try:
         data = path.read_bytes()
     except FileNotFoundError:
-        raise InputError("file not found", file=name) from None
+        raise InputError("file not found", file=full) from None
     except IsADirectoryError:
-        raise InputError("is a directory, not a tank file", file=name) from None
+        raise InputError("is a directory, not a tank file", file=full) from None
     except OSError as exc:
-        raise InputError(f"cannot read file ({exc.strerror})", file=name) from None
-    return parse_raw(data, name=name, fmt=fmt, scale=scale, config=config, rudder_sign=rudder_sign,
-                     ship=ship, lpp_full=lpp_full, model_scale=model_scale, test_name=test_name)
+        raise InputError(f"cannot read file ({exc.strerror})", file=full) from None
+    token = ECHO_CONTENT.set(_may_quote(path))
+    try:
+        return parse_raw(data, name=name, fmt=fmt, scale=scale, config=config, rudder_sign=rudder_sign,
+                         ship=ship, lpp_full=lpp_full, model_scale=model_scale, test_name=test_name,
+                         kind=kind, columns=columns)
+    except InputError as exc:
+        if exc.file == name:
+            exc.file = full
+            exc.args = (str(exc),)
+        raise
+    finally:
+        ECHO_CONTENT.reset(token)
+
+
+def _may_quote(path: Path) -> bool:
+    """Whether messages may quote the file's content: not for a symbolic link (or a path through one)
+    or a file outside the working directory (pipeline.ingest.formats.ECHO_CONTENT)."""
+    try:
+        real = path.resolve(strict=True)
+    except OSError:
+        return False
+    here = Path.cwd().resolve()
+    return real == Path(os.path.abspath(path)) and here in real.parents
 
 
 def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None, scale: float | None = None,
               config: IngestConfig = DEFAULT_CONFIG, rudder_sign: int = 1, ship: str | None = None,
               lpp_full: float | None = None, model_scale: float | None = None,
-              test_name: str | None = None) -> Run:
+              test_name: str | None = None, kind: str | None = None, columns=None) -> Run:
     """:func:`read_raw` on the file's content (bytes or text); ``name`` is used in messages."""
     raw_bytes = data.encode("utf-8") if isinstance(data, str) else bytes(data)
     content, notes = unpack(raw_bytes, file=name)
@@ -98,13 +126,23 @@ def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None
     lines = text.splitlines()
     if not any(s.strip() for s in lines):
         raise InputError("file is empty", file=name)
-    if fmt is None:
-        fmt = detect_format(lines, file=name)
-    elif fmt not in FORMATS:
-        raise InputError(f"unknown format {fmt!r} (choose from {', '.join(FORMATS)})", file=name)
-    table = PARSERS[fmt](lines, file=name)
     if scale is not None and not (np.isfinite(scale) and scale > 0):
-        raise InputError(f"scale factor must be positive, got {scale}", file=name)
+        raise InputError(f"scale factor must be a positive finite number, got {scale}", file=name)
+    lo, hi = config.scale_range
+    if scale is not None and not lo <= scale <= hi:
+        raise InputError(f"scale factor must be full/model between {lo:g} and {hi:g}, got {scale:g}",
+                         file=name)
+    if model_scale is not None and not (np.isfinite(model_scale) and lo <= model_scale <= hi):
+        raise InputError(f"model scale must be full/model between {lo:g} and {hi:g}, got {model_scale:g}",
+                         file=name)
+    if columns is not None:
+        table = columns.read(lines, file=name)
+    else:
+        if fmt is None:
+            fmt = detect_format(lines, file=name)
+        elif fmt not in FORMATS:
+            raise InputError(f"unknown format {fmt!r} (choose from {', '.join(FORMATS)})", file=name)
+        table = PARSERS[fmt](lines, file=name)
     if rudder_sign not in (1, -1):
         raise InputError(f"rudder sign must be 1 or -1, got {rudder_sign}", file=name)
     scale = float(scale) if scale else 1.0
@@ -114,7 +152,13 @@ def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None
     if test_name is not None:
         table.meta["test_name"] = test_name
     frame = _validate(table, name, scale, config)
-    meta = _base_meta(table, name, raw_bytes, scale, frame)
+    start, trim_note = checks.steady_start(frame, name, config)
+    if start:
+        frame = frame.iloc[start:].reset_index(drop=True)
+        table.lines = table.lines[start:]
+        table.frame = table.frame.iloc[start:].reset_index(drop=True)
+        notes.append(trim_note)
+    meta = _base_meta(table, name, raw_bytes, scale, frame, kind)
     if ship:
         meta["ship"] = ship
     if model_scale:
@@ -196,8 +240,9 @@ def _validate(table: RawTable, name: str, scale: float, config: IngestConfig) ->
                              row=int(lines[k]), column="time")
     frame = frame.copy()
     frame["time"] = t
+    kinds = {**table.meta.get("column_kinds", {}), **COLUMN_KIND}
     for col in frame.columns:
-        kind = COLUMN_KIND.get(col)
+        kind = kinds.get(col)
         if scale != 1.0 and kind is not None:
             frame[col] = froude_to_model(frame[col].to_numpy(dtype=float), kind, scale)
     t = frame["time"].to_numpy()
@@ -241,23 +286,56 @@ def _rebuild_step(t: np.ndarray, lines: np.ndarray, name: str) -> np.ndarray:
     return a + h * k
 
 
+GAP_WINDOW = 20        # steps either side that give the local logging step and the time base's offset
+GAP_EDGE = 5           # fewer samples than this on a side: the offset is not measured (see gap_note)
+
+
 def gap_note(t: np.ndarray) -> str | None:
-    """A note on samples missing from a time base ``t`` (s): steps longer than 1.5 logging steps (the
-    median step; one dropped sample makes a step of two, a logger's jitter stays well under half a
-    step), which the resampling bridges by interpolation (a gap beyond ``IngestConfig.max_gap`` is
-    refused before this).  None when there is none."""
+    """A note on samples missing from a time base ``t`` (s), which the resampling bridges by
+    interpolation (a gap beyond ``IngestConfig.max_gap`` is refused before this); None when none are.
+
+    A step is a gap when it is longer than 1.5 local logging steps (the larger of the median steps
+    of the ``GAP_WINDOW`` steps before and after it: a logger changing its rate is not missing
+    samples) and the time base after it is shifted by more than half a step against the one before
+    it: the stamps of ``GAP_WINDOW`` samples each side are fitted with one step and an offset that
+    changes between them; a dropped sample moves every later stamp by a step, a jittered stamp only
+    itself.  Within
+    ``GAP_EDGE`` samples of either end the offset cannot be measured: there a step counts as a gap
+    only beyond 1.9 local steps (a stamp jittered by less than 0.45 of a step on either side of it
+    cannot make one).
+    """
     steps = np.diff(t)
     if steps.size < 2:
         return None
-    holes = np.flatnonzero(steps > 1.5 * np.median(steps))
-    if not holes.size:
+    w = GAP_WINDOW
+    holes, longest = [], -1
+    for k in np.flatnonzero(steps > 1.5 * np.median(steps)):
+        prev, nxt = steps[max(0, k - w):k], steps[k + 1:k + 1 + w]
+        h = max(float(np.median(prev)) if prev.size else 0.0, float(np.median(nxt)) if nxt.size else 0.0)
+        if h <= 0 or steps[k] <= 1.5 * h:
+            continue
+        j0, j1 = np.arange(max(0, k - w + 1), k + 1), np.arange(k + 1, min(len(t), k + 1 + w))
+        if min(j0.size, j1.size) < GAP_EDGE:
+            if steps[k] <= 1.9 * h:
+                continue
+        else:
+            j = np.concatenate([j0, j1]).astype(float)
+            design = np.column_stack([np.ones_like(j), j - k, (j > k).astype(float)])
+            shift = float(np.linalg.lstsq(design, t[j.astype(int)], rcond=None)[0][2])
+            if shift <= 0.5 * h:
+                continue
+        holes.append(k)
+        if longest < 0 or steps[k] > steps[longest]:
+            longest = int(k)
+    if not holes:
         return None
-    k = int(holes[np.argmax(steps[holes])])
-    return (f"{holes.size} gap{'s' if holes.size > 1 else ''} in time (samples missing), the longest "
+    k = longest
+    return (f"{len(holes)} gap{'s' if len(holes) > 1 else ''} in time (samples missing), the longest "
             f"{steps[k]:.3g} s after {t[k] - t[0]:.4g} s; interpolated over by the resampling")
 
 
-def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.DataFrame) -> dict[str, Any]:
+def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.DataFrame,
+               kind: str | None = None) -> dict[str, Any]:
     meta: dict[str, Any] = {
         "run_id": Path(name).stem,
         "source_file": name,
@@ -279,7 +357,14 @@ def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.D
     test = parse_test_name(meta["test_name"])
     meta.update(test)
     t, psi, delta = (frame[c].to_numpy(dtype=float) for c in ("time", "psi", "delta"))
-    if test["kind"] == "other":
+    if kind is not None and test["kind"] == "other":
+        # the description says what the test is; its angles and side come from the rudder signal
+        guess = checks.infer_test_from_rudder(t, delta, psi)
+        meta.update(kind=kind, rudder_deg=guess["rudder_deg"] if kind != "other" else None,
+                    heading_deg=guess["heading_deg"] if kind == "zigzag" else None,
+                    first_side=guess["first_side"] if kind != "other" else None,
+                    test_from="dataset.toml [runs] kind", first_side_from="rudder")
+    elif test["kind"] == "other":
         guess = checks.infer_test_from_rudder(t, delta, psi)
         if guess["kind"] != "other":
             meta.update(guess)
@@ -406,7 +491,7 @@ def ingest_file(path: str | Path, *, fmt: str | None = None, scale: float | None
                 config: IngestConfig = DEFAULT_CONFIG, **kwargs) -> Run:
     """Read, validate and resample a raw file to ``config.dt``: what every stage calls for a raw file.
 
-    ``kwargs``: rudder_sign, ship, lpp_full, model_scale, test_name (see :func:`read_raw`)."""
+    ``kwargs``: rudder_sign, ship, lpp_full, model_scale, test_name, kind, columns (see :func:`read_raw`)."""
     return resample(read_raw(path, fmt=fmt, scale=scale, config=config, **kwargs), config.dt, config=config)
 
 

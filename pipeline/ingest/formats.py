@@ -59,8 +59,10 @@ HSVA CPMC ``.dat`` (the measured KVLCC2 zigzags)
 
 from __future__ import annotations
 
+import contextvars
 import csv
 import io
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -99,6 +101,17 @@ class RawTable:
     def time_quantised(self) -> bool:
         """True when the time column repeats by rounding (few digits): the step is rebuilt."""
         return self.digits is not None
+
+
+# Whether refusals and notes may quote the file's content.  Off for a file reached through a symbolic
+# link or outside the working directory (pipeline.ingest.core.read_raw): a dataset.toml's files_dir
+# or a link could otherwise make a message (in a log, a report) show another file's text.
+ECHO_CONTENT: contextvars.ContextVar[bool] = contextvars.ContextVar("echo_content", default=True)
+
+
+def shown(text: str, limit: int, before: str = "", after: str = "") -> str:
+    """``before + repr(text[:limit]) + after`` when messages may quote the file, else ''."""
+    return f"{before}{text[:limit]!r}{after}" if ECHO_CONTENT.get() else ""
 
 
 GZIP_MAGIC = b"\x1f\x8b"
@@ -208,7 +221,16 @@ def detect_format(lines: list[str], file: str | Path | None = None) -> str:
     j = _first_numeric_line(lines)
     if j is not None:
         ntok = len(lines[j].split())
-        if ntok == 12 and (j >= 3 or "HSVA" in head or "CPMC" in head):
+        # a header naming its institute decides the format; the column count must then agree
+        said = "hsva" if ("HSVA" in head or "CPMC" in head) else "marin" if "MARIN" in head else None
+        counts = {"hsva": len(HSVA_COLUMNS), "marin": len(MARIN_COLUMNS)}
+        if said is not None and ntok != counts[said]:
+            raise InputError(f"the header says {said.upper()} .dat, whose rows have {counts[said]} columns, "
+                             f"but row {j + 1} has {ntok}: not a {said.upper()} file of the layout the "
+                             "reader knows (docs/dataset.md); give --format to read it as another", file=file)
+        if said is not None:
+            return said
+        if ntok == 12 and j >= 3:
             return "hsva"
         if ntok == 11:
             return "marin"
@@ -217,10 +239,11 @@ def detect_format(lines: list[str], file: str | Path | None = None) -> str:
                          "row naming time, psi, r, delta)", file=file)
     first = next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), "")
     raise InputError("unknown format: no header row naming a 'time' column and no numeric rows "
-                     f"(first line {first.strip()[:40]!r})", file=file)
+                     f"{shown(first.strip(), 40, ' (first line ', ')')}", file=file)
 
 
 # Units a header may declare, per canonical column kind: unit -> factor to the canonical unit.
+KNOT = 1852.0 / 3600.0          # m/s, the international knot (1852 m per hour)
 _ANGLE = {"deg": 1.0, "degree": 1.0, "degrees": 1.0, "°": 1.0, "rad": 180.0 / np.pi, "radian": 180.0 / np.pi,
           "radians": 180.0 / np.pi}
 _RATE = {"deg/s": 1.0, "°/s": 1.0, "deg_s": 1.0, "degs": 1.0, "deg/sec": 1.0, "rad/s": 180.0 / np.pi,
@@ -230,8 +253,8 @@ DECLARED_UNITS = {
     "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3},
     "angle": _ANGLE,
     "rate": _RATE,
-    "velocity": {"m/s": 1.0, "m_s": 1.0, "mps": 1.0, "cm/s": 1e-2, "kn": 0.514444, "kt": 0.514444,
-                 "knots": 0.514444, "knot": 0.514444},
+    "velocity": {"m/s": 1.0, "m_s": 1.0, "mps": 1.0, "cm/s": 1e-2, "kn": KNOT, "kt": KNOT,
+                 "knots": KNOT, "knot": KNOT},
     "frequency": {"1/min": 1.0, "rpm": 1.0, "rev/min": 1.0, "1/s": 60.0, "rps": 60.0, "rev/s": 60.0,
                   "hz": 60.0},
     "force": {"n": 1.0, "kn": 1e3},
@@ -333,11 +356,11 @@ def _numeric_block(rows: list[str], linenos: np.ndarray, names: tuple[str, ...],
                 if optional is not None and name in optional:
                     if notes is not None:
                         notes.append(f"column '{name}' ignored: not numeric (row {int(linenos[k])}: "
-                                     f"{tok[:20]!r})")
+                                     f"{shown(tok, 20)})")
                     num = None
                     break
-                raise InputError(f"value {tok[:20]!r} is not a number", file=file, row=int(linenos[k]),
-                                 column=name)
+                raise InputError(f"value{shown(tok, 20, ' ')} is not a number", file=file,
+                                 row=int(linenos[k]), column=name)
         if num is not None:
             out[name] = num
     return pd.DataFrame(out)
@@ -362,20 +385,20 @@ def _data_rows(lines: list[str], start: int, sep: str = "ws") -> tuple[list[str]
         rows.pop()
         nums.pop()
         dropped += 1
+    # rows of separators only after the last data row are empty rows at the end too (counted)
+    last = nums[-1] if nums else start
+    dropped += sum(1 for s in lines[last:] if s.strip(" \t\r") and not s.strip(strip_chars))
     return rows, np.asarray(nums, dtype=np.int64), dropped
 
 
 USED_COLUMNS = frozenset(COLUMN_UNIT_KIND)
 
 
-def parse_csv(lines: list[str], file=None) -> RawTable:
-    """Canonical CSV (SPEC section 3), also semicolon- (with decimal commas), tab- or
-    whitespace-delimited, with declared units in the header names converted to canonical ones."""
-    meta: dict[str, Any] = {}
+def read_preamble(lines: list[str]) -> tuple[int, dict[str, str], list[str]]:
+    """The leading blank and ``#`` lines: (index of the first other line, ``key: value`` pairs with
+    lower-case keys, free-text comments)."""
     header: dict[str, str] = {}
     comments: list[str] = []
-    notes: list[str] = []
-    found = table_header(lines)
     i = 0
     while i < len(lines) and (not lines[i].strip() or lines[i].lstrip().startswith("#")):
         s = lines[i].strip()
@@ -386,25 +409,16 @@ def parse_csv(lines: list[str], file=None) -> RawTable:
             else:
                 comments.append(s.lstrip("#").strip())
         i += 1
-    if i >= len(lines):
-        raise InputError("no header row (time, psi, r, delta, ...) found", file=file)
-    sep = found[1] if found else ","
-    if sep == " ":
-        sep = "ws"
-    parts = _tokens(lines[i], sep)
-    split = [split_name(n) for n in parts]
-    names = [n for n, _ in split]
-    if len(set(names)) != len(names):
-        dup = next(n for n in names if names.count(n) > 1)
-        raise InputError("column named twice in the header", file=file, row=i + 1, column=dup)
-    if any(not n for n in names):
-        raise InputError("empty column name in the header", file=file, row=i + 1)
-    for c in CSV_REQUIRED:
-        if c not in names:
-            have = ", ".join(names[:8])
-            raise InputError(f"required column is missing from the header (columns found: {have})",
-                             file=file, row=i + 1, column=c)
-    rows, linenos, dropped = _data_rows(lines, i + 1, sep)
+    return i, header, comments
+
+
+def data_block(lines: list[str], start: int, sep: str, file, notes: list[str]
+               ) -> tuple[list[str], np.ndarray, str]:
+    """The data rows of a delimited table from line ``start`` (0-based) on: (rows, their 1-based line
+    numbers, the decimal mark).  Trailing empty rows are dropped and noted; a decimal comma is
+    recognised in a table not separated by commas (and noted), refused where it cannot be told from
+    a separator."""
+    rows, linenos, dropped = _data_rows(lines, start, sep)
     if not rows:
         raise InputError("no data rows", file=file)
     decimal = "."
@@ -422,6 +436,73 @@ def parse_csv(lines: list[str], file=None) -> RawTable:
         notes.append(f"{DELIMITERS[' ' if sep == 'ws' else sep]}-separated table")
     if dropped:
         notes.append(f"{dropped} empty or NaN rows at the end of the file dropped")
+    return rows, linenos, decimal
+
+
+def header_meta(header: dict[str, str], comments: list[str], file) -> dict[str, Any]:
+    """What a table's ``# key: value`` lines say: provenance, test, ship, Lpp (m, at the file's scale),
+    the model's scale (full/model), the logged step (s), the seed.  Lpp, scale and step must be
+    positive finite numbers, and the scale a factor full/model (``IngestConfig.scale_range``): a
+    header that says otherwise is refused, naming the key."""
+    from pipeline.config import IngestConfig
+
+    meta: dict[str, Any] = {}
+    prov = header.get("provenance", "").strip().lower()
+    meta["provenance"] = "virtual" if "virtual" in prov else "measured"
+    meta["test_name"] = header.get("test", header.get("test_name", "")).strip()
+    if header.get("ship"):
+        meta["ship"] = header["ship"].strip()
+    lo, hi = IngestConfig().scale_range
+    for key, dest in (("lpp", "lpp"), ("scale", "model_scale"), ("dt", "logged_dt"), ("seed", "seed")):
+        if key in header:
+            try:
+                val = float(header[key])
+            except ValueError:
+                raise InputError(f"header value {key!r} is not a number{shown(header[key], 20, ': ')}",
+                                 file=file) from None
+            if key != "seed" and not (math.isfinite(val) and val > 0):
+                raise InputError(f"header value {key!r} must be a positive finite number, got {val:g}",
+                                 file=file)
+            if key == "scale" and not lo <= val <= hi:
+                raise InputError(f"header value 'scale' must be a scale factor full/model between {lo:g} "
+                                 f"and {hi:g}, got {val:g}", file=file)
+            meta[dest] = int(val) if key == "seed" and val.is_integer() else val
+    if "model_scale" in meta:
+        meta["file_states_model_scale"] = True      # SPEC: CSV values are model scale; 'scale' is the model's
+    if header:
+        meta["header"] = header
+    if comments:
+        meta["comments"] = comments
+    return meta
+
+
+def parse_csv(lines: list[str], file=None) -> RawTable:
+    """Canonical CSV (SPEC section 3), also semicolon- (with decimal commas), tab- or
+    whitespace-delimited, with declared units in the header names converted to canonical ones."""
+    meta: dict[str, Any] = {}
+    notes: list[str] = []
+    found = table_header(lines)
+    i, header, comments = read_preamble(lines)
+    if i >= len(lines):
+        raise InputError("no header row (time, psi, r, delta, ...) found", file=file)
+    sep = found[1] if found else ","
+    if sep == " ":
+        sep = "ws"
+    parts = _tokens(lines[i], sep)
+    split = [split_name(n) for n in parts]
+    names = [n for n, _ in split]
+    if len(set(names)) != len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        raise InputError("column named twice in the header", file=file, row=i + 1, column=dup)
+    if any(not n for n in names):
+        raise InputError("empty column name in the header", file=file, row=i + 1)
+    for c in CSV_REQUIRED:
+        if c not in names:
+            have = f"columns found: {', '.join(names[:8])}; " if ECHO_CONTENT.get() else ""
+            raise InputError(f"required column is missing from the header ({have}a logger's own layout is "
+                             "described by [columns] in dataset.toml, docs/dataset.md)", file=file, row=i + 1,
+                             column=c)
+    rows, linenos, decimal = data_block(lines, i + 1, sep, file, notes)
     optional = frozenset(n for n in names if n not in USED_COLUMNS)
     frame = _numeric_block(rows, linenos, tuple(names), sep, file, decimal=decimal, optional=optional,
                            notes=notes)
@@ -444,28 +525,17 @@ def parse_csv(lines: list[str], file=None) -> RawTable:
         declared[name] = unit
     if declared:
         meta["declared_units"] = declared
-    prov = header.get("provenance", "").strip().lower()
-    meta["provenance"] = "virtual" if "virtual" in prov else "measured"
-    meta["test_name"] = header.get("test", header.get("test_name", "")).strip()
-    if header.get("ship"):
-        meta["ship"] = header["ship"].strip()
-    for key, dest in (("lpp", "lpp"), ("scale", "model_scale"), ("dt", "logged_dt"), ("seed", "seed")):
-        if key in header:
-            try:
-                val = float(header[key])
-            except ValueError:
-                raise InputError(f"header value {key!r} is not a number: {header[key][:20]!r}",
-                                 file=file) from None
-            meta[dest] = int(val) if key == "seed" and val.is_integer() else val
-    if "model_scale" in meta:
-        meta["file_states_model_scale"] = True      # SPEC: CSV values are model scale; 'scale' is the model's
-    if header:
-        meta["header"] = header
-    if comments:
-        meta["comments"] = comments
+    meta.update(header_meta(header, comments, file))
     if notes:
         meta["ingest_notes"] = notes
     return RawTable("csv", frame, linenos, meta)
+
+
+def _check_count(rows: list[str], linenos: np.ndarray, names: tuple[str, ...], fmt: str, file) -> None:
+    """The first data row of a fixed-layout .dat must have the format's column count (named)."""
+    if rows and len(rows[0].split()) != len(names):
+        raise InputError(f"a {fmt} .dat has {len(names)} columns, this row has {len(rows[0].split())}: "
+                         f"not the {fmt} layout (docs/dataset.md)", file=file, row=int(linenos[0]))
 
 
 def parse_marin(lines: list[str], file=None) -> RawTable:
@@ -474,6 +544,7 @@ def parse_marin(lines: list[str], file=None) -> RawTable:
     if j is None:
         raise InputError("no numeric data rows found (MARIN .dat)", file=file)
     rows, linenos, dropped = _data_rows(lines, j)
+    _check_count(rows, linenos, MARIN_COLUMNS, "MARIN", file)
     raw = _numeric_block(rows, linenos, MARIN_COLUMNS, "ws", file)
     head = [s.strip() for s in lines[:j]]
     test = head[1] if len(head) > 1 else (head[0] if head else "")
@@ -499,6 +570,7 @@ def parse_hsva(lines: list[str], file=None) -> RawTable:
     if j is None:
         raise InputError("no numeric data rows found (HSVA .dat)", file=file)
     rows, linenos, dropped = _data_rows(lines, j)
+    _check_count(rows, linenos, HSVA_COLUMNS, "HSVA", file)
     raw = _numeric_block(rows, linenos, HSVA_COLUMNS, "ws", file)
     head = [s.strip() for s in lines[:j]]
     meta: dict[str, Any] = {"provenance": "measured", "test_name": head[2] if len(head) > 2 else ""}
