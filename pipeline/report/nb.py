@@ -44,7 +44,8 @@ _TAB = {"n": 0}
 
 
 def setup() -> None:
-    """Plot and display defaults: inline PNG (embedded as base64 in the HTML), readable sizes."""
+    """Plot and display defaults: inline PNG (embedded as base64 in the HTML), readable sizes, text in
+    figures taken literally (no mathtext)."""
     import matplotlib as mpl
 
     try:
@@ -56,6 +57,9 @@ def setup() -> None:
         "figure.figsize": (10, 4), "figure.dpi": 90, "savefig.dpi": 90, "axes.grid": True,
         "grid.alpha": 0.3, "axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 9,
         "lines.linewidth": 1.2, "figure.constrained_layout.use": True,
+        # run ids, test and ship names come from the user's files: '$x$' in one of them is text, never
+        # matplotlib mathtext (an unknown '$\\macro$' would stop the page); no figure uses mathtext
+        "text.parse_math": False,
     })
     pd.set_option("display.precision", 4)
     _FIG["n"] = 0

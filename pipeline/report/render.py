@@ -20,6 +20,8 @@ import html
 import json
 import os
 import re
+import shutil
+import stat
 import subprocess
 import sys
 import tempfile
@@ -27,6 +29,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from urllib.parse import quote
 
 from pipeline.catalog import Catalog, is_builtin_tank
 from pipeline.errors import InputError, PipelineError
@@ -253,26 +256,84 @@ def fingerprint(notebook: str, cat: Catalog) -> str:
     return h.hexdigest()
 
 
+# A render's scratch folder: ``<tmp>/tanktest-report-<pid>-<random>/``, mode 0700, holding the
+# notebook before and after execution, the kernel's stderr log and the kernel's connection file
+# (ports and the message-signing key).  The process id in the name lets a later render tell a folder
+# left by a killed render (its process gone) from one in use (see remove_stale_scratch).
+SCRATCH_PREFIX = "tanktest-report-"
+_SCRATCH_NAME = re.compile(re.escape(SCRATCH_PREFIX) + r"(\d+)-[A-Za-z0-9_]+$")
+
+
+def remove_stale_scratch(base: str | Path | None = None) -> list[Path]:
+    """Remove the scratch folders that killed renders left in ``base`` (default: the system temporary
+    folder); returns what was removed.
+
+    Only folders this module makes are touched: named ``tanktest-report-<pid>-<random>``, a real
+    folder (not a symbolic link), owned by this user, and whose process ``<pid>`` no longer exists.
+    A render running at the same time (its process alive, this process included) keeps its folder.
+    """
+    from pipeline.io import _pid_alive
+
+    base = Path(base if base is not None else tempfile.gettempdir())
+    removed: list[Path] = []
+    try:
+        entries = sorted(base.iterdir())
+    except OSError:
+        return removed
+    for item in entries:
+        m = _SCRATCH_NAME.match(item.name)
+        if not m:
+            continue
+        try:
+            st = item.lstat()
+        except OSError:
+            continue
+        if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid() or _pid_alive(int(m[1])):
+            continue
+        shutil.rmtree(item, ignore_errors=True)
+        if not item.exists():
+            removed.append(item)
+    return removed
+
+
+@contextlib.contextmanager
+def scratch_dir():
+    """A fresh scratch folder for one render (see SCRATCH_PREFIX), removed when the block ends;
+    stale folders of killed renders are removed first."""
+    remove_stale_scratch()
+    path = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-"))
+    try:
+        yield path
+    finally:
+        shutil.rmtree(path, ignore_errors=True)
+
+
 def execute(notebook: str, cat: Catalog, kernel: str = KERNEL_NAME, extra: dict | None = None):
-    """Execute ``notebooks/<notebook>.py`` for ``cat`` with papermill; returns the notebook node."""
+    """Execute ``notebooks/<notebook>.py`` for ``cat`` with papermill; returns the notebook node.
+
+    The kernel's connection file is written in the render's scratch folder (:func:`scratch_dir`),
+    never in the shared Jupyter runtime folder, so nothing of a render outlives it: a normal render
+    removes the folder, a killed one leaves it for the next render to remove."""
     import nbformat
     import papermill as pm
+    from jupyter_client.manager import AsyncKernelManager
     from papermill.exceptions import PapermillExecutionError
 
     src = notebook_source(notebook)
     book = load_notebook(notebook)
     params = {"dataset": cat.dataset, "root": str(Path(cat.root).absolute()), **(extra or {})}
-    with tempfile.TemporaryDirectory(prefix="tanktest-report-") as tmpdir:
+    with scratch_dir() as tmpdir:
         tmp = Path(tmpdir) / f"{notebook}-out.ipynb"
         source_nb = Path(tmpdir) / f"{notebook}.ipynb"
         nbformat.write(book, str(source_nb))
         log = Path(tmpdir) / "kernel-stderr.txt"
+        km = AsyncKernelManager(kernel_name=kernel, connection_file=str(Path(tmpdir) / "kernel.json"))
         try:
             # The kernel inherits file descriptor 2; its start-up/shutdown chatter goes to a log
             # that is only quoted when the kernel itself fails.
             with _stderr_to(log):
                 pm.execute_notebook(str(source_nb), str(tmp), parameters=params, kernel_name=kernel,
-                                    progress_bar=False, log_output=False, cwd=os.getcwd())
+                                    progress_bar=False, log_output=False, cwd=os.getcwd(), km=km)
         except PapermillExecutionError as exc:
             evalue = " ".join(str(exc.evalue).split())
             raise PipelineError(f"notebook failed in cell {exc.exec_count}: {exc.ename}: {evalue}",
@@ -366,7 +427,10 @@ def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
                  if prov == "virtual"
                  else "<b class='measured'>measured tank data</b>" if prov == "measured"
                  else f"<b class='mixed'>{esc(prov)} data</b>")
-        items = "\n".join(f"<li><a href='{esc(e['file'])}'>{esc(e['notebook'])}</a></li>" for e in group)
+        # the file name holds the dataset's name, which may hold '#', '?', '%' or spaces: URL-quoted
+        # (a relative path of one segment), then HTML-escaped for the attribute
+        items = "\n".join(f"<li><a href='{esc(quote(e['file'], safe=''))}'>{esc(e['notebook'])}</a></li>"
+                          for e in group)
         sections.append(f"<h2>Dataset <code>{esc(ds)}</code></h2>\n"
                         f"<p>{label} &middot; {group[0]['runs']} runs<br>"
                         f"<b>Ship and scale:</b> {esc(group[0].get('ship') or 'not given')}</p>\n"
