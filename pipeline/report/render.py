@@ -27,7 +27,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import quote
 
@@ -229,6 +229,9 @@ class Report:
     fingerprint: str = ""     # SHA-256 of everything the page depends on (see fingerprint())
     skipped: bool = False     # True: the page was up to date and not rendered again
     builtin_tank: bool = False  # the runs are the built-in tank's (pipeline.catalog.is_builtin_tank)
+    # what the dataset says of itself: ship, scale, tank, source, provenance, description file
+    # (pipeline.report.particulars.identity); tells two datasets of one ship apart on the index
+    identity: dict = field(default_factory=dict)
 
 
 # Stage folders each notebook reads (every file in them counts for "changed").
@@ -379,7 +382,8 @@ def render(notebook: str, cat: Catalog, out_dir: Path, kernel: str = KERNEL_NAME
     index = read_json(cat.runs_index)
     return Report(notebook, cat.dataset, dest, time.perf_counter() - t0,
                   str(index.get("provenance", "unknown")), len(index.get("runs", [])),
-                  ship=particulars.summary(index), fingerprint=fp, builtin_tank=is_builtin_tank(index))
+                  ship=particulars.summary(index), fingerprint=fp, builtin_tank=is_builtin_tank(index),
+                  identity=particulars.identity(index))
 
 
 # ------------------------------------------------------------------------------------------ index
@@ -396,8 +400,10 @@ def _manifest(out_dir: Path) -> dict[str, dict]:
 def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
     """Merge ``reports`` into ``out_dir/reports.json`` and (re)write ``out_dir/index.html``.
 
-    One section per dataset: its ship, scale and particulars and its provenance (VIRTUAL TANK or
-    measured), then one line per report.  Entries whose HTML file no longer exists are dropped.
+    One section per dataset: its provenance (VIRTUAL TANK or measured), ship and scale, then what its
+    dataset.toml says of it (ship, scale, tank, source, provenance, the file: Report.identity), which
+    tells two datasets of one ship apart, then one link per report (URL-quoted file name).  Entries
+    whose HTML file no longer exists are dropped.
     The page holds one wall-clock line (class ``provenance-time``); the rest depends only on the
     manifest, so the same reports give the same bytes.  Render times stay in reports.json.
     """
@@ -411,6 +417,7 @@ def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
         entries[r.html.name] = {"file": r.html.name, "notebook": r.notebook, "dataset": r.dataset,
                                 "provenance": r.provenance, "runs": r.runs, "ship": r.ship,
                                 "fingerprint": r.fingerprint, "builtin_tank": r.builtin_tank,
+                                "identity": r.identity,
                                 "seconds": round(r.seconds, 2), "rendered": stamp}
     order = {n: i for i, n in enumerate(NOTEBOOKS)}
     rows = sorted((e for e in entries.values() if (out_dir / e["file"]).is_file()),
@@ -431,17 +438,23 @@ def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
         # (a relative path of one segment), then HTML-escaped for the attribute
         items = "\n".join(f"<li><a href='{esc(quote(e['file'], safe=''))}'>{esc(e['notebook'])}</a></li>"
                           for e in group)
+        ident = group[0].get("identity") or {}
+        said = "".join(f"<tr><th>{esc(k)}</th><td>{esc(ident.get(k) or particulars.NOT_GIVEN)}</td></tr>"
+                       for k in ("ship", "scale", "tank", "source", "provenance", "described in"))
         sections.append(f"<h2>Dataset <code>{esc(ds)}</code></h2>\n"
                         f"<p>{label} &middot; {group[0]['runs']} runs<br>"
                         f"<b>Ship and scale:</b> {esc(group[0].get('ship') or 'not given')}</p>\n"
+                        f"<table class='identity'>{said}</table>\n"
                         f"<ul>\n{items}\n</ul>")
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>tanktest reports</title>
 <style>body{{font-family:sans-serif;max-width:60em;margin:2em auto;line-height:1.6}}
-.virtual{{color:#b00020}} .measured{{color:#1b5e20}} .mixed{{color:#e65100}}</style></head>
+.virtual{{color:#b00020}} .measured{{color:#1b5e20}} .mixed{{color:#e65100}}
+table.identity th{{text-align:left;padding-right:1em;font-weight:normal;color:#555}}</style></head>
 <body><h1>Tank-test pipeline reports</h1>
-<p>Reproduction and extension of Meng et al., Ocean Engineering 294 (2024) 116853. One section per
-dataset: where its data come from, the ship and its scale, then its reports.</p>
+<p>Reproduction and extension of Meng et al., Ocean Engineering 294 (2024) 116853 (the paper's ship: the
+KCS). One section per dataset: where its data come from, the ship, its scale, tank and source as its
+dataset.toml gives them, then its reports.</p>
 {chr(10).join(sections) if sections else "<p>no reports rendered yet</p>"}
 <div class="provenance-time">generated {esc(stamp)}</div>
 </body></html>
@@ -490,7 +503,8 @@ def render_all(datasets: Sequence[str], notebooks: Sequence[str], out_dir: Path,
             if dest.is_file() and entry.get("fingerprint") == fingerprint(nb, cat):
                 reports.append(Report(nb, cat.dataset, dest, 0.0, entry.get("provenance", "unknown"),
                                       entry.get("runs", 0), entry.get("ship", ""), entry["fingerprint"],
-                                      skipped=True, builtin_tank=entry.get("builtin_tank", False)))
+                                      skipped=True, builtin_tank=entry.get("builtin_tank", False),
+                                      identity=entry.get("identity") or {}))
             else:
                 todo.append((nb, cat))
         pairs = todo
