@@ -5,9 +5,11 @@
 # 4 and 5).
 
 # %% tags=["parameters"]
-# Parameters (papermill injects the real values after this cell)
-dataset = "virtual"            # data/processed/<dataset>/
-root = "data/processed"        # processed-data root
+# Parameters (papermill injects the real values after this cell). In JupyterLab: `make lab D=NAME`,
+# or type the dataset's name here (docs/reports.md).
+import os
+dataset = os.environ.get("TANKTEST_DATASET") or "virtual"   # data/processed/<dataset>/
+root = ""                      # processed-data root ("": $TANKTEST_ROOT, else data/processed)
 seed_shown = None              # wave seed drawn in the figures (None: the first)
 
 

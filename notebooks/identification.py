@@ -4,9 +4,11 @@
 # same fuzzy forgetting factor), as in the paper's Figs 2-3 and Tables 4-6.
 
 # %% tags=["parameters"]
-# Parameters (papermill injects the real values after this cell)
-dataset = "virtual"            # data/processed/<dataset>/
-root = "data/processed"        # processed-data root
+# Parameters (papermill injects the real values after this cell). In JupyterLab: `make lab D=NAME`,
+# or type the dataset's name here (docs/reports.md).
+import os
+dataset = os.environ.get("TANKTEST_DATASET") or "virtual"   # data/processed/<dataset>/
+root = ""                      # processed-data root ("": $TANKTEST_ROOT, else data/processed)
 algorithms = ["srukf-ffm", "ffm-ukf"]   # algorithms shown, in this order
 zoom_seconds = None          # if set, the time-series figures show only the first N s
 max_heldout_plotted = 3       # held-out runs drawn (10/10 and 20/20 first)

@@ -13,6 +13,7 @@ import datetime as _dt
 import hashlib
 import html as _html
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -76,11 +77,33 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-class Data:
-    """Read-only access to one dataset's stage outputs; remembers what was read."""
+DATASET_ENV = "TANKTEST_DATASET"   # the dataset a notebook opens on in JupyterLab (make lab D=NAME)
+ROOT_ENV = "TANKTEST_ROOT"         # the processed-data root, when not this project's data/processed
 
-    def __init__(self, root: str | Path, dataset: str):
-        self.cat = Catalog(root=Path(root), dataset=dataset)
+
+def default_root() -> Path:
+    """The processed-data root a notebook reads when its ``root`` parameter is empty: ``$TANKTEST_ROOT``
+    if set, else ``data/processed`` under the working folder or, for a notebook opened in JupyterLab
+    (whose kernel runs in ``notebooks/``), under its parent.  A folder that does not exist is returned as
+    it is, so the first read names it."""
+    env = os.environ.get(ROOT_ENV)
+    if env:
+        return Path(env)
+    here = Path.cwd()
+    for base in (here, here.parent):
+        if (base / "data" / "processed").is_dir():
+            return base / "data" / "processed"
+    return here / "data" / "processed"
+
+
+class Data:
+    """Read-only access to one dataset's stage outputs; remembers what was read.
+
+    ``root``: the processed-data root ('' or None: :func:`default_root`); ``dataset``: its folder name.
+    """
+
+    def __init__(self, root: str | Path | None, dataset: str):
+        self.cat = Catalog(root=Path(root) if root else default_root(), dataset=dataset)
         self.used: list[Path] = []
         self._index: dict | None = None
 

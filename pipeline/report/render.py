@@ -311,8 +311,11 @@ def scratch_dir():
         shutil.rmtree(path, ignore_errors=True)
 
 
-def execute(notebook: str, cat: Catalog, kernel: str = KERNEL_NAME, extra: dict | None = None):
+def execute(notebook: str, cat: Catalog | None, kernel: str = KERNEL_NAME, extra: dict | None = None):
     """Execute ``notebooks/<notebook>.py`` for ``cat`` with papermill; returns the notebook node.
+
+    ``cat`` None: no parameters are injected, so the notebook runs on its own parameters cell, as it
+    does when opened in JupyterLab (the dataset from ``TANKTEST_DATASET``, docs/reports.md).
 
     The kernel's connection file is written in the render's scratch folder (:func:`scratch_dir`),
     never in the shared Jupyter runtime folder, so nothing of a render outlives it: a normal render
@@ -324,7 +327,8 @@ def execute(notebook: str, cat: Catalog, kernel: str = KERNEL_NAME, extra: dict 
 
     src = notebook_source(notebook)
     book = load_notebook(notebook)
-    params = {"dataset": cat.dataset, "root": str(Path(cat.root).absolute()), **(extra or {})}
+    params = ({} if cat is None else {"dataset": cat.dataset, "root": str(Path(cat.root).absolute())}) \
+        | (extra or {})
     with scratch_dir() as tmpdir:
         tmp = Path(tmpdir) / f"{notebook}-out.ipynb"
         source_nb = Path(tmpdir) / f"{notebook}.ipynb"
