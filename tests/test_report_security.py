@@ -193,6 +193,19 @@ def test_stale_scratch_is_removed_by_a_safe_rule(tmp_path):
     assert remove_stale_scratch(tmp_path / "absent") == []
 
 
+def _processes_using(path: Path) -> list[int]:
+    """Ids of the processes whose command line names ``path`` (Linux /proc)."""
+    pids = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                if str(path).encode() in (d / "cmdline").read_bytes():
+                    pids.append(int(d.name))
+            except OSError:
+                continue
+    return pids
+
+
 @pytest.mark.slow
 def test_a_killed_render_leaves_nothing_after_the_next(tmp_path):
     """A render killed (SIGKILL) while its kernel runs leaves its scratch folder with the kernel's
@@ -221,6 +234,11 @@ def test_a_killed_render_leaves_nothing_after_the_next(tmp_path):
     (left,) = tmp.glob("tanktest-report-*")
     assert left.name.startswith(f"tanktest-report-{proc.pid}-")
     assert "key" in json.loads((left / "kernel.json").read_text())       # what a killed render leaves
+    # its kernel does not outlive it (ipykernel watches its parent): no process runs on that file
+    deadline = time.monotonic() + 30           # a bound on the wait, not a measured time
+    while _processes_using(left / "kernel.json") and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _processes_using(left / "kernel.json")
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     assert (out / "indices-tiny.html").is_file()

@@ -252,7 +252,7 @@ def scale_sentence(index: dict) -> str:
                 f"{math.sqrt(lam):.3g}; U_full = U_model x {math.sqrt(lam):.3g} (in kn); rates / "
                 f"{math.sqrt(lam):.3g}.")
     if p["scale"]:
-        return (f"Times and speeds are at model scale (the files', 1:{p['scale']:g}); at full scale times "
-                f"and speeds are {math.sqrt(p['scale']):.3g} times larger (Froude).")
+        return (f"Times and speeds are at model scale 1:{p['scale']:g}, as the files give them; at full "
+                f"scale times and speeds are {math.sqrt(p['scale']):.3g} times larger (Froude).")
     return "Times and speeds are at the scale of the files (the scale is not given)."
 
