@@ -158,3 +158,22 @@ def test_full_scale_pages_say_tank_source_and_full_scale_times(tmp_path):
     assert [float(x) for x in designs["T, full scale (s)"]] == pytest.approx([3.9 * k, 3.8 * k], rel=1e-3)
     assert [float(x) for x in designs["Tw, full scale (s)"]] == pytest.approx([3.0 * k] * 2, rel=1e-3)
     assert "href='control-kcs%20full%20%231.html'" in (out / "index.html").read_text()
+
+
+def test_full_scale_labels_known_answers():
+    """Froude similarity at scale 49 (sqrt = 7): seconds x 7, rates / 7, m/s x 7 in knots (1852 m per
+    3600 s); non-dimensional and angle labels are not converted; a scale that is no scale is refused."""
+    from pipeline.report.particulars import full_scale_label, to_full
+
+    assert full_scale_label("rise time (s)", 49.0, 20.0) == ("rise time, full scale (s)",
+                                                             pytest.approx(140.0))
+    assert full_scale_label("K (1/s)", 49.0, 0.7) == ("K, full scale (1/s)", pytest.approx(0.1))
+    assert full_scale_label("steady r (deg/s)", 49.0, 7.0) == ("steady r, full scale (deg/s)",
+                                                               pytest.approx(1.0))
+    name, kn = full_scale_label("approach (m/s)", 49.0, 1.0)
+    assert name == "approach, full scale (kn)" and kn == pytest.approx(7.0 * 3600.0 / 1852.0)
+    for lab in ("K' (-)", "max deviation (deg)", "advance (L)", "no unit"):
+        assert full_scale_label(lab, 49.0, 1.0) is None, lab
+    for bad in (0.0, -4.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="scale"):
+            to_full(1.0, "time", bad)
