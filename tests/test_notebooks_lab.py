@@ -112,14 +112,35 @@ def test_default_root_from_the_notebooks_folder(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_a_notebook_runs_on_its_own_parameters_cell(tmp_path, monkeypatch):
     """Executed as JupyterLab runs it (render.execute without injected parameters), the indices notebook
-    reads the dataset TANKTEST_DATASET names under TANKTEST_ROOT."""
-    from pipeline.report.render import execute
+    reads the dataset TANKTEST_DATASET names under TANKTEST_ROOT.  When execute returns, its kernel has
+    been shut down and its scratch folder removed (a process rendering many pages keeps no kernels)."""
+    import contextlib
+    import importlib
 
+    from test_report_security import _processes_using
+
+    rr = importlib.import_module("pipeline.report.render")
+    used = []
+    real_scratch = rr.scratch_dir
+
+    @contextlib.contextmanager
+    def watched():
+        with real_scratch() as d:
+            used.append(d)
+            yield d
+
+    monkeypatch.setattr(rr, "scratch_dir", watched)
     root = tmp_path / "proc"
     make_catalog(root, "lab set", "measured", ship="KVLCC2")
     monkeypatch.setenv(nb.DATASET_ENV, "lab set")
     monkeypatch.setenv(nb.ROOT_ENV, str(root))
-    book = execute("indices", None)
+    book = rr.execute("indices", None)
+    (scratch,) = used
+    assert not scratch.exists()
+    deadline = time.monotonic() + 30            # a bound on the kernel's exit, not a measured time
+    while _processes_using(scratch) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _processes_using(scratch), "the notebook's kernel outlived execute"
     assert not [c for c in book.cells if "injected-parameters" in c.metadata.get("tags", [])]
     outputs = [o for c in book.cells if c.cell_type == "code" for o in c.get("outputs", [])]
     assert not [o for o in outputs if o.get("output_type") == "error"]

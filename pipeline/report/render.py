@@ -322,8 +322,8 @@ def execute(notebook: str, cat: Catalog | None, kernel: str = KERNEL_NAME, extra
     removes the folder, a killed one leaves it for the next render to remove."""
     import nbformat
     import papermill as pm
-    from jupyter_client.manager import AsyncKernelManager
     from papermill.exceptions import PapermillExecutionError
+    from traitlets.config import Config
 
     src = notebook_source(notebook)
     book = load_notebook(notebook)
@@ -334,13 +334,16 @@ def execute(notebook: str, cat: Catalog | None, kernel: str = KERNEL_NAME, extra
         source_nb = Path(tmpdir) / f"{notebook}.ipynb"
         nbformat.write(book, str(source_nb))
         log = Path(tmpdir) / "kernel-stderr.txt"
-        km = AsyncKernelManager(kernel_name=kernel, connection_file=str(Path(tmpdir) / "kernel.json"))
+        # nbclient makes (and so shuts down and cleans up) the kernel manager; only its connection
+        # file's place is set
+        config = Config()
+        config.KernelManager.connection_file = str(Path(tmpdir) / "kernel.json")
         try:
             # The kernel inherits file descriptor 2; its start-up/shutdown chatter goes to a log
             # that is only quoted when the kernel itself fails.
             with _stderr_to(log):
                 pm.execute_notebook(str(source_nb), str(tmp), parameters=params, kernel_name=kernel,
-                                    progress_bar=False, log_output=False, cwd=os.getcwd(), km=km)
+                                    progress_bar=False, log_output=False, cwd=os.getcwd(), config=config)
         except PapermillExecutionError as exc:
             evalue = " ".join(str(exc.evalue).split())
             raise PipelineError(f"notebook failed in cell {exc.exec_count}: {exc.ename}: {evalue}",
