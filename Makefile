@@ -24,7 +24,7 @@ PROC   := data/processed
 
 help:
 	@echo "make pipeline | make test | make bench | make reports | make clean"
-	@echo "make dataset D=NAME (one dataset) | make datasets (list the names)"
+	@echo "make dataset D=NAME (one dataset) | make datasets (list the names) | make lab [D=NAME] (notebooks)"
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -62,6 +62,13 @@ reports: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest -n 2 --durations=15
+
+# make lab: JupyterLab on this project, notebooks/*.py opening as notebooks (docs/reports.md);
+#           make lab D=hsva opens them on that dataset (its stages run first: make dataset D=hsva).
+#           Listens on 127.0.0.1 only, with Jupyter's token.
+.PHONY: lab
+lab: $(STAMP)
+	$(PY) -m pipeline.report.lab --dataset "$$D"
 
 bench: $(STAMP)
 	$(PY) -m pipeline bench

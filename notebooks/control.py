@@ -5,9 +5,11 @@
 # 4 and 5).
 
 # %% tags=["parameters"]
-# Parameters (papermill injects the real values after this cell)
-dataset = "virtual"            # data/processed/<dataset>/
-root = "data/processed"        # processed-data root
+# Parameters (papermill injects the real values after this cell). In JupyterLab: `make lab D=NAME`,
+# or type the dataset's name here (docs/reports.md).
+import os
+dataset = os.environ.get("TANKTEST_DATASET") or "virtual"   # data/processed/<dataset>/
+root = ""                      # processed-data root ("": $TANKTEST_ROOT, else data/processed)
 seed_shown = None              # wave seed drawn in the figures (None: the first)
 
 
@@ -77,6 +79,11 @@ if rows:
              "CGSA designs (Kp deg of rudder per deg of heading error, Kd deg per deg/s) and the loop "
              "figures on the Nomoto plant the design is for: gain and phase margins, crossover, "
              "closed-loop bandwidth, sensitivity peak Ms (inf: the phase never reaches -180 deg).")
+nb.full_scale_rows(pd.DataFrame({n: {f"{k} ({u})": d[k] for k, u in (("K", "1/s"), ("T", "s"), ("T1", "s"),
+                                                                ("T2", "s"), ("T3", "s"), ("Tw", "s"),
+                                                                ("Kd", "s"), ("filter_tau", "s"))
+                                       if isinstance(d.get(k), (int, float))} for n, d in designs.items()}),
+                   data, "The designs' indices, time constants and Kd (deg per deg/s, so in s).")
 dflags = [(f"design {n}", d.get("flags")) for n, d in designs.items() if d.get("flags")]
 if dflags:
     n_flags += nb.flags_table(dflags, "Designs whose loop fails a robustness check, with the reason.")
@@ -117,6 +124,7 @@ for plant, sub in sel.groupby("plant", sort=False):
     axes[0].set_ylabel(nb.label("psi"))
     axes[1].set_ylabel(nb.label("delta"))
     axes[1].set_xlabel(nb.label("time"))
+    nb.time_axes(axes, data)
     nb.legend_outside(axes[0])
     plant_name = {"nomoto": "Nomoto model of the design indices",
                   "kcs": "nonlinear KCS of the virtual tank"}.get(plant, plant)
@@ -156,13 +164,19 @@ for res in results:
 if table:
     keys = [n for n in order if n in table] + [n for n in table if n not in order]
     rows = [{"metric": names.get(n, n.replace("_", " ")), **table[n],
-             "paper": "" if pmap.get(n) is None else str(pmap.get(n))} for n in keys]
+             data.paper_label: "" if pmap.get(n) is None else str(pmap.get(n))} for n in keys]
     nseeds = results[0].get("seeds", "?")
     nb.table(pd.DataFrame(rows).set_index("metric"),
              "Every plant and design in one table (columns plant / design): mean +- standard deviation "
              f"over {nseeds} wave seeds, in the order of the paper's metrics; the paper's figures beside "
              "them "
              "(its single run, Table 7 indices, Tw = 3 s).")
+    nb.paper_note(data)
+    nb.full_scale_rows(pd.DataFrame({f"{r.get('plant')} / {r.get('design')}":
+                                     {names.get(n, n): (v.get("mean") if isinstance(v, dict) else v)
+                                      for n, v in (r.get("stats") or r.get("metrics") or {}).items()}
+                                     for r in results}),
+                       data, "Mean metrics of the table above that scale with the ship.")
 defs = cm.get("definitions")
 if defs:
     def _txt(v):
@@ -194,9 +208,11 @@ else:
         st = res.get("stats") or {}
         rt, md = (st.get("rise_time") or {}).get("mean"), (st.get("max_deviation") or {}).get("mean")
         mr = (st.get("max_rudder") or {}).get("mean")
-        points.append(f"{res.get('plant')} / {res.get('design')}: rise time {nb.num(rt, 3, 's')}, "
+        rt_full = (f" model scale, {nb.num(rt * data.full_scale ** 0.5, 3, 's')} full scale"
+                   if data.full_scale and isinstance(rt, (int, float)) else "")
+        points.append(f"{res.get('plant')} / {res.get('design')}: rise time {nb.num(rt, 3, 's')}{rt_full}, "
                       f"max deviation {nb.num(md, 3, 'deg')}, max rudder {nb.num(mr, 3, 'deg')} "
-                      "(paper: 24 s, 1.46 deg, < 25 deg).")
+                      f"({data.paper_label}: 24 s, 1.46 deg, < 25 deg).")
     if n_flags:
         points.append(f"{n_flags} trust flags concern the design's indices; see the table above.")
 nb.conclusion(points)

@@ -6,9 +6,11 @@
 # chosen on the validation runs; the gain is reported on runs no choice has seen.
 
 # %% tags=["parameters"]
-# Parameters (papermill injects the real values after this cell)
-dataset = "virtual"            # data/processed/<dataset>/
-root = "data/processed"        # processed-data root
+# Parameters (papermill injects the real values after this cell). In JupyterLab: `make lab D=NAME`,
+# or type the dataset's name here (docs/reports.md).
+import os
+dataset = os.environ.get("TANKTEST_DATASET") or "virtual"   # data/processed/<dataset>/
+root = ""                      # processed-data root ("": $TANKTEST_ROOT, else data/processed)
 max_runs_plotted = 6          # validation runs drawn
 
 

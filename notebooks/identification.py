@@ -4,9 +4,11 @@
 # same fuzzy forgetting factor), as in the paper's Figs 2-3 and Tables 4-6.
 
 # %% tags=["parameters"]
-# Parameters (papermill injects the real values after this cell)
-dataset = "virtual"            # data/processed/<dataset>/
-root = "data/processed"        # processed-data root
+# Parameters (papermill injects the real values after this cell). In JupyterLab: `make lab D=NAME`,
+# or type the dataset's name here (docs/reports.md).
+import os
+dataset = os.environ.get("TANKTEST_DATASET") or "virtual"   # data/processed/<dataset>/
+root = ""                      # processed-data root ("": $TANKTEST_ROOT, else data/processed)
 algorithms = ["srukf-ffm", "ffm-ukf"]   # algorithms shown, in this order
 zoom_seconds = None          # if set, the time-series figures show only the first N s
 max_heldout_plotted = 3       # held-out runs drawn (10/10 and 20/20 first)
@@ -29,8 +31,13 @@ pred = data.frame("validate/predictions.parquet",
                   ("algorithm", "run_id", "mode", "time", "r", "psi", "delta", "r_pred", "psi_pred"))
 # v (sway) is optional: a dataset without a sway measurement has no v panel
 ident_run = metrics.get("ident_run") or est[algorithms[0]].get("run_id")
+window_s = float(trace[algorithms[0]]["time"].iloc[-1] - trace[algorithms[0]]["time"].iloc[0]) \
+    if len(trace[algorithms[0]]) > 1 else None
 settings = {"identification run": data.run_label(ident_run),
             "samples": est[algorithms[0]].get("samples"),
+            "identification window, model scale (s)": window_s,
+            **({f"identification window, full scale 1:{data.full_scale:g} (s)":
+                window_s * data.full_scale ** 0.5} if data.full_scale and window_s else {}),
             **{f"{a} settings": est[a].get("settings", {}) for a in algorithms}}
 display(nb.banner(data, "Online identification and validation", settings))
 
@@ -71,6 +78,7 @@ def series_figure(run_id, mode, title):
         first = False
     axes[3].set_ylabel(nb.label("delta"))
     axes[3].set_xlabel(nb.label("time"))
+    nb.time_axes(axes, data)
     if run_id == ident_run and len(trace[algorithms[0]]):
         for ax in axes:
             ax.axvline(trace[algorithms[0]]["time"].iloc[-1], color="g", ls=":", lw=1)
@@ -95,6 +103,7 @@ def residual_figure(run_id, title):
     axes[0].set_ylabel("r residual (deg/s)")
     axes[1].set_ylabel("psi residual (deg)")
     axes[1].set_xlabel(nb.label("time"))
+    nb.time_axes(axes, data)
     if run_id == ident_run and len(trace[algorithms[0]]):
         for ax in axes:
             ax.axvline(trace[algorithms[0]]["time"].iloc[-1], color="g", ls=":", lw=1)
@@ -147,7 +156,7 @@ for ax, p in zip(axes.flat, PARAM_NAMES, strict=True):
         if f"{p}_std" in tr:
             ax.fill_between(tr["time"], tr[p] - tr[f"{p}_std"], tr[p] + tr[f"{p}_std"],
                             color=nb.ALG_COLOR.get(a), alpha=0.18, lw=0)
-    ax.axhline(PAPER_TABLE4[p], color="k", ls="--", lw=0.9, label="paper Table 4")
+    ax.axhline(PAPER_TABLE4[p], color="k", ls="--", lw=0.9, label=f"{data.paper_label} Table 4")
     ax.set_title(p)
     lo = min(float(np.nanpercentile(trace[a][p], 2)) for a in algorithms if p in trace[a])
     hi = max(float(np.nanpercentile(trace[a][p], 98)) for a in algorithms if p in trace[a])
@@ -155,6 +164,8 @@ for ax, p in zip(axes.flat, PARAM_NAMES, strict=True):
     ax.set_ylim(min(lo, PAPER_TABLE4[p]) - pad, max(hi, PAPER_TABLE4[p]) + pad)
 for ax in axes[1]:
     ax.set_xlabel(nb.label("time"))
+for col in axes.T:
+    nb.time_axes(col, data)
 nb.legend_outside(axes[0, 2])
 nb.show(fig, "Parameter estimates with one-sigma bands (model of SPEC section 5 in data units: "
         "a11, a22 in 1/s; a12 in m/deg/s; a21 in deg/m/s; b11 in m/s^2 per deg; b21 in 1/s^2). "
@@ -170,11 +181,12 @@ for p in PARAM_NAMES:
         k = PARAM_NAMES.index(p)
         row[f"{nb.ALG_LABEL.get(a, a)}"] = e["parameters"][p]
         row[f"{nb.ALG_LABEL.get(a, a)} std"] = float(np.sqrt(cov[k, k])) if cov.shape == (6, 6) else np.nan
-    row["paper Table 4"] = PAPER_TABLE4[p]
+    row[f"{data.paper_label} Table 4"] = PAPER_TABLE4[p]
     rows.append(row)
 nb.table(pd.DataFrame(rows).set_index("parameter"),
          f"Identified parameters after {est[algorithms[0]].get('samples')} samples (one-sigma from "
-         "the final filter covariance), beside the paper's Table 4.")
+         "the final filter covariance), model scale, beside the paper's Table 4.")
+nb.paper_note(data)
 
 # %% [markdown]
 # ## Forgetting factor and filter consistency
@@ -194,6 +206,7 @@ axes[1].axhline(3.0, color="k", ls="--", lw=0.8, label="expected mean (3 measure
 axes[1].set_ylabel("NIS (-)")
 axes[1].set_yscale("log")
 axes[1].set_xlabel(nb.label("time"))
+nb.time_axes(axes, data)
 for ax in axes:
     nb.legend_outside(ax)
 nb.show(fig, "Top: the fuzzy forgetting factor f (always within [0.95, 1]); it drops when the "
@@ -229,8 +242,8 @@ for _, k in keys.iterrows():
             row[f"{tag} {name}"] = float(r[c].iloc[0]) if len(r) else None
     paper = nb.PAPER_TABLES_5_6.get((amp, k.algorithm)) if table_no else None
     for c, name in labels.items():
-        row[f"paper {name}"] = (paper or {}).get(c)
-    row["paper table"] = f"Table {table_no}" if paper else ""
+        row[f"{data.paper_label} {name}"] = (paper or {}).get(c)
+    row[f"{data.paper_label} table"] = f"Table {table_no}" if paper else ""
     rows.append(row)
 val = pd.DataFrame(rows).sort_values("_o").drop(columns="_o").set_index(["run", "filter"])
 nb.table(val, "Validation errors of both filters on every held-out stretch, the identification run after "
@@ -238,6 +251,7 @@ nb.table(val, "Validation errors of both filters on every held-out stretch, the 
          "(deg/s)^2, MAE of psi (deg), one-step (online, what the paper's Tables 5 and 6 report) and "
          "free-run (the model simulated from the measured initial state), with the paper's one-step "
          "values where it has the same test (20/20: Table 5, 10/10: Table 6).")
+nb.paper_note(data)
 
 # %% [markdown]
 # ## Timing
@@ -249,10 +263,11 @@ for a in algorithms:
     rows.append({"algorithm": nb.ALG_LABEL.get(a, a), "samples": est[a].get("samples"),
                  "filter loop (s)": t.get("seconds_total"),
                  "per step (us)": 1e6 * t["seconds_per_step"] if t.get("seconds_per_step") else np.nan,
-                 "paper (s)": nb.PAPER_IDENT_SECONDS if a == "srukf-ffm" else np.nan})
+                 f"{data.paper_label} (s)": nb.PAPER_IDENT_SECONDS if a == "srukf-ffm" else np.nan})
 tt = pd.DataFrame(rows).set_index("algorithm")
-nb.table(tt, "Identification time: the filter loop alone (no start-up, compilation or file I/O). "
-         "The paper's 0.377 s is for 585 samples on its hardware.")
+nb.table(tt, "Identification time: the filter loop alone (no start-up, compilation or file I/O), "
+         "computer time (not a ship time, so not scaled). The paper's 0.377 s is for 585 samples on its "
+         "hardware.")
 if len(algorithms) == 2 and all(est[a].get("timing", {}).get("seconds_per_step") for a in algorithms):
     per_step = [est[a]["timing"]["seconds_per_step"] for a in algorithms]
     ratio = per_step[1] / per_step[0]

@@ -5,9 +5,11 @@
 # MSC.137(76) check.
 
 # %% tags=["parameters"]
-# Parameters (papermill injects the real values after this cell)
-dataset = "virtual"            # data/processed/<dataset>/
-root = "data/processed"        # processed-data root
+# Parameters (papermill injects the real values after this cell). In JupyterLab: `make lab D=NAME`,
+# or type the dataset's name here (docs/reports.md).
+import os
+dataset = os.environ.get("TANKTEST_DATASET") or "virtual"   # data/processed/<dataset>/
+root = ""                      # processed-data root ("": $TANKTEST_ROOT, else data/processed)
 max_runs_plotted = 24         # zigzag runs drawn (all of them unless a dataset has more)
 
 
@@ -51,15 +53,19 @@ for name in [*INDEX_NAMES, *(f"{n}_prime" for n in INDEX_NAMES)]:
         row[f"{lab} +-1 sigma"] = v.get("std")
         row[f"{lab} flags"] = nb.flag_marks(iflags.get(alg), base)
     row["graphical (ident. run)"] = gm.get(name) if base in ("K", "T") else None
-    row["paper Table 7"] = PAPER_TABLE7.get(name)
-    row["paper graphical"] = PAPER_GRAPHICAL.get(name)
+    row[f"{data.paper_label} Table 7"] = PAPER_TABLE7.get(name)
+    row[f"{data.paper_label} graphical"] = PAPER_GRAPHICAL.get(name)
     rows.append(row)
-nb.table(pd.DataFrame(rows).set_index("index"),
+t7_shown = pd.DataFrame(rows).set_index("index")
+nb.table(t7_shown,
          "Nomoto indices from the identified parameters (paper Eq. 6) with one-sigma bounds propagated "
          "from the filter covariance, the graphical (standard test) K and T of the identification run, "
          "and the paper's values; dimensional first (K in 1/s, time constants in s), then "
          "non-dimensional. 'flags' names the trust checks a value fails (reasons in the table of "
-         "flags below).")
+         "flags below). Dimensional values at model scale.")
+nb.full_scale_rows(t7_shown, data, "Table 7's dimensional indices of this dataset (the paper's left out: "
+                   "they are its KCS model's).", skip=tuple(c for c in t7_shown if c.startswith("paper")))
+nb.paper_note(data)
 
 g = pd.DataFrame(ind.get("graphical") or [])
 if not g.empty and "run_id" in g:
@@ -72,7 +78,7 @@ if not g.empty and "run_id" in g:
     shown = g[cols].rename(columns={"K": "K (1/s)", "T": "T (s)", "K_prime": "K' (-)", "T_prime": "T' (-)",
                                     "K_std": "K +-1 sigma", "T_std": "T +-1 sigma",
                                     "rudder_offset_deg": "rudder offset (deg)"})
-    nb.table(shown.set_index(["run_id", "method"]),
+    nb.table(nb.with_full_scale(shown.set_index(["run_id", "method"]), data, ("K (1/s)", "T (s)")),
              "First-order K and T per zigzag run, sorted by rudder angle, heading trigger and first side: "
              "'standard' is the Nomoto standard-test (graphical) method, 'integral' the least-squares "
              "integral method (with its one-sigma bounds). They change with the amplitude because the "
@@ -150,9 +156,10 @@ if ztab.empty:
 else:
     if not ztab["note"].any():
         ztab = ztab.drop(columns="note")
-    nb.table(ztab.set_index("run"), "ITTC 7.5-04-02-01 metrics per run, zigzags by rudder angle then "
-             "turning circles (overshoot angles deg, times s, turning-circle distances in ship lengths) "
-             "and the IMO MSC.137(76) verdict.")
+    nb.table(nb.with_full_scale(ztab.set_index("run"), data),
+             "ITTC 7.5-04-02-01 metrics per run, zigzags by rudder angle then turning circles (overshoot "
+             "angles deg, times s, turning-circle distances in ship lengths) and the IMO MSC.137(76) "
+             "verdict.")
 if crit:
     nb.table(pd.DataFrame(crit).set_index(["run", "criterion"]),
              "IMO criteria per run, in the order of the table above: value against limit.")
@@ -185,6 +192,8 @@ if len(drawn):
         ax.set_visible(False)
     for ax in axes[-1]:
         ax.set_xlabel(nb.label("time"))
+    for col in axes.T:
+        nb.time_axes(col, data)
     h, lab = axes.flat[0].get_legend_handles_labels()
     fig.legend(h, lab, loc="outside lower center", ncol=2, frameon=False)
     nb.show(fig, f"All {len(drawn)} zigzags drawn, in the order of the tables: heading (blue) and rudder "
@@ -217,7 +226,11 @@ imo_pass = [r["run"] for r in rows if r.get("IMO") == "pass"]
 nb.conclusion([
     ("The autopilot is NOT designed: " + str(cm.get("reason"))) if cm.get("refused") else
     f"The autopilot is designed from {cm.get('source')}: K = {nb.num(cm.get('K'), 3, '1/s')}, "
-    f"T = {nb.num(cm.get('T'), 3, 's')} (K' = {nb.num(k_p)}, T' = {nb.num(t_p)}).",
+    f"T = {nb.num(cm.get('T'), 3, 's')} (K' = {nb.num(k_p)}, T' = {nb.num(t_p)})"
+    + (f"; at full scale 1:{data.full_scale:g}: K = {nb.num(cm['K'] / data.full_scale ** 0.5, 3, '1/s')}, "
+       f"T = {nb.num(cm['T'] * data.full_scale ** 0.5, 3, 's')}."
+       if data.full_scale and isinstance(cm.get("K"), (int, float)) and isinstance(cm.get("T"), (int, float))
+       else "."),
     f"{n_flags} trust checks failed; flagged numbers are marked in the tables and their reasons listed."
     if n_flags else "Every index passed its trust checks.",
     f"IMO MSC.137(76): {len(imo_pass)} runs pass, {len(imo_fail)} fail"

@@ -160,9 +160,12 @@ def make_catalog(root: Path, dataset: str = "tiny", provenance: str = "virtual",
              "max_deviation": {"mean": 1.0, "std": 0.2, "worst": 1.5}}
     write_json(cat.control_dir / "metrics.json", {
         "dataset": dataset, "provenance": provenance,
-        "design": {"identified": {"Kp": 0.86, "Kd": 3.2, "gain_margin_db": None, "phase_margin_deg": 70.0},
-                   "graphical": {"Kp": 0.58, "Kd": 2.8, "gain_margin_db": None, "phase_margin_deg": 68.0}},
-        "results": [{"plant": "nomoto", "design": d, "metrics": stats} for d in ("identified", "graphical")],
+        "designs": {"identified": {"order": 1, "K": 0.30, "T": 3.9, "Tw": 3.0, "Kp": 0.86, "Kd": 3.2,
+                                   "loop_nomoto_plant": {"gain_margin_db": None, "phase_margin_deg": 70.0}},
+                    "graphical": {"order": 1, "K": 0.32, "T": 3.8, "Tw": 3.0, "Kp": 0.58, "Kd": 2.8,
+                                  "loop_nomoto_plant": {"gain_margin_db": None, "phase_margin_deg": 68.0}}},
+        "results": [{"plant": "nomoto", "design": d, "seeds": 2, "stats": stats}
+                    for d in ("identified", "graphical")],
         "paper": {"rise_time": 24.0}})
 
     # diagnose

@@ -13,6 +13,7 @@ import datetime as _dt
 import hashlib
 import html as _html
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +35,8 @@ PAPER_TABLES_5_6 = {
 PAPER_IDENT_SECONDS = 0.377      # identification time for 585 samples (paper)
 PAPER_CONTROL = {"rise_time": 24.0, "max_deviation": 1.46, "steady_mae": 0.86, "max_rudder": "< 25",
                  "steady_rudder_range": "[-3.78, -1.09]", "mean_rudder": -1.70}
+PAPER_SHIP = "KCS"               # the paper's ship (Meng et al. 2024): its values are for it alone
+PAPER = "Meng et al., Ocean Engineering 294 (2024) 116853"
 ALG_LABEL = {"srukf-ffm": "SR-UKF-FFM", "ffm-ukf": "FFM-UKF"}
 ALG_COLOR = {"srukf-ffm": "tab:red", "ffm-ukf": "tab:blue"}
 UNITS = {"v": "m/s", "r": "deg/s", "psi": "deg", "delta": "deg", "u": "m/s", "time": "s",
@@ -44,7 +47,8 @@ _TAB = {"n": 0}
 
 
 def setup() -> None:
-    """Plot and display defaults: inline PNG (embedded as base64 in the HTML), readable sizes."""
+    """Plot and display defaults: inline PNG (embedded as base64 in the HTML), readable sizes, text in
+    figures taken literally (no mathtext)."""
     import matplotlib as mpl
 
     try:
@@ -56,6 +60,9 @@ def setup() -> None:
         "figure.figsize": (10, 4), "figure.dpi": 90, "savefig.dpi": 90, "axes.grid": True,
         "grid.alpha": 0.3, "axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 9,
         "lines.linewidth": 1.2, "figure.constrained_layout.use": True,
+        # run ids, test and ship names come from the user's files: '$x$' in one of them is text, never
+        # matplotlib mathtext (an unknown '$\\macro$' would stop the page); no figure uses mathtext
+        "text.parse_math": False,
     })
     pd.set_option("display.precision", 4)
     _FIG["n"] = 0
@@ -70,11 +77,33 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-class Data:
-    """Read-only access to one dataset's stage outputs; remembers what was read."""
+DATASET_ENV = "TANKTEST_DATASET"   # the dataset a notebook opens on in JupyterLab (make lab D=NAME)
+ROOT_ENV = "TANKTEST_ROOT"         # the processed-data root, when not this project's data/processed
 
-    def __init__(self, root: str | Path, dataset: str):
-        self.cat = Catalog(root=Path(root), dataset=dataset)
+
+def default_root() -> Path:
+    """The processed-data root a notebook reads when its ``root`` parameter is empty: ``$TANKTEST_ROOT``
+    if set, else ``data/processed`` under the working folder or, for a notebook opened in JupyterLab
+    (whose kernel runs in ``notebooks/``), under its parent.  A folder that does not exist is returned as
+    it is, so the first read names it."""
+    env = os.environ.get(ROOT_ENV)
+    if env:
+        return Path(env)
+    here = Path.cwd()
+    for base in (here, here.parent):
+        if (base / "data" / "processed").is_dir():
+            return base / "data" / "processed"
+    return here / "data" / "processed"
+
+
+class Data:
+    """Read-only access to one dataset's stage outputs; remembers what was read.
+
+    ``root``: the processed-data root ('' or None: :func:`default_root`); ``dataset``: its folder name.
+    """
+
+    def __init__(self, root: str | Path | None, dataset: str):
+        self.cat = Catalog(root=Path(root) if root else default_root(), dataset=dataset)
         self.used: list[Path] = []
         self._index: dict | None = None
 
@@ -132,6 +161,18 @@ class Data:
         """The ship names the runs give (sorted, distinct; empty when none is named)."""
         runs = self.runs()
         return sorted({str(x) for x in runs["ship"].dropna()}) if "ship" in runs.columns else []
+
+    @property
+    def full_scale(self) -> float | None:
+        """Froude scale (full/model, -) when the user's files are at full scale, else None
+        (:func:`pipeline.report.particulars.full_scale_factor`)."""
+        return particulars.full_scale_factor(self.index)
+
+    @property
+    def paper_label(self) -> str:
+        """Column label of the paper's values: 'paper' beside the KCS, 'paper (KCS)' beside another
+        ship (or one not named), so the paper's ship is never taken for this dataset's."""
+        return "paper" if self.ships == [PAPER_SHIP] else f"paper ({PAPER_SHIP})"
 
     @property
     def source_label(self) -> str:
@@ -248,6 +289,9 @@ def banner(data: Data, title: str, settings: dict[str, Any] | None = None):
     now = _dt.datetime.now().strftime("%Y-%m-%d %H:%M")
     ship = esc(particulars.summary(data.index))
     ship_rows = _kv_table(particulars.rows(data.index))
+    ident = particulars.identity(data.index)
+    said = " &middot; ".join(f"<b>{esc(k.capitalize())}:</b> {esc(ident[k])}"
+                             for k in ("tank", "source", "provenance", "described in"))
     text = f"""
 <div style="border:3px solid {box[0]};border-radius:6px;padding:10px 14px;margin:4px 0 12px 0">
 <div style="font-size:1.8em;font-weight:bold;color:{box[0]}">{esc(box[1])}</div>
@@ -256,6 +300,8 @@ def banner(data: Data, title: str, settings: dict[str, Any] | None = None):
 {len(runs)} runs &middot; reproduces and extends Meng et al., Ocean Engineering 294 (2024) 116853</div>
 <div class="provenance-time">rendered {now}</div>
 <div style="margin:6px 0 2px 0;font-size:1.1em"><b>Ship and scale:</b> {ship}</div>
+<div class="dataset-identity">{said}</div>
+<div class="scale-note" style="margin:2px 0"><b>Scale:</b> {esc(particulars.scale_sentence(data.index))}</div>
 <details><summary>Particulars (from runs/index.json)</summary>{ship_rows}</details>
 <details><summary>Runs: source files and SHA-256</summary>
 <table><tr>{run_head}</tr>{run_rows}</table></details>
@@ -335,6 +381,69 @@ def note(text: str) -> None:
     from IPython.display import HTML, display
 
     display(HTML(f"<p><i>{esc(text)}</i></p>"))
+
+
+def time_axes(axes, data: Data) -> None:
+    """Label the shared time axis of a figure with its scale: 'time, model scale (s)' on the bottom
+    axes and, for full-scale data (:attr:`Data.full_scale`), a second axis on top of the first axes in
+    full-scale seconds (t_full = t_model sqrt(scale)).  ``axes``: one Axes or a sequence, top first."""
+    axs = list(np.ravel(axes)) if not hasattr(axes, "plot") else [axes]
+    lam = data.full_scale
+    if lam is None:
+        return
+    k = math.sqrt(lam)
+    axs[-1].set_xlabel("time, model scale (s)")
+    top = axs[0].secondary_xaxis("top", functions=(lambda t: t * k, lambda t: t / k))
+    top.set_xlabel(f"time, full scale 1:{lam:g} (s)")
+
+
+def with_full_scale(df: pd.DataFrame, data: Data, columns: tuple[str, ...] | None = None) -> pd.DataFrame:
+    """``df`` with, for full-scale data, a full-scale column after each column whose label ends in a
+    Froude-scaled unit ('rise time (s)' gets 'rise time, full scale (s)'; m/s gets kn); the model
+    columns are relabelled '..., model scale (unit)'.  ``columns`` limits which columns (default: all
+    that qualify).  Model-scale data: ``df`` unchanged."""
+    lam = data.full_scale
+    if lam is None:
+        return df
+    out = {}
+    for c in df.columns:
+        conv = particulars.full_scale_label(str(c), lam) if columns is None or c in columns else None
+        if conv is None:
+            out[c] = df[c]
+            continue
+        name = str(c)[: str(c).rindex("(")].rstrip()
+        out[f"{name}, model scale {str(c)[str(c).rindex('('):]}"] = df[c]
+        factor = particulars.full_scale_label(str(c), lam, 1.0)[1]      # Froude scaling is linear
+        out[conv[0]] = pd.to_numeric(df[c], errors="coerce") * factor
+    return pd.DataFrame(out, index=df.index)
+
+
+def full_scale_rows(df: pd.DataFrame, data: Data, caption: str, skip: tuple[str, ...] = ()) -> None:
+    """For full-scale data, a table of the rows of ``df`` whose index label ends in a Froude-scaled
+    unit ('T1 (s)'), at full scale, columns ``skip`` left out (e.g. the paper's model-scale values);
+    nothing for model-scale data."""
+    lam = data.full_scale
+    if lam is None:
+        return
+    rows = {}
+    for lab, row in df.drop(columns=[c for c in skip if c in df.columns]).iterrows():
+        conv = particulars.full_scale_label(str(lab), lam)
+        if conv is None:
+            continue
+        factor = particulars.full_scale_label(str(lab), lam, 1.0)[1]
+        rows[conv[0]] = pd.to_numeric(row, errors="coerce") * factor
+    if rows:
+        # columns with no number (flags, words) say nothing at full scale
+        table(pd.DataFrame.from_dict(rows, orient="index").dropna(axis=1, how="all"),
+              f"{caption} At full scale 1:{lam:g} (Froude: times x {math.sqrt(lam):.3g}, rates / "
+              f"{math.sqrt(lam):.3g}).")
+
+
+def paper_note(data: Data) -> None:
+    """Say whose the paper's values are when this dataset's ship is not the paper's."""
+    if data.ships != [PAPER_SHIP]:
+        note(f"The paper's values are for its ship, the {PAPER_SHIP} ({PAPER}), not for this dataset's "
+             f"{', '.join(data.ships) or 'ship (not named)'}.")
 
 
 def label(name: str) -> str:

@@ -20,13 +20,16 @@ import html
 import json
 import os
 import re
+import shutil
+import stat
 import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from urllib.parse import quote
 
 from pipeline.catalog import Catalog, is_builtin_tank
 from pipeline.errors import InputError, PipelineError
@@ -226,6 +229,9 @@ class Report:
     fingerprint: str = ""     # SHA-256 of everything the page depends on (see fingerprint())
     skipped: bool = False     # True: the page was up to date and not rendered again
     builtin_tank: bool = False  # the runs are the built-in tank's (pipeline.catalog.is_builtin_tank)
+    # what the dataset says of itself: ship, scale, tank, source, provenance, description file
+    # (pipeline.report.particulars.identity); tells two datasets of one ship apart on the index
+    identity: dict = field(default_factory=dict)
 
 
 # Stage folders each notebook reads (every file in them counts for "changed").
@@ -253,26 +259,91 @@ def fingerprint(notebook: str, cat: Catalog) -> str:
     return h.hexdigest()
 
 
-def execute(notebook: str, cat: Catalog, kernel: str = KERNEL_NAME, extra: dict | None = None):
-    """Execute ``notebooks/<notebook>.py`` for ``cat`` with papermill; returns the notebook node."""
+# A render's scratch folder: ``<tmp>/tanktest-report-<pid>-<random>/``, mode 0700, holding the
+# notebook before and after execution, the kernel's stderr log and the kernel's connection file
+# (ports and the message-signing key).  The process id in the name lets a later render tell a folder
+# left by a killed render (its process gone) from one in use (see remove_stale_scratch).
+SCRATCH_PREFIX = "tanktest-report-"
+_SCRATCH_NAME = re.compile(re.escape(SCRATCH_PREFIX) + r"(\d+)-[A-Za-z0-9_]+$")
+
+
+def remove_stale_scratch(base: str | Path | None = None) -> list[Path]:
+    """Remove the scratch folders that killed renders left in ``base`` (default: the system temporary
+    folder); returns what was removed.
+
+    Only folders this module makes are touched: named ``tanktest-report-<pid>-<random>``, a real
+    folder (not a symbolic link), owned by this user, and whose process ``<pid>`` no longer exists.
+    A render running at the same time (its process alive, this process included) keeps its folder.
+    """
+    from pipeline.io import _pid_alive
+
+    base = Path(base if base is not None else tempfile.gettempdir())
+    removed: list[Path] = []
+    try:
+        entries = sorted(base.iterdir())
+    except OSError:
+        return removed
+    for item in entries:
+        m = _SCRATCH_NAME.match(item.name)
+        if not m:
+            continue
+        try:
+            st = item.lstat()
+        except OSError:
+            continue
+        if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid() or _pid_alive(int(m[1])):
+            continue
+        shutil.rmtree(item, ignore_errors=True)
+        if not item.exists():
+            removed.append(item)
+    return removed
+
+
+@contextlib.contextmanager
+def scratch_dir():
+    """A fresh scratch folder for one render (see SCRATCH_PREFIX), removed when the block ends;
+    stale folders of killed renders are removed first."""
+    remove_stale_scratch()
+    path = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-"))
+    try:
+        yield path
+    finally:
+        shutil.rmtree(path, ignore_errors=True)
+
+
+def execute(notebook: str, cat: Catalog | None, kernel: str = KERNEL_NAME, extra: dict | None = None):
+    """Execute ``notebooks/<notebook>.py`` for ``cat`` with papermill; returns the notebook node.
+
+    ``cat`` None: no parameters are injected, so the notebook runs on its own parameters cell, as it
+    does when opened in JupyterLab (the dataset from ``TANKTEST_DATASET``, docs/reports.md).
+
+    The kernel's connection file is written in the render's scratch folder (:func:`scratch_dir`),
+    never in the shared Jupyter runtime folder, so nothing of a render outlives it: a normal render
+    removes the folder, a killed one leaves it for the next render to remove."""
     import nbformat
     import papermill as pm
     from papermill.exceptions import PapermillExecutionError
+    from traitlets.config import Config
 
     src = notebook_source(notebook)
     book = load_notebook(notebook)
-    params = {"dataset": cat.dataset, "root": str(Path(cat.root).absolute()), **(extra or {})}
-    with tempfile.TemporaryDirectory(prefix="tanktest-report-") as tmpdir:
+    params = ({} if cat is None else {"dataset": cat.dataset, "root": str(Path(cat.root).absolute())}) \
+        | (extra or {})
+    with scratch_dir() as tmpdir:
         tmp = Path(tmpdir) / f"{notebook}-out.ipynb"
         source_nb = Path(tmpdir) / f"{notebook}.ipynb"
         nbformat.write(book, str(source_nb))
         log = Path(tmpdir) / "kernel-stderr.txt"
+        # nbclient makes (and so shuts down and cleans up) the kernel manager; only its connection
+        # file's place is set
+        config = Config()
+        config.KernelManager.connection_file = str(Path(tmpdir) / "kernel.json")
         try:
             # The kernel inherits file descriptor 2; its start-up/shutdown chatter goes to a log
             # that is only quoted when the kernel itself fails.
             with _stderr_to(log):
                 pm.execute_notebook(str(source_nb), str(tmp), parameters=params, kernel_name=kernel,
-                                    progress_bar=False, log_output=False, cwd=os.getcwd())
+                                    progress_bar=False, log_output=False, cwd=os.getcwd(), config=config)
         except PapermillExecutionError as exc:
             evalue = " ".join(str(exc.evalue).split())
             raise PipelineError(f"notebook failed in cell {exc.exec_count}: {exc.ename}: {evalue}",
@@ -318,7 +389,8 @@ def render(notebook: str, cat: Catalog, out_dir: Path, kernel: str = KERNEL_NAME
     index = read_json(cat.runs_index)
     return Report(notebook, cat.dataset, dest, time.perf_counter() - t0,
                   str(index.get("provenance", "unknown")), len(index.get("runs", [])),
-                  ship=particulars.summary(index), fingerprint=fp, builtin_tank=is_builtin_tank(index))
+                  ship=particulars.summary(index), fingerprint=fp, builtin_tank=is_builtin_tank(index),
+                  identity=particulars.identity(index))
 
 
 # ------------------------------------------------------------------------------------------ index
@@ -335,8 +407,10 @@ def _manifest(out_dir: Path) -> dict[str, dict]:
 def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
     """Merge ``reports`` into ``out_dir/reports.json`` and (re)write ``out_dir/index.html``.
 
-    One section per dataset: its ship, scale and particulars and its provenance (VIRTUAL TANK or
-    measured), then one line per report.  Entries whose HTML file no longer exists are dropped.
+    One section per dataset: its provenance (VIRTUAL TANK or measured), ship and scale, then what its
+    dataset.toml says of it (ship, scale, tank, source, provenance, the file: Report.identity), which
+    tells two datasets of one ship apart, then one link per report (URL-quoted file name).  Entries
+    whose HTML file no longer exists are dropped.
     The page holds one wall-clock line (class ``provenance-time``); the rest depends only on the
     manifest, so the same reports give the same bytes.  Render times stay in reports.json.
     """
@@ -350,6 +424,7 @@ def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
         entries[r.html.name] = {"file": r.html.name, "notebook": r.notebook, "dataset": r.dataset,
                                 "provenance": r.provenance, "runs": r.runs, "ship": r.ship,
                                 "fingerprint": r.fingerprint, "builtin_tank": r.builtin_tank,
+                                "identity": r.identity,
                                 "seconds": round(r.seconds, 2), "rendered": stamp}
     order = {n: i for i, n in enumerate(NOTEBOOKS)}
     rows = sorted((e for e in entries.values() if (out_dir / e["file"]).is_file()),
@@ -366,18 +441,27 @@ def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
                  if prov == "virtual"
                  else "<b class='measured'>measured tank data</b>" if prov == "measured"
                  else f"<b class='mixed'>{esc(prov)} data</b>")
-        items = "\n".join(f"<li><a href='{esc(e['file'])}'>{esc(e['notebook'])}</a></li>" for e in group)
+        # the file name holds the dataset's name, which may hold '#', '?', '%' or spaces: URL-quoted
+        # (a relative path of one segment), then HTML-escaped for the attribute
+        items = "\n".join(f"<li><a href='{esc(quote(e['file'], safe=''))}'>{esc(e['notebook'])}</a></li>"
+                          for e in group)
+        ident = group[0].get("identity") or {}
+        said = "".join(f"<tr><th>{esc(k)}</th><td>{esc(ident.get(k) or particulars.NOT_GIVEN)}</td></tr>"
+                       for k in ("ship", "scale", "tank", "source", "provenance", "described in"))
         sections.append(f"<h2>Dataset <code>{esc(ds)}</code></h2>\n"
                         f"<p>{label} &middot; {group[0]['runs']} runs<br>"
                         f"<b>Ship and scale:</b> {esc(group[0].get('ship') or 'not given')}</p>\n"
+                        f"<table class='identity'>{said}</table>\n"
                         f"<ul>\n{items}\n</ul>")
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>tanktest reports</title>
 <style>body{{font-family:sans-serif;max-width:60em;margin:2em auto;line-height:1.6}}
-.virtual{{color:#b00020}} .measured{{color:#1b5e20}} .mixed{{color:#e65100}}</style></head>
+.virtual{{color:#b00020}} .measured{{color:#1b5e20}} .mixed{{color:#e65100}}
+table.identity th{{text-align:left;padding-right:1em;font-weight:normal;color:#555}}</style></head>
 <body><h1>Tank-test pipeline reports</h1>
-<p>Reproduction and extension of Meng et al., Ocean Engineering 294 (2024) 116853. One section per
-dataset: where its data come from, the ship and its scale, then its reports.</p>
+<p>Reproduction and extension of Meng et al., Ocean Engineering 294 (2024) 116853 (the paper's ship: the
+KCS). One section per dataset: where its data come from, the ship, its scale, tank and source as its
+dataset.toml gives them, then its reports.</p>
 {chr(10).join(sections) if sections else "<p>no reports rendered yet</p>"}
 <div class="provenance-time">generated {esc(stamp)}</div>
 </body></html>
@@ -426,7 +510,8 @@ def render_all(datasets: Sequence[str], notebooks: Sequence[str], out_dir: Path,
             if dest.is_file() and entry.get("fingerprint") == fingerprint(nb, cat):
                 reports.append(Report(nb, cat.dataset, dest, 0.0, entry.get("provenance", "unknown"),
                                       entry.get("runs", 0), entry.get("ship", ""), entry["fingerprint"],
-                                      skipped=True, builtin_tank=entry.get("builtin_tank", False)))
+                                      skipped=True, builtin_tank=entry.get("builtin_tank", False),
+                                      identity=entry.get("identity") or {}))
             else:
                 todo.append((nb, cat))
         pairs = todo
