@@ -167,7 +167,7 @@ STAGES: tuple[Stage, ...] = (
           lambda ds, root: [["validate", *_dataset_args(ds, root)]]),
     Stage("indices", "pipeline.cli.indices", ("ingest", "identify"), ("indices/indices.json",),
           lambda ds, root: [["indices", *_dataset_args(ds, root)]]),
-    Stage("control", "pipeline.cli.control", ("indices",), ("control/metrics.json",),
+    Stage("control", "pipeline.cli.control", ("ingest", "identify", "indices"), ("control/metrics.json",),
           lambda ds, root: [["control", *_dataset_args(ds, root)]]),
     Stage("diagnose", "pipeline.cli.diagnose", ("ingest",), ("diagnose/diagnosis.json",),
           lambda ds, root: [["diagnose", *_dataset_args(ds, root)]]),
@@ -196,6 +196,10 @@ def stage_key(stage: Stage, ds: Dataset, root: Path) -> str:
     _hash_files(h, _code(code))
     if stage.name == "ingest":
         _hash_files(h, [(p.name, p) for p in raw_files(ds)])
+        toml = ds.raw / "dataset.toml"
+        if toml.is_file():
+            _hash_files(h, [("dataset.toml", toml)])
+    elif stage.name == "control":        # its [control] table (docs/control.md) is read from dataset.toml
         toml = ds.raw / "dataset.toml"
         if toml.is_file():
             _hash_files(h, [("dataset.toml", toml)])

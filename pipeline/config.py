@@ -173,6 +173,39 @@ class ControlConfig:
     steady_start: float = 100.0          # s, the steady course-keeping window is [steady_start, duration]
     reversal_threshold: float = 0.1      # deg, least rudder swing counted as a direction reversal
     bode_points: int = 200               # frequencies in the Bode data written to metrics.json
+    # Steering gear beyond the angle and rate limits (dataset.toml [control], docs/control.md); the KCS
+    # tank's gear is a pure rate limit acting at once, so both are 0 for it.
+    servo_time_constant: float = 0.0     # s, first-order lag of the steering gear
+    dead_time: float = 0.0               # s, command-to-rudder dead time
+    # The project's autopilot (pipeline/control/autopilot.py, docs/control.md): PID by pole placement
+    # on the first-order Nomoto model, wn = 1/Tw (the same closed-loop speed as the CGSA design)
+    pid_zeta: float = 1.0                # relative damping: critically damped, no overshoot on the model
+    # Ki = wn Kp / pid_ki_ratio: the integrator's corner a decade below wn, where it costs about
+    # 6 deg of phase at the crossover (Fossen, Handbook of Marine Craft Hydrodynamics, ch. 15)
+    pid_ki_ratio: float = 10.0
+    # Third-order reference model psi_d/psi_r = wr^3/((s + wr)(s^2 + 2 zr wr s + wr^2)), wr = wn: the
+    # feedforward (T a_d + r_d)/K asks the ship for the reference's own motion, so the loop only corrects
+    # model error and the reference need not be slower than the loop; the yaw rate limited to
+    ref_zeta: float = 1.0
+    ref_wn_ratio: float = 1.0
+    # deg/s: a quarter of the yaw rate the ship reaches at full rudder (K rudder_max, from the design
+    # model), so a course change never asks for more than a moderate steady turn
+    ref_rate_share: float = 0.25
+    # The design-model rule (pipeline/control/design_model.py): the identified model is designed from
+    # unless its pooled held-out free-run heading error exceeds the graphical model's by both this
+    # share (the smallest improvement a naval architect would change a model for, as DiagnoseConfig
+    # .min_gain) and this many degrees (a tank's heading repeatability, as DiagnoseConfig.min_abs_gain_deg)
+    design_rule_rel: float = 0.10
+    design_rule_abs_deg: float = 0.10
+    # Robustness (pipeline/control/robustness.py): draws of the identified parameters from the filter's
+    # covariance for the stable fraction and worst margins (200: the stable fraction to +-3.5 % at
+    # 95 %), seeded from ``seed``; the reduced speeds of the nonlinear KCS, as shares of the approach
+    # speed; the clean course step for overshoot and settling, and the settling band
+    robust_draws: int = 200
+    reduced_speeds: tuple[float, ...] = (0.75, 0.5)
+    step_deg: float = 10.0               # deg
+    step_duration: float = 120.0         # s
+    settle_share: float = 0.02           # 2 % settling band
 
 
 @dataclass(frozen=True)

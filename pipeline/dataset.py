@@ -255,8 +255,13 @@ def parse_dataset_toml(text: str, *, name: str, folder: Path, path: Path) -> Dat
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not valid TOML ({exc})", file=path) from None
     for key in doc:
-        if key not in _SECTIONS and key != "runs":
-            raise InputError(f"unknown section [{key}] (known: ship, data, roles, identify, runs)", file=path)
+        if key not in _SECTIONS and key not in ("runs", "control"):
+            raise InputError(f"unknown section [{key}] (known: ship, data, roles, identify, control, runs)",
+                             file=path)
+    if "control" in doc:                  # the autopilot's keys, checked by their owner (docs/control.md)
+        from pipeline.control.settings import parse_control_table
+
+        parse_control_table(doc["control"], path)
     vals: dict[str, dict[str, Any]] = {}
     for sec, keys in _SECTIONS.items():
         table = doc.get(sec, {})
