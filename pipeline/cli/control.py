@@ -136,13 +136,12 @@ def _run(args) -> int:
         path = args.indices or (cat.indices_dir / "indices.json")
         doc, source = read_json(path), str(path)
         cfg, notice, choice, extra = dataset_inputs(cat, doc, cfg, with_runs=args.indices is None)
-    if notice:
-        print(notice, file=sys.stderr)
     if args.plants is not None and "kcs" not in args.plants:
         extra.pop("kcs", None)
     metrics, ts = run_control(doc, cfg, source=source, plants=tuple(args.plants) if args.plants else None,
                               progress=not args.no_progress, design_choice=choice, robustness=extra)
-    if notice:
+    if notice:                                   # one line, once the run has succeeded
+        print(notice, file=sys.stderr)
         metrics["notes"].append(notice)
     metrics["indices_source"] = source
     out = args.out or cat.control_dir
