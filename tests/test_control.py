@@ -354,6 +354,8 @@ def test_cli_writes_outputs_and_refuses_bad_input(tmp_path, capsys):
     assert {r["design"] for r in m["results"]} == {"identified", "identified-2nd", "graphical", "autopilot"}
     assert ts["seed"].nunique() == 2
     before = (base / "control" / "metrics.json").read_bytes()
+    out = capsys.readouterr()                    # no dataset.toml: one notice of the assumed steering gear
+    assert sum("does not give" in line for line in out.err.splitlines()) == 1
     # Bad indices: exit 2, one line, earlier outputs untouched.
     write_json(base / "indices" / "indices.json", {"provenance": "measured", "control_model": {"K": 1}})
     rc = main(["control", "--root", str(tmp_path / "proc"), "--dataset", "t", "--no-progress"])
