@@ -206,6 +206,28 @@ class ControlConfig:
     step_deg: float = 10.0               # deg
     step_duration: float = 120.0         # s
     settle_share: float = 0.02           # 2 % settling band
+    # Identification in the loop (pipeline/control/adaptive.py, docs/control.md): the nonlinear KCS
+    # keeps course through +-adaptive_step_deg course changes every adaptive_step_every s (they are
+    # the excitation a course-keeping identifier needs) while the propeller is cut at adaptive_change_s
+    # to the trim for adaptive_speed_share of the approach speed (2.0 -> 1.2 m/s)
+    adaptive: bool = True
+    adaptive_seeds: int = 3
+    adaptive_duration: float = 400.0     # s
+    adaptive_change_s: float = 150.0     # s
+    adaptive_speed_share: float = 0.6
+    adaptive_step_deg: float = 10.0      # deg
+    adaptive_step_every: float = 50.0    # s
+    # Anti-bursting rule: gains re-designed every adaptive_period s, only when the rudder's standard
+    # deviation over the last adaptive_window s is at least adaptive_min_rudder_std deg (the least
+    # rudder motion that teaches the filter b11, b21: FilterConfig.min_rudder_range's reason) and the
+    # window's mean NIS is below adaptive_max_nis_ratio x its expected value (a filter this far over
+    # its chi-square mean is over-confident or diverging: its estimate is not acted on); each gain may
+    # move by at most adaptive_max_gain_change of its value per re-design (a slow, bounded adaptation)
+    adaptive_period: float = 10.0        # s
+    adaptive_window: float = 20.0        # s
+    adaptive_min_rudder_std: float = 1.0  # deg
+    adaptive_max_nis_ratio: float = 3.0
+    adaptive_max_gain_change: float = 0.2
 
 
 @dataclass(frozen=True)

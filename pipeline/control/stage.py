@@ -20,6 +20,7 @@ identified-minus-graphical differences are paired.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import asdict
 
 import numpy as np
@@ -426,6 +427,15 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
         "settings": {k: getattr(cfg, f) for k, (f, _, _) in SETTING_KEYS.items()},
     }
     doc["robustness"] = robustness_block(designs, control_model, cfg, robustness or {})
+    extra = robustness or {}
+    if cfg.adaptive and "kcs" in plants and extra.get("parameters") is not None and \
+            extra.get("covariance") is not None:
+        from pipeline.control.adaptive import adaptive_block
+
+        doc["adaptive"], secs = adaptive_block(extra["parameters"], extra["covariance"], base.K, base.T,
+                                               seeds[:cfg.adaptive_seeds], cfg)
+        print(f"control: adaptive in-loop run, {len(seeds[:cfg.adaptive_seeds])} seeds x 2; streaming "
+              f"identification {secs:.2f} s", file=sys.stderr)
     doc["robustness"]["nyquist"] = nyquist_for(designs, control_model, cfg, n=cfg.bode_points)
     ts = pd.concat(frames, ignore_index=True)
     return doc, ts
