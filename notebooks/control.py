@@ -44,6 +44,10 @@ display(nb.banner(data, "Course-keeping control", {
 # %%
 if refused:
     nb.note("The autopilot is NOT designed for this dataset: " + str(cm.get("reason")))
+elif dmodel.get("rule") and (dmodel.get("identified") or dmodel.get("graphical")):
+    nb.note(f"Designed from: {dmodel.get('source')} ({dmodel.get('reason')}; the held-out comparison is "
+            "below). The indices stage's own choice, by the filter's consistency flags alone, was: "
+            + str(basis.get("basis") or basis.get("source") or "not stated"))
 else:
     nb.note("Designed from: " + str(basis.get("basis") or basis.get("source") or "not stated"))
 for n_ in cm.get("notes") or []:
@@ -308,6 +312,7 @@ if pc:
 ad = cm.get("adaptive")
 if ad:
     sc = ad.get("scenario") or {}
+    ru = ad.get("rule") or {}
     rows = []
     for name in ("fixed", "adaptive"):
         st = (ad.get("stats") or {}).get(name) or {}
@@ -317,7 +322,10 @@ if ad:
              f"{sc.get('plant')}: course changes of +-{sc.get('course_step_deg')} deg every "
              f"{sc.get('course_step_every_s')} s, propeller cut at {sc.get('speed_change_s')} s to "
              f"{sc.get('speed_share')} of the approach speed; metrics after the cut, over seeds "
-             f"{ad.get('seeds')} (the same for both). Rule against bursting: {ad.get('rule')}.")
+             f"{ad.get('seeds')} (the same for both). Rule against bursting: re-design every "
+             f"{ru.get('period_s')} s only with a rudder sd over the last {ru.get('window_s')} s of at least "
+             f"{ru.get('min_rudder_std_deg')} deg, a window mean NIS below {ru.get('max_nis_ratio')} x 3 and "
+             f"positive K, T; each gain moves by at most {ru.get('max_gain_change', 0):.0%} per re-design.")
     g = pd.DataFrame(ad.get("gains_first_seed") or [])
     if len(g):
         fig, ax = plt.subplots(figsize=(10, 3.5))
@@ -338,7 +346,8 @@ points = []
 if refused:
     points.append("No autopilot was designed: " + str(cm.get("reason")))
 else:
-    points.append("Designed from: " + str(basis.get("source") or "not stated") + ".")
+    points.append("Designed from: " + str(dmodel.get("source") or basis.get("source") or "not stated")
+                  + (f" ({dmodel.get('reason')})." if dmodel.get("reason") else "."))
     for res in results:
         st = res.get("stats") or {}
         rt, md = (st.get("rise_time") or {}).get("mean"), (st.get("max_deviation") or {}).get("mean")
@@ -348,6 +357,12 @@ else:
                       "(paper: 24 s, 1.46 deg, < 25 deg).")
     if n_flags:
         points.append(f"{n_flags} trust flags concern the design's indices; see the table above.")
+    if ad:
+        dif = (ad.get("difference") or {}).get("metrics") or {}
+        points.append("In the loop through the speed change, adaptive minus fixed gains: largest overshoot "
+                      f"{nb.num(dif.get('overshoot_max_deg'), 3, 'deg')}, rudder RMS "
+                      f"{nb.num(dif.get('rudder_rms_deg'), 3, 'deg')}, heading MAE "
+                      f"{nb.num(dif.get('heading_mae_deg'), 3, 'deg')} (mean over the paired seeds).")
     if pc:
         points.append("The paper's case gives a steady MAE of "
                       f"{nb.num(pc.get('steady_mae_mean'), 3, 'deg')} (paper 0.86 deg): a PD holds a "
