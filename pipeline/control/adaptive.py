@@ -56,7 +56,7 @@ def limited(new: float, old: float, share: float) -> float:
 
 def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
              adapt: bool) -> dict[str, Any]:
-    """One run (module docstring); fixed gains when ``adapt`` is False (the filter still runs)."""
+    """One run (module docstring); fixed gains, and no identifier, when ``adapt`` is False."""
     dt, n = cfg.dt, int(round(cfg.adaptive_duration / cfg.dt)) + 1
     t = np.arange(n) * dt
     ref = course_schedule(t, cfg)
@@ -89,7 +89,7 @@ def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
             _slow_down(ship, cfg.adaptive_speed_share)
             slowed = True
         meas = np.array([st["v"], st["r"], st["psi"]]) + rng.normal(0.0, noise_sd)
-        if k > 0:
+        if adapt and k > 0:
             t0 = _time.perf_counter()
             nis[k] = ident.update({"delta": prev_delta, "v": meas[0], "r": meas[1], "psi": meas[2]})["nis"]
             id_secs += _time.perf_counter() - t0
@@ -140,8 +140,8 @@ def after_change_metrics(t, ref, psi, delta, cfg: ControlConfig) -> dict[str, fl
 def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int],
                    cfg: ControlConfig) -> tuple[dict[str, Any], float]:
     """The ``adaptive`` block of control/metrics.json (adaptive against fixed gains on the same seeds)
-    and the seconds spent in the streaming identifier's updates (for the terminal and the benchmark,
-    never in the document: same inputs, same bytes)."""
+    and the seconds spent in the streaming identifier's updates of the adaptive runs (for the terminal
+    and the benchmark, never in the document: same inputs, same bytes)."""
     rows = {"adaptive": [], "fixed": []}
     gains, finals, id_secs = [], [], 0.0
     for seed in seeds:
