@@ -149,7 +149,8 @@ if ap:
 # %%
 rob = cm.get("robustness") or {}
 rows = []
-for name, r in (rob.get("designs") or {}).items():
+sampled = {n: d["sampled_loop"] for n, d in designs.items() if isinstance(d.get("sampled_loop"), dict)}
+for name, r in sampled.items():
     for where in ("design_model", "straight_ahead", "speed_0.75", "speed_0.50"):
         m = r.get(where)
         if isinstance(m, dict) and "phase_margin_deg" in m:
@@ -174,7 +175,7 @@ if rows:
              "GM inf: the phase never "
              "crosses -180 deg with |L| < 1.")
 rows = []
-for name, r in (rob.get("designs") or {}).items():
+for name, r in sampled.items():
     for where, m in r.items():
         if where.startswith("step_") and isinstance(m, dict):
             rows.append({"design": name, "plant": where[5:].replace("_", " "),

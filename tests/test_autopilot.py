@@ -253,3 +253,30 @@ def test_adaptive_run_keeps_its_anti_bursting_rule():
     quiet = run_once(theta, cov, 0.3867, 3.68, 1, calm, adapt=True)
     assert {(kp, kd) for _, kp, kd, _ in quiet["gains"]} == {(quiet["gains"][0][1], quiet["gains"][0][2])}
     assert all(e.startswith(("start", "excitation")) for *_, e in quiet["gains"])
+
+
+def test_stage_writes_the_papers_case_the_design_model_and_per_design_margins():
+    """run_control on the paper's Table 7 model (CGSA from it, run on it, wind 2 deg and waves): the
+    paper's case sits on the PD's floor 2/Kp (the waves move the mean only slightly); every design
+    carries its sampled-loop margins; the autopilot's integrator removes the offset."""
+    from pipeline.control.stage import run_control
+    from pipeline.model import PAPER_GRAPHICAL, PAPER_TABLE7
+
+    idx = {"dataset": "t", "provenance": "measured", "builtin_tank": False,
+           "control_model": {"source": "test", **PAPER_TABLE7},
+           "identified": {"srukf-ffm": {n: {"value": PAPER_TABLE7[n]} for n in ("K", "T1", "T2", "T3", "T")}},
+           "graphical_model": {"source": "test", **PAPER_GRAPHICAL}}
+    cfg = replace(ControlConfig(), seeds=2, duration=150.0, steady_start=100.0, robust_draws=5,
+                  bode_points=20)
+    doc, _ = run_control(idx, cfg, progress=False)
+    pc = doc["paper_case"]
+    kp = 1 / (PAPER_TABLE7["K"] * cfg.tw)
+    assert pc["plant"] == "nomoto" and pc["design"] == "identified"
+    assert pc["pd_steady_offset_deg"] == pytest.approx(2.0 / kp, rel=1e-9)          # 2.32 deg
+    assert pc["steady_mae_mean"] == pytest.approx(2.0 / kp, abs=0.1)
+    auto = next(r for r in doc["results"] if r["design"] == "autopilot")
+    assert auto["stats"]["steady_mae"]["mean"] < 0.2
+    for d in doc["designs"].values():
+        assert d["sampled_loop"]["design_model"]["stable"]
+    assert doc["design_model"]["chosen"] == "identified" and "rule" in doc["design_model"]
+    assert "identified second-order" in doc["plants"]["nomoto"]["description"]

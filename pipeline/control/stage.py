@@ -426,7 +426,10 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
         "design_model": _design_model_block(design_choice, control_model),
         "settings": {k: getattr(cfg, f) for k, (f, _, _) in SETTING_KEYS.items()},
     }
-    doc["robustness"] = robustness_block(designs, control_model, cfg, robustness or {})
+    rob = robustness_block(designs, control_model, cfg, robustness or {})
+    for name, row in rob.pop("designs").items():     # SPEC section 10: the margins belong to each design
+        doc["designs"][name]["sampled_loop"] = row
+    doc["robustness"] = rob
     extra = robustness or {}
     if cfg.adaptive and "kcs" in plants and extra.get("parameters") is not None and \
             extra.get("covariance") is not None:
