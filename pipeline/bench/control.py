@@ -39,7 +39,7 @@ def run(quick: bool = False) -> list[dict]:
     return [
         {"name": f"control stage, {cfg.seeds} seeds, KCS, adaptive", "value": stage, "unit": "s"},
         {"name": "in-loop identification (streaming updates)", "value": ident, "unit": "s",
-         "note": f"{len(seeds)} seeds x fixed and adaptive runs"},
+         "note": f"the {len(seeds)} adaptive runs (the fixed-gain runs carry no identifier)"},
         {"name": "in-loop identification / control stage", "value": 100.0 * ident / stage, "unit": "%",
          "target": "< 10", "note": "same run, back to back"},
     ]
