@@ -289,9 +289,11 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
         # never as the autopilot: its name and the note say so
         designs["identified-flagged"] = design_first_order(flagged["K"], flagged["T"], cfg.tw,
                                                            name="identified-flagged")
-        notes.append("identified-flagged: first-order CGSA from the flagged SR-UKF-FFM indices "
-                     f"(K = {flagged['K']:.4g} 1/s, T = {flagged['T']:.4g} s), simulated for comparison "
-                     "only; it is not the autopilot")
+        why = (f"not designed from: {design_choice.get('reason')}" if design_choice is not None
+               else "flagged by the indices stage")
+        notes.append("identified-flagged: first-order CGSA from the SR-UKF-FFM indices "
+                     f"(K = {flagged['K']:.4g} 1/s, T = {flagged['T']:.4g} s; {why}), simulated for "
+                     "comparison only; it is not the autopilot")
     table = design_table(designs, control_model, cfg)
 
     basis = design_basis(indices)
