@@ -280,3 +280,35 @@ def test_stage_writes_the_papers_case_the_design_model_and_per_design_margins():
         assert d["sampled_loop"]["design_model"]["stable"]
     assert doc["design_model"]["chosen"] == "identified" and "rule" in doc["design_model"]
     assert "identified second-order" in doc["plants"]["nomoto"]["description"]
+
+
+def test_cli_reads_the_control_table_of_the_datasets_toml(tmp_path, capsys):
+    """The control command takes [control] from the dataset.toml that runs/index.json names; a bad
+    key there is one line naming the file, exit 2, and the earlier outputs stay."""
+    from pipeline.cli import main
+    from pipeline.io import read_json, write_json
+    from pipeline.model import PAPER_GRAPHICAL, PAPER_TABLE7
+
+    toml = tmp_path / "dataset.toml"
+    toml.write_text('[ship]\nname = "Ferry"\n[control]\ndead_time_s = 0.24\nservo_time_constant_s = 0.5\n'
+                    'rudder_rate_deg_s = 5.0\n')
+    base = tmp_path / "proc" / "f"
+    write_json(base / "runs" / "index.json", {"dataset": "f", "runs": [],
+                                              "ship": {"ship": "Ferry", "dataset_toml": str(toml)}})
+    write_json(base / "indices" / "indices.json", {
+        "dataset": "f", "provenance": "measured", "builtin_tank": False,
+        "control_model": {"source": "test", **PAPER_TABLE7},
+        "graphical_model": {"source": "t", **PAPER_GRAPHICAL}})
+    argv = ["control", "--root", str(tmp_path / "proc"), "--dataset", "f", "--seeds", "1", "--no-progress"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert sum("Ferry" in line and "tw_s" in line for line in err.splitlines()) == 1
+    m = read_json(base / "control" / "metrics.json")
+    assert m["settings"]["dead_time_s"] == 0.24 and m["settings"]["rudder_rate_deg_s"] == 5.0
+    assert m["robustness"]["dead_time_samples"] == 3 and m["robustness"]["servo_time_constant_s"] == 0.5
+    before = (base / "control" / "metrics.json").read_bytes()
+    toml.write_text('[control]\ndead_time = 0.24\n')
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "dataset.toml" in err and "dead_time" in err
+    assert (base / "control" / "metrics.json").read_bytes() == before
