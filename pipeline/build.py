@@ -178,7 +178,7 @@ STAGES: tuple[Stage, ...] = (
           lambda ds, root: [["validate", *_dataset_args(ds, root)]]),
     Stage("indices", "pipeline.cli.indices", ("ingest", "identify"), ("indices/indices.json",),
           lambda ds, root: [["indices", *_dataset_args(ds, root)]]),
-    Stage("control", "pipeline.cli.control", ("indices",), ("control/metrics.json",),
+    Stage("control", "pipeline.cli.control", ("ingest", "identify", "indices"), ("control/metrics.json",),
           lambda ds, root: [["control", *_dataset_args(ds, root)]]),
     Stage("diagnose", "pipeline.cli.diagnose", ("ingest",), ("diagnose/diagnosis.json",),
           lambda ds, root: [["diagnose", *_dataset_args(ds, root)]]),
@@ -209,6 +209,8 @@ def stage_key(stage: Stage, ds: Dataset, root: Path) -> str:
     _hash_files(h, _code(code))
     if stage.name == "ingest":
         _hash_files(h, [(p.name, p) for p in raw_files(ds)])
+        h.update(b"dataset.toml\0" + _description(ds) + b"\0")
+    elif stage.name == "control":        # its [control] table (docs/control.md) is read from dataset.toml
         h.update(b"dataset.toml\0" + _description(ds) + b"\0")
     for up in stage.after:
         _hash_files(h, _stage_files(Path(root) / ds.name / STAGE_DIRS[up]))

@@ -217,12 +217,71 @@ class ControlConfig:
     wave: bool = True                    # add the wave disturbance (G(s) driven by unit white noise)
     wind_model: str = "constant"         # 'constant' (wind_rudder deg) or 'eq14' (paper Eq. 14 form)
     wind_kw: float = 0.75                # Eq. 14 coefficient Kw, in [0.5, 1]
-    wind_speed_ratio: float = 0.76       # Eq. 14 Vw / U: Beaufort 5 (9.4 m/s) over KCS full-scale 12.35 m/s
+    # Eq. 14 Vw / U: Beaufort 5 (9.4 m/s) over KCS full-scale 12.35 m/s.  With Kw 0.75 and our squared
+    # ratio this gives 0.43 deg, not the paper's 2.23 deg at Beaufort 5: the paper's figure needs
+    # Vw/U = 1.5 to 2.1 for Kw in [0.5, 1], a wind 1.5 to 2 times the ship's speed (its Eq. 14 is printed
+    # garbled, docs/control.md); the default wind is therefore the paper's constant 2 deg, not eq14
+    wind_speed_ratio: float = 0.76
     wind_angle: float = 90.0             # deg, Eq. 14 windward angle (relative wind from the bow)
     filter_tau: float = 0.3              # s, filter pole making the second-order CGSA proper
     steady_start: float = 100.0          # s, the steady course-keeping window is [steady_start, duration]
     reversal_threshold: float = 0.1      # deg, least rudder swing counted as a direction reversal
     bode_points: int = 200               # frequencies in the Bode data written to metrics.json
+    # Steering gear beyond the angle and rate limits (dataset.toml [control], docs/control.md); the KCS
+    # tank's gear is a pure rate limit acting at once, so both are 0 for it.
+    servo_time_constant: float = 0.0     # s, first-order lag of the steering gear
+    dead_time: float = 0.0               # s, command-to-rudder dead time
+    # The project's autopilot (pipeline/control/autopilot.py, docs/control.md): PID by pole placement
+    # on the first-order Nomoto model, wn = 1/Tw (the same closed-loop speed as the CGSA design)
+    pid_zeta: float = 1.0                # relative damping: critically damped, no overshoot on the model
+    # Ki = wn Kp / pid_ki_ratio: the integrator's corner a decade below wn, where it costs about
+    # 6 deg of phase at the crossover (Fossen, Handbook of Marine Craft Hydrodynamics, ch. 15)
+    pid_ki_ratio: float = 10.0
+    # Third-order reference model psi_d/psi_r = wr^3/((s + wr)(s^2 + 2 zr wr s + wr^2)), wr = wn: the
+    # feedforward (T a_d + r_d)/K asks the ship for the reference's own motion, so the loop only corrects
+    # model error and the reference need not be slower than the loop; the yaw rate limited to
+    ref_zeta: float = 1.0
+    ref_wn_ratio: float = 1.0
+    # deg/s: a quarter of the yaw rate the ship reaches at full rudder (K rudder_max, from the design
+    # model), so a course change never asks for more than a moderate steady turn
+    ref_rate_share: float = 0.25
+    # The design-model rule (pipeline/control/design_model.py): the identified model is designed from
+    # unless its pooled held-out free-run heading error exceeds the graphical model's by both this
+    # share (the smallest improvement a naval architect would change a model for, as DiagnoseConfig
+    # .min_gain) and this many degrees (a tank's heading repeatability, as DiagnoseConfig.min_abs_gain_deg)
+    design_rule_rel: float = 0.10
+    design_rule_abs_deg: float = 0.10
+    # Robustness (pipeline/control/robustness.py): draws of the identified parameters from the filter's
+    # covariance for the stable fraction and worst margins (200: the stable fraction to +-3.5 % at
+    # 95 %), seeded from ``seed``; the reduced speeds of the nonlinear KCS, as shares of the approach
+    # speed; the clean course step for overshoot and settling, and the settling band
+    robust_draws: int = 200
+    reduced_speeds: tuple[float, ...] = (0.75, 0.5)
+    step_deg: float = 10.0               # deg
+    step_duration: float = 120.0         # s
+    settle_share: float = 0.02           # 2 % settling band
+    # Identification in the loop (pipeline/control/adaptive.py, docs/control.md): the nonlinear KCS
+    # keeps course through +-adaptive_step_deg course changes every adaptive_step_every s (they are
+    # the excitation a course-keeping identifier needs) while the propeller is cut at adaptive_change_s
+    # to the trim for adaptive_speed_share of the approach speed (2.0 -> 1.2 m/s)
+    adaptive: bool = True
+    adaptive_seeds: int = 3
+    adaptive_duration: float = 400.0     # s
+    adaptive_change_s: float = 150.0     # s
+    adaptive_speed_share: float = 0.6
+    adaptive_step_deg: float = 10.0      # deg
+    adaptive_step_every: float = 50.0    # s
+    # Anti-bursting rule: gains re-designed every adaptive_period s, only when the rudder's standard
+    # deviation over the last adaptive_window s is at least adaptive_min_rudder_std deg (the least
+    # rudder motion that teaches the filter b11, b21: FilterConfig.min_rudder_range's reason) and the
+    # window's mean NIS is below adaptive_max_nis_ratio x its expected value (a filter this far over
+    # its chi-square mean is over-confident or diverging: its estimate is not acted on); each gain may
+    # move by at most adaptive_max_gain_change of its value per re-design (a slow, bounded adaptation)
+    adaptive_period: float = 10.0        # s
+    adaptive_window: float = 20.0        # s
+    adaptive_min_rudder_std: float = 1.0  # deg
+    adaptive_max_nis_ratio: float = 3.0
+    adaptive_max_gain_change: float = 0.2
 
 
 @dataclass(frozen=True)

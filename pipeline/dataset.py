@@ -384,6 +384,10 @@ def parse_dataset_toml(text: str, *, name: str, folder: Path, path: Path) -> Dat
             what = f"section [{key}]" if isinstance(value, dict) else f"key {key!r}"
             raise InputError(f"unknown {what} (known sections: {_KNOWN})", file=path)
     vals = {sec: _checked(_table(doc, sec, path), keys, sec, path) for sec, keys in _SECTIONS.items()}
+    if "control" in doc:                  # the autopilot's keys, checked by their owner (docs/control.md)
+        from pipeline.control.settings import parse_control_table
+
+        parse_control_table(_table(doc, "control", path), path)
     ship = Ship(**vals["ship"])
     data = vals["data"]
     scale = data.get("scale", 1.0)

@@ -322,7 +322,7 @@ def test_run_control_reproducible_and_paired():
     assert np.all((w.max(axis=1) - w.min(axis=1)).to_numpy() == 0)
     assert set(ts1.columns) == {"plant", "design", "seed", "time", "psi_ref", "psi", "r", "delta_cmd",
                                 "delta", "wave", "wind"}
-    assert set(doc1["designs"]) == {"identified", "identified-2nd", "graphical"}
+    assert set(doc1["designs"]) == {"identified", "identified-2nd", "graphical", "autopilot"}
     assert doc1["plants"]["kcs"]["used"] is False                        # measured provenance
     diff = doc1["identification_value"]["nomoto"]["metrics"]["rise_time"]["mean"]
     res = {(r["plant"], r["design"]): r for r in doc1["results"]}
@@ -351,9 +351,11 @@ def test_cli_writes_outputs_and_refuses_bad_input(tmp_path, capsys):
     m = read_json(base / "control" / "metrics.json")
     ts, meta = read_frame(base / "control" / "timeseries.parquet")
     assert m["virtual"] is True and meta["provenance"] == "virtual"
-    assert {r["design"] for r in m["results"]} == {"identified", "identified-2nd", "graphical"}
+    assert {r["design"] for r in m["results"]} == {"identified", "identified-2nd", "graphical", "autopilot"}
     assert ts["seed"].nunique() == 2
     before = (base / "control" / "metrics.json").read_bytes()
+    out = capsys.readouterr()                    # no dataset.toml: one notice of the assumed steering gear
+    assert sum("does not give" in line for line in out.err.splitlines()) == 1
     # Bad indices: exit 2, one line, earlier outputs untouched.
     write_json(base / "indices" / "indices.json", {"provenance": "measured", "control_model": {"K": 1}})
     rc = main(["control", "--root", str(tmp_path / "proc"), "--dataset", "t", "--no-progress"])
@@ -368,7 +370,7 @@ def test_negative_t3_skips_second_order_design():
     idx = _indices()
     idx["control_model"] = {"source": "test", "K": 0.4, "T1": 4.0, "T2": 0.4, "T3": -0.2, "T": 4.6}
     doc, ts = run_control(idx, replace(FAST, seeds=1), progress=False)
-    assert set(doc["designs"]) == {"identified", "graphical"}
+    assert set(doc["designs"]) == {"identified", "graphical", "autopilot"}
     assert any("second-order CGSA skipped" in n for n in doc["notes"])
     assert np.all(np.isfinite(ts["psi"]))
 
@@ -395,7 +397,7 @@ def test_first_order_fallback_control_model():
     idx = _indices()
     idx["control_model"] = {"source": "fallback", "K": 0.576, "T1": 4.816, "T2": 0.0, "T3": 0.0, "T": 4.816}
     doc, ts = run_control(idx, replace(FAST, seeds=1), progress=False)
-    assert set(doc["designs"]) == {"identified", "graphical"}
+    assert set(doc["designs"]) == {"identified", "graphical", "autopilot"}
     assert any("first order" in n for n in doc["notes"])
     # Same model and same design: both loops are 1/(Tw s) exactly, and the runs coincide.
     assert doc["designs"]["identified"]["loop_nomoto_plant"]["phase_margin_deg"] == pytest.approx(90.0)

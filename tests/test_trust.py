@@ -189,7 +189,7 @@ def test_control_says_what_it_was_designed_from():
     doc, _ = run_control({"dataset": "d", "provenance": "measured", "control_model": cm,
                           "graphical_model": {"source": "standard", "K": 0.3, "T": 14.0}},
                          ControlConfig(seeds=1), progress=False)
-    assert set(doc["designs"]) == {"graphical"}               # no 'identified' design from flagged indices
+    assert set(doc["designs"]) == {"graphical", "autopilot"}  # no "identified" design from flagged indices
     assert doc["design_basis"]["source"].startswith("first-order graphical")
     assert any(n.startswith("designed from: first-order graphical") for n in doc["notes"])
     assert np.isfinite(doc["results"][0]["stats"]["rise_time"]["mean"])
@@ -198,7 +198,7 @@ def test_control_says_what_it_was_designed_from():
     doc, _ = run_control({"dataset": "d", "provenance": "measured", "control_model": cm, "identified": ident,
                           "graphical_model": {"source": "standard", "K": 0.3, "T": 14.0}},
                          ControlConfig(seeds=1), progress=False)
-    assert set(doc["designs"]) == {"graphical", "identified-flagged"}
+    assert set(doc["designs"]) == {"graphical", "identified-flagged", "autopilot"}
     assert any("for comparison only" in n for n in doc["notes"])
     assert doc["design_basis"]["source"].startswith("first-order graphical")
 
@@ -223,3 +223,21 @@ def test_report_marks_a_set_flag_only_on_the_indices_it_names():
     assert nb.flag_marks(fl, "T2") == "invalid draws, uncertain"
     fl.append({"check": "innovation_whiteness", "subject": "filter", "reason": "lag-1"})
     assert nb.flag_marks(fl, "K") == "innovations not white"
+
+
+def test_nis_below_its_band_reads_as_over_stated_uncertainty_and_does_not_block():
+    """A mean NIS below its band (the filter over-states its uncertainty, as the fading memory does by
+    design) is reported but does not forbid a design; above its band (over-confidence) it does."""
+    import numpy as np
+
+    from pipeline.identify import consistency as cons
+    from pipeline.indices.trust import blocking, nis_low
+
+    nu = np.random.default_rng(5).standard_normal((585, 3))
+    low = cons.flags(cons.consistency((nu ** 2).sum(1) / 3, nu, ["v", "r", "psi"]))
+    high = cons.flags(cons.consistency((nu ** 2).sum(1) * 3, nu, ["v", "r", "psi"]))
+    assert low[0]["reading"] == "over-stated uncertainty" and "conservative" in low[0]["reason"]
+    assert high[0]["reading"] == "over-confident" and "not to be trusted" in high[0]["reason"]
+    as_indices = [{"subject": "filter", **f} for f in low + high]
+    assert [nis_low(f) for f in as_indices] == [True, False]
+    assert blocking(as_indices, ("K", "T")) == [as_indices[1]]

@@ -20,12 +20,14 @@ identified-minus-graphical differences are paired.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import asdict
 
 import numpy as np
 import pandas as pd
 
 from pipeline.config import ControlConfig
+from pipeline.control.autopilot import PIDDesign, design_pid
 from pipeline.control.design import (
     CGSADesign,
     bode_data,
@@ -38,6 +40,9 @@ from pipeline.control.design import (
 )
 from pipeline.control.disturbance import wave_sequence, wave_variance_theory, wind_from_config
 from pipeline.control.metrics import WORST, course_metrics, seed_statistics
+from pipeline.control.robustness import nyquist_for
+from pipeline.control.robustness import robustness as robustness_block
+from pipeline.control.settings import KEYS as SETTING_KEYS
 from pipeline.control.simulate import NomotoShip, kcs_available, make_kcs_ship, simulate_course
 from pipeline.errors import InputError
 from pipeline.progress import bar
@@ -96,6 +101,28 @@ def primary_name(control_model: dict) -> str:
         else "identified"
 
 
+def _identified_indices(indices: dict) -> dict | None:
+    """K, T1, T2, T3, T of the SR-UKF-FFM identified indices when they make a valid second-order plant."""
+    block = (indices.get("identified") or {}).get("srukf-ffm") or {}
+    try:
+        vals = {n: float(block[n]["value"]) for n in ("K", "T1", "T2", "T3", "T")}
+    except (KeyError, TypeError, ValueError):
+        return None
+    ok = all(np.isfinite(v) for v in vals.values()) and vals["K"] > 0 and vals["T1"] > 0 and vals["T2"] > 0
+    return vals if ok else None
+
+
+def _design_model_block(choice: dict | None, control_model: dict) -> dict:
+    """SPEC section 10 ``design_model``: the model designed from, its indices, the rule and both errors."""
+    out = {"chosen": primary_name(control_model), "source": control_model.get("source"),
+           "indices": {n: control_model[n] for n in ("K", "T1", "T2", "T3", "T")}}
+    if choice is None:
+        out.update({"rule": "the indices stage's control_model (no held-out comparison was run)"})
+    else:
+        out.update({k: v for k, v in choice.items() if k != "chosen"})
+    return out
+
+
 def _flagged_identified(indices: dict) -> dict | None:
     """K, T of the SR-UKF-FFM identified indices when usable for a comparison design (K, T > 0)."""
     block = (indices.get("identified") or {}).get("srukf-ffm") or {}
@@ -141,12 +168,15 @@ def loop_flags(loop: dict, cfg: ControlConfig) -> list[dict]:
                        "the loop rings and amplifies disturbances"}]
 
 
-def design_table(designs: dict[str, CGSADesign], control_model: dict, cfg: ControlConfig) -> dict:
+def design_table(designs: dict[str, CGSADesign | PIDDesign], control_model: dict, cfg: ControlConfig) -> dict:
     """Gains and loop figures of each design, on its own model and on the identified Nomoto plant."""
     cm = control_model
     plant = nomoto_tf(cm["K"], T1=cm["T1"], T2=cm["T2"], T3=cm["T3"])
     out = {}
     for name, d in designs.items():
+        if isinstance(d, PIDDesign):
+            out[name] = {**d.summary(), "flags": []}
+            continue
         loop_plant = open_loop(d, plant)
         step_tf = setpoint_response_tf(d, plant, "measurement")
         out[name] = {
@@ -160,8 +190,57 @@ def design_table(designs: dict[str, CGSADesign], control_model: dict, cfg: Contr
     return out
 
 
+def _identified_control_model(indices: dict, choice: dict) -> dict:
+    """The identified indices as the control model, when the design-model rule chose them."""
+    ind = choice["identified"]
+    flags = (indices.get("identified_flags") or {}).get("srukf-ffm") or []
+    second = [f for f in flags if {x.strip() for x in str(f.get("subject", "")).split(",")}
+              & {"T1", "T2", "T3"}]
+    ok = bool(ind.get("T2", 0) > 0 and ind.get("T3", 0) > 0 and not second)
+    return {"source": "identified srukf-ffm (chosen by the design-model rule on held-out runs)",
+            **{n: float(ind[n]) for n in ("K", "T1", "T2", "T3", "T")},
+            "second_order": {"ok": ok, "reason": None if ok else
+                             "; ".join(f.get("reason", "") for f in second) or "T2 or T3 not positive"}}
+
+
+def _graphical_control_model(gm: dict) -> dict:
+    return {"source": "first-order graphical model (chosen by the design-model rule on held-out runs)",
+            "K": gm["K"], "T1": gm["T"], "T2": 0.0, "T3": 0.0, "T": gm["T"],
+            "second_order": {"ok": False, "reason": "first-order model"}}
+
+
+def plant_label(control_model: dict) -> str:
+    """What the linear 'nomoto' plant is, named for what it is."""
+    if control_model["T2"] == 0 and control_model["T3"] == 0:
+        what = ("first-order graphical Nomoto model" if primary_name(control_model) == "graphical"
+                else "first-order Nomoto model")
+    else:
+        what = "identified second-order Nomoto model"
+    return f"{what} (the design model: {control_model.get('source')}), linear, servo angle and rate limits"
+
+
+def paper_case(per: dict, plant: str, design: str, kp: float, wind: float) -> dict:
+    """The paper's configuration beside its reported steady MAE, and why a PD cannot reach it."""
+    rows = per.get((plant, design)) or []
+    mae = np.array([r["steady_mae"] for r in rows], dtype=float)
+    floor = abs(wind) / kp if kp > 0 else float("nan")
+    return {
+        "plant": plant, "design": design, "seeds": len(rows),
+        "steady_mae_mean": float(np.mean(mae)) if mae.size else None,
+        "steady_mae_std": float(np.std(mae, ddof=1)) if mae.size > 1 else None,
+        "paper_steady_mae": PAPER_CONTROL["steady_mae"], "Kp": kp, "wind_rudder_deg": wind,
+        "pd_steady_offset_deg": floor,
+        "why": (f"a PD (no integral action) holds a constant equivalent wind rudder of {wind:g} deg only "
+                f"with a steady heading error |wind|/Kp = {floor:.3g} deg (Kp = {kp:.3g} deg/deg); waves add "
+                "to it, so "
+                f"the paper's {PAPER_CONTROL['steady_mae']:g} deg cannot follow from its own stated set-up"),
+    }
+
+
 def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str = "indices.json",
-                plants: tuple[str, ...] | None = None, progress: bool = True) -> tuple[dict, pd.DataFrame]:
+                plants: tuple[str, ...] | None = None, progress: bool = True,
+                design_choice: dict | None = None,
+                robustness: dict | None = None) -> tuple[dict, pd.DataFrame]:
     """Designs, simulations over seeds and statistics for one dataset.
 
     Parameters
@@ -171,6 +250,11 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
     cfg : control settings.  source : file name used in error messages.
     plants : which plants to run (default: 'nomoto', plus 'kcs' for virtual data when available).
     progress : show a tqdm bar over the runs.
+    design_choice : the ``design_model`` block of :func:`pipeline.control.design_model.choose_design_model`
+        (which model to design from, decided on held-out runs); None: the indices' control_model.
+    robustness : extra inputs of the robustness block (:func:`pipeline.control.robustness.robustness`):
+        "parameters" and "covariance" of the identified model, "linearised" K, T1, T2, T3 of the ship
+        straight ahead; None: margins on the design model only.
 
     Returns
     -------
@@ -187,7 +271,17 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
     graphical_model = (_model(indices, "graphical_model", ("K", "T"), source)
                        if indices.get("graphical_model") is not None else None)
     provenance = indices.get("provenance", "unknown")
+    if design_choice is not None:
+        chosen = design_choice.get("chosen")
+        if chosen == "identified" and design_choice.get("identified"):
+            control_model = _identified_control_model(indices, design_choice)
+        elif chosen == "graphical" and graphical_model is not None:
+            control_model = _graphical_control_model(graphical_model)
     designs = build_designs(control_model, graphical_model, cfg)
+    base = designs["graphical" if primary_name(control_model) == "graphical" else "identified"]
+    designs["autopilot"] = design_pid(base.K, base.T, cfg.tw, rudder_max=cfg.rudder_max, zeta=cfg.pid_zeta,
+                                      ki_ratio=cfg.pid_ki_ratio, ref_wn_ratio=cfg.ref_wn_ratio,
+                                      ref_zeta=cfg.ref_zeta, ref_rate_share=cfg.ref_rate_share)
     notes = []
     flagged = _flagged_identified(indices)
     if primary_name(control_model) == "graphical" and flagged is not None:
@@ -195,13 +289,18 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
         # never as the autopilot: its name and the note say so
         designs["identified-flagged"] = design_first_order(flagged["K"], flagged["T"], cfg.tw,
                                                            name="identified-flagged")
-        notes.append("identified-flagged: first-order CGSA from the flagged SR-UKF-FFM indices "
-                     f"(K = {flagged['K']:.4g} 1/s, T = {flagged['T']:.4g} s), simulated for comparison "
-                     "only; it is not the autopilot")
+        why = (f"not designed from: {design_choice.get('reason')}" if design_choice is not None
+               else "flagged by the indices stage")
+        notes.append("identified-flagged: first-order CGSA from the SR-UKF-FFM indices "
+                     f"(K = {flagged['K']:.4g} 1/s, T = {flagged['T']:.4g} s; {why}), simulated for "
+                     "comparison only; it is not the autopilot")
     table = design_table(designs, control_model, cfg)
 
     basis = design_basis(indices)
-    if basis["basis"]:
+    if design_choice is not None:
+        notes.append(f"designed from: {control_model['source']}; {design_choice.get('reason')} "
+                     f"(rule: {design_choice.get('rule')})")
+    elif basis["basis"]:
         notes.append(f"designed from: {basis['basis']}")
     so = control_model.get("second_order") or {}
     if primary_name(control_model) != "graphical" and not so.get("ok", True):
@@ -226,15 +325,30 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
     waves = {s: (wave_sequence(n, cfg.dt, s, cfg.wave_num, cfg.wave_den) if cfg.wave else np.zeros(n))
              for s in seeds}
 
-    frames, per = [], {}
+    # the paper's case: a CGSA from the identified K, T run on the identified (second-order) model
+    ident_vals = _identified_indices(indices)
+    paper_design = next((n for n in ("identified", "identified-flagged") if n in designs), None)
+    paper_plant = None
+    if paper_design is not None and ident_vals is not None:
+        same = control_model["T2"] > 0 and all(
+            abs(control_model[n] - ident_vals[n]) <= 1e-12 * abs(ident_vals[n])
+            for n in ("K", "T1", "T2", "T3"))
+        paper_plant = "nomoto" if same and "nomoto" in plants else "identified"
     jobs = [(p, d, s) for p in plants for d in designs for s in seeds]
+    if paper_plant == "identified":
+        jobs += [("identified", paper_design, s) for s in seeds]
+
+    def make_ship(plant):
+        if plant == "kcs":
+            return make_kcs_ship(cfg.rudder_max, cfg.rudder_rate, cfg.dead_time, cfg.servo_time_constant)
+        m = control_model if plant == "nomoto" else ident_vals
+        return NomotoShip(m["K"], m["T1"], m["T2"], m["T3"], rudder_max=cfg.rudder_max,
+                          rudder_rate=cfg.rudder_rate, servo_time_constant=cfg.servo_time_constant,
+                          dead_time=cfg.dead_time)
+
+    frames, per = [], {}
     for plant, dname, seed in bar(jobs, desc="control", unit="run", progress=progress):
-        if plant == "nomoto":
-            cm = control_model
-            ship = NomotoShip(cm["K"], cm["T1"], cm["T2"], cm["T3"],
-                              rudder_max=cfg.rudder_max, rudder_rate=cfg.rudder_rate)
-        else:
-            ship = make_kcs_ship(cfg.rudder_max, cfg.rudder_rate)
+        ship = make_ship(plant)
         fr = simulate_course(designs[dname], ship, setpoint=cfg.setpoint, duration=cfg.duration, dt=cfg.dt,
                              rudder_max=cfg.rudder_max, wind=wind, wave=waves[seed])
         m = course_metrics(fr["time"], fr["psi"], fr["delta"], cfg.setpoint, band=cfg.settle_band,
@@ -272,9 +386,10 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
         "virtual": provenance == "virtual",
         "builtin_tank": bool(indices.get("builtin_tank")),
         "plants": {
-            "nomoto": {"used": "nomoto" in plants,
-                       "description": "identified second-order Nomoto model (control_model), linear, "
-                                      "servo rate and angle limits"},
+            "nomoto": {"used": "nomoto" in plants, "description": plant_label(control_model)},
+            "identified": {"used": paper_plant == "identified",
+                           "description": "identified second-order Nomoto model (SR-UKF-FFM, Eq. 6), linear, "
+                                          "servo angle and rate limits: the plant of the paper's case"},
             "kcs": {"used": "kcs" in plants,
                     "description": "nonlinear 3-DOF MMG KCS of the virtual tank (pipeline.tank.KCSShip); "
                                    "used only for virtual-tank data"},
@@ -308,6 +423,24 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
         "results": results,
         "identification_value": value,
         "paper": PAPER_CONTROL,
+        "paper_case": (paper_case(per, paper_plant, paper_design, designs[paper_design].Kp, wind)
+                       if paper_plant else None),
+        "design_model": _design_model_block(design_choice, control_model),
+        "settings": {k: getattr(cfg, f) for k, (f, _, _) in SETTING_KEYS.items()},
     }
+    rob = robustness_block(designs, control_model, cfg, robustness or {})
+    for name, row in rob.pop("designs").items():     # SPEC section 10: the margins belong to each design
+        doc["designs"][name]["sampled_loop"] = row
+    doc["robustness"] = rob
+    extra = robustness or {}
+    if cfg.adaptive and "kcs" in plants and extra.get("parameters") is not None and \
+            extra.get("covariance") is not None:
+        from pipeline.control.adaptive import adaptive_block
+
+        doc["adaptive"], secs = adaptive_block(extra["parameters"], extra["covariance"], base.K, base.T,
+                                               seeds[:cfg.adaptive_seeds], cfg)
+        print(f"control: adaptive in-loop run, {len(seeds[:cfg.adaptive_seeds])} seeds x 2; streaming "
+              f"identification {secs:.2f} s", file=sys.stderr)
+    doc["robustness"]["nyquist"] = nyquist_for(designs, control_model, cfg, n=cfg.bode_points)
     ts = pd.concat(frames, ignore_index=True)
     return doc, ts

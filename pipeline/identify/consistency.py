@@ -139,14 +139,21 @@ def flags(cons: dict[str, Any]) -> list[dict[str, Any]]:
     nis, (lo, hi) = cons.get("nis_mean"), cons["nis_95_band"]
     m, n_eff = cons["nis_expected"], cons["nis_n_eff"]
     if nis is None or not np.isfinite(nis) or not lo <= nis <= hi:
-        side = ("the innovations are larger than the filter's noise settings say (measurement noise R "
-                "or process noise Q too small, or model mismatch)" if nis is not None and nis > hi else
-                "the innovations are smaller than the filter's noise settings say (R or Q too large)")
+        high = nis is None or not np.isfinite(nis) or nis > hi
+        if high:
+            side = ("the innovations are larger than the filter's noise settings say (measurement noise R "
+                    "or process noise Q too small, or model mismatch): the filter is over-confident; "
+                    "estimates and their uncertainties are not to be trusted")
+        else:
+            side = ("the innovations are smaller than the filter's noise settings say (R or Q too large, or "
+                    "the fading memory inflating P, as it does by design): the filter over-states its "
+                    "uncertainty, so its bounds are conservative; this alone does not make the estimates "
+                    "wrong (whether the model predicts is judged on held-out runs)")
         out.append({"check": "nis_mean", "value": nis, "band": [lo, hi],
+                    "reading": "over-confident" if high else "over-stated uncertainty",
                     "reason": f"mean NIS {nis:.3g} where {m:g} is expected, outside its "
                               f"{cons['level']:.0%} chi-square band [{lo:.3g}, {hi:.3g}] over "
-                              f"{n_eff:.0f} effectively independent steps: {side}; estimates and "
-                              "their uncertainties are not to be trusted"})
+                              f"{n_eff:.0f} effectively independent steps: {side}"})
     bad = {k: w for k, w in cons.get("whiteness", {}).items() if not w["white"]}
     if bad:
         what = ", ".join(f"{k} {w['lag1']:+.2f}" for k, w in bad.items())

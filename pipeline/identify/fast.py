@@ -196,13 +196,15 @@ def nonzero_columns(M: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, error_model="numpy")
 def workspace(m):
-    """Every work array of :func:`srukf_steps` for m measured channels, allocated once."""
+    """Every work array of :func:`srukf_steps` for m measured channels, allocated once.  The last one
+    carries the fuzzy channel's previous innovation from one call to the next (0 in a fresh workspace),
+    so consecutive calls on one workspace equal one call over the concatenated samples."""
     return (np.empty((NX, NPTS)), np.empty((NX, NPTS)), np.empty(NX), np.empty((NX, NX)),
             np.empty((NX, NPTS + NX)), np.empty((m, NPTS + m)), np.empty((m, NPTS)),
             np.empty(m), np.empty((m, m)), np.empty((NX, m)), np.empty((m, NX)), np.empty((NX, m)),
             np.empty(m), np.empty(NX), np.empty(m), np.empty(NX), np.empty(m), np.empty(5), np.empty(5),
             np.empty(NX), np.empty((NX, NX)), np.empty((ND, NPTS)), np.empty((ND, NPTS + NX)),
-            np.empty((ND, ND)), np.empty(ND), np.empty((m, ND + m)))
+            np.empty((ND, ND)), np.empty(ND), np.empty((m, ND + m)), np.zeros(1))
 
 
 @njit(cache=True, error_model="numpy")
@@ -210,11 +212,11 @@ def _steps_plain(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, w
                  use_fuzzy, chan, fz, rules, ws,
                  x_prior_out, x_out, std_out, innov_out, nis_out, f_out):
     """The SR-UKF-FFM step by step as written in :mod:`.srukf` (any Q, any measured states)."""
-    X, Xp, xm, Sm, Ax, Ay, DY, ym, Sy, Pxy, Z, K, innov, u, zt, xw, yw, me, md, _, _, _, _, _, _, _ = ws
+    X, Xp, xm, Sm, Ax, Ay, DY, ym, Sy, Pxy, Z, K, innov, u, zt, xw, yw, me, md, _, _, _, _, _, _, _, pe = ws
     n = Y.shape[0]
     m = Y.shape[1]
     npts = NPTS
-    prev_e = 0.0
+    prev_e = pe[0]
     for k in range(n):
         # ---- time update
         for i in range(NX):
@@ -322,6 +324,7 @@ def _steps_plain(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, w
             innov_out[k, a] = innov[a]
         nis_out[k] = nis
         f_out[k] = f
+    pe[0] = prev_e
     return 0, n
 
 
@@ -355,7 +358,7 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
     so nothing fails by cancellation; the reference path's downdate fails when r_a / s_a is below
     round-off, and the step reports that case as the same failure (status 3): r_a < eps s_a."""
     (X, Xp, xm, Sm, Ax, Ay, DY, ym, Sy, Pxy, Z, K, innov, u, zt, xw, yw, me, md,
-     xq, Sq, Xd, Ad, Ld, dw, Ayq) = ws
+     xq, Sq, Xd, Ad, Ld, dw, Ayq, pe) = ws
     n = Y.shape[0]
     m = Y.shape[1]
     nq = q_cols.shape[0]
@@ -366,7 +369,7 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
     # the paper's case (3 noise columns, wc0 > 0, v r psi measured) runs the written-out block
     fuse = (written_out and ncol == 13 and w0 > 0.0 and m == 3 and meas_idx[0] == 0 and meas_idx[1] == 1
             and meas_idx[2] == 2)
-    prev_e = 0.0
+    prev_e = pe[0]
     for k in range(n):
         dl = delta_prev[k]
         # ---- time update: sigma points through the model, dynamic rows only (Xd[:, p], p as in X)
@@ -491,6 +494,7 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
             innov_out[k, a] = innov[a]
         nis_out[k] = nis
         f_out[k] = f
+    pe[0] = prev_e
     return 0, n
 
 
@@ -599,6 +603,7 @@ def _batch_range(lo, hi, x0s, S0, Ys, deltas_prev, h, sq_q, q_cols, sq_r, r_cols
     for r in range(lo, hi):
         x[:] = x0s[r]
         S[:, :] = S0
+        ws[-1][0] = 0.0                  # each run starts its fuzzy memory afresh
         st, _ = srukf_steps(x, S, Ys[r], deltas_prev[r], h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc,
                             gamma, use_fuzzy, chan, fz, rules, ws, xp, xo, so, io, ni, fo)
         status[r] = st

@@ -198,13 +198,23 @@ def integral_uncertainty_flags(row: dict[str, Any], cfg: IndicesConfig) -> list[
     return out
 
 
+def nis_low(f: dict[str, Any]) -> bool:
+    """A mean-NIS flag below its band: the filter over-states its uncertainty (the fading memory inflates
+    P by design), which makes its bounds conservative, not its estimates wrong."""
+    if f.get("check") not in ("nis_mean", "nis"):
+        return False
+    v, band = _finite(f.get("value")), f.get("band")
+    return v is not None and isinstance(band, list) and len(band) == 2 and _finite(band[0]) is not None \
+        and v < float(band[0])
+
+
 def blocking(flags: list[dict[str, Any]], names: tuple[str, ...]) -> list[dict[str, Any]]:
     """The flags that forbid designing from indices ``names``: any flag whose subject (one name or a
-    comma-separated list) names one of them, or about the filter (NIS, whiteness, excitation ...).
-    Missing primes do not."""
+    comma-separated list) names one of them, or about the filter (NIS above its band, whiteness,
+    excitation ...).  Missing primes and a NIS below its band (:func:`nis_low`) do not."""
     out = []
     for f in flags:
-        if f.get("check") == "prime_unavailable":
+        if f.get("check") == "prime_unavailable" or nis_low(f):
             continue
         subj = str(f.get("subject", ""))
         if subj == "filter" or {s.strip() for s in subj.split(",")} & set(names):
