@@ -122,6 +122,10 @@ if bp:
              "error describes the unconstrained curvature, not a two-sided interval).")
     if held:
         nb.note(sign_bound_text(held))
+if dt.baseline_choice_text(dg):
+    nb.note(dt.baseline_choice_text(dg))
+if dt.adequacy_text(dg):
+    nb.note(dt.adequacy_text(dg))
 
 # %% [markdown]
 # ## The model ladder
@@ -488,6 +492,8 @@ else:
                   "kept" + (f" (the nested selection's held-out change: {dt.gain_text(gain)})"
                             if has_gain else "")
                   + (f". Flagged: {dt.effect_words(gain_block['flag'])}." if gain_block.get("flag") else "."))
+if dt.adequacy_text(dg):
+    points.append(dt.adequacy_text(dg))
 if rejected:
     points.append(f"{len(rejected)} effects rejected (one may fail several tests): "
                   + ", ".join(f"{n} {k}" for k, n in tests.items() if n) + ".")
