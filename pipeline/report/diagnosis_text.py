@@ -487,3 +487,30 @@ def adequacy_text(dg: dict) -> str:
         text += (f" Its residual follows the signatures of {sig} (correlation with the yaw-acceleration "
                  "error).")
     return text
+
+
+def headline(dg: dict) -> str:
+    """The command line's one line: the cause and the honest gain with the MAEs (deg) it is computed
+    from, the runs and the mode it is measured in, all from diagnosis.json's ``gain`` block (one set
+    of numbers: the interval is that gain's own); without an honest gain, the validation MAEs pooled
+    over the folds (the ladder's first and last rungs), said to be chosen on those runs."""
+    g = dg.get("gain") or {}
+    head = f"diagnosis: cause {dg.get('cause', 'none')}"
+    if isinstance(g.get("mae_psi_relative_reduction"), (int, float)):
+        mode = "test runs" if dg.get("test_runs") else "nested leave-one-run-out"
+        ivt = interval(g.get("interval_95"))
+        text = (f"{head}; honest gain {gain_text(g['mae_psi_relative_reduction'])}"
+                + (f" (95 % interval {ivt})" if ivt else "")
+                + f": mean MAE psi {num(g.get('baseline_mae_psi_deg'), 4, 'deg')} (linear baseline) -> "
+                f"{num(g.get('extended_mae_psi_deg'), 4, 'deg')} (the model "
+                + ("kept" if mode == "test runs" else "each selection chose without the run")
+                + f") on {len(g.get('measured_on') or [])} run(s) no choice has seen ({mode})")
+    else:
+        lad = dg.get("ladder") or []
+        first, last = (lad[0], lad[-1]) if lad else ({}, {})
+        text = (f"{head}; validation MAE psi {num(first.get('validation_mae_psi_deg'), 4, 'deg')} -> "
+                f"{num(last.get('validation_mae_psi_deg'), 4, 'deg')} (mean over the folds; chosen on these "
+                "runs, no honest gain)")
+    if dg.get("baseline_adequate") is False:
+        text += "; the linear baseline is inadequate (see baseline_adequacy)"
+    return text
