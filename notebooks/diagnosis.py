@@ -462,7 +462,8 @@ tests = {v: sum(v in dt.failed_tests(f, settings) for f in findings if not f.get
 points = [
     f"Ship: {ship}; data at {scale_words}.",
     f"The linear baseline is {base_stab} and its held-out heading error is "
-    f"{dt.num((base.get('validation') or {}).get('mae_psi_deg'), 3, 'deg')} on the validation runs.",
+    f"{dt.num(dt.pooled_baseline_mae(dg), 3, 'deg')} on the validation runs (the mean over the folds, the "
+    "number the selection judges by).",
 ]
 if named and has_gain:
     points.append(

@@ -34,19 +34,19 @@ def test_the_baseline_is_the_unconstrained_fit_where_the_bound_cripples_it():
     s.choose_baseline([0, 1])
     assert s.baseline_bounded is False
     for k in (0, 1):
-        base, other = s.fit(k, ()), s.other_linear(k)
+        base, other = s.linear(k), s.other_linear(k)
         assert not base.sign_bounds and other.sign_bounds
         assert "a21" in other.at_bound and base.at_bound == ()
-        mb = s.eval(k, ())[0]["mae_psi_deg"]
+        # the selection's own linear rung keeps the bounds (every extension contains it)
+        assert s.fit(k, ()) is other
+        mb = s.linear_eval(k)[0]["mae_psi_deg"]
         mo = evaluate(other, s.folds[k].val)[0]["mae_psi_deg"]
         assert mb < 0.7 * mo, (mb, mo)
-    # every extension is fitted as the baseline is, so it contains the baseline
-    assert not s._sign_bounds((("rudder_offset", "constant"),)) and not s._sign_bounds(())
     # even the best linear model is far off on these runs (its hull is nonlinear): not adequate, and
     # its residual follows hull signatures
-    pooled = sum(s.eval(k, ())[0]["mae_psi_deg"] for k in (0, 1)) / 2
+    pooled = sum(s.linear_eval(k)[0]["mae_psi_deg"] for k in (0, 1)) / 2
     noise = heading_noise_deg(s.folds[0].val, s.ctx.t_ship)
-    res = residual_structure(s.fit(0, ()), s.folds[0].val, s.eval(0, ())[1], s.ctx)
+    res = residual_structure(s.linear(0), s.folds[0].val, s.linear_eval(0)[1], s.ctx)
     a = _adequacy(pooled, noise, s.cfg, res)
     assert a["adequate"] is False and pooled > a["threshold_deg"], a
     assert {x["effect"] for x in a["signatures"]} & {"nonlinear_sway_damping", "sway_yaw_coupling",
@@ -60,4 +60,3 @@ def test_a_given_choice_is_not_made_again():
         s = Search([], ctx, DiagnoseConfig(), baseline_bounded=given)
         s.choose_baseline([0])
         assert s.baseline_bounded is given and s._fits == {}
-        assert s._sign_bounds(()) is given

@@ -445,7 +445,7 @@ def _nested_one(folds, held, ctx, cfg, noise):
             refit.refine(0, (), st)
     except ModelError:
         return None
-    pb = refit.eval(0, ())[1]
+    pb = refit.linear_eval(0)[1]      # the baseline the inner selection chose (Search.choose_baseline)
     pe = refit.eval(0, st)[1] if st else pb
     other = refit.other_linear(0)
     po = evaluate(other, [held])[1] if other is not None else None
@@ -517,7 +517,11 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
                 if fits[key] is not None:
                     allrun.refine(0, key, final)
         evs = {k: (allrun.eval(0, k) if f is not None else None) for k, f in fits.items()}
-        b, e = evs[()], evs[structure_of(*sel.structure)]
+        # the reported baseline is the linear fit the selection chose (Search.choose_baseline); with no
+        # effect named, the model kept is that baseline itself
+        evs[()] = allrun.linear_eval(0)
+        b = evs[()]
+        e = evs[structure_of(*sel.structure)] if sel.structure else b
         g, iv, bm, em = _pair_gain([(te, b[1], e[1])], cfg, block_s)
         ladder_test = {}
         for k, ev in evs.items():
@@ -757,9 +761,15 @@ def _adequacy(base_mae: float, noise: float, cfg: DiagnoseConfig, residuals: dic
 
 def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cfg, noise, runs, rates):
     st = sel.structure
-    base, ext = search.fit(0, ()), search.fit(0, st)
-    base_val, base_per = search.eval(0, ())
-    ext_val, ext_per = search.eval(0, st)
+    # the reported baseline is the linear fit of lower pooled held-out error (Search.choose_baseline);
+    # with no effect named, the extended model is that baseline
+    base = search.linear(0)
+    base_val, base_per = search.linear_eval(0)
+    if st:
+        ext = search.fit(0, st)
+        ext_val, ext_per = search.eval(0, st)
+    else:
+        ext, ext_val, ext_per = base, base_val, base_per
     chosen = [e for e, _ in st]
     rows = [_finding(e.name, sel, search, ctx, cfg, e.name in chosen, st) for e in CATALOGUE]
     rows.sort(
@@ -787,7 +797,9 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
     ks = list(range(len(folds)))
 
     def pooled(structure_):
-        return float(np.mean([search.eval(k, structure_)[0]["mae_psi_deg"] for k in ks]))
+        """Mean over the folds of the validation MAE psi (deg); the reported linear baseline for ()."""
+        return float(np.mean([(search.eval(k, structure_) if structure_ else search.linear_eval(k))[0]
+                              ["mae_psi_deg"] for k in ks]))
 
     ladder = []
     for i, (s_, _step) in enumerate(sel.ladder):
@@ -872,10 +884,9 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             summary += " " + check["warning"]
     fold_reports = []
     for k, fold in enumerate(folds):
-        b = search.fit(k, ())
-        x = search.fit(k, st)
-        bv, bp = search.eval(k, ())
-        xv, xp = search.eval(k, st)
+        b = search.linear(k)
+        bv, bp = search.linear_eval(k)
+        x, (xv, xp) = (search.fit(k, st), search.eval(k, st)) if st else (b, (bv, bp))
         fold_reports.append(
             {
                 "training_runs": [s.name for s in fold.train],

@@ -447,7 +447,7 @@ def baseline_choice_text(dg: dict) -> str:
     kept = "with the ship-sign bounds (a11, a12, a21, a22 <= 0)" if base.get("sign_bounds") else \
         "without sign bounds (unconstrained)"
     alt = "unconstrained" if base.get("sign_bounds") else "bounded"
-    mine, theirs = _pooled_baseline(dg), other.get("validation_mae_psi_deg")
+    mine, theirs = pooled_baseline_mae(dg), other.get("validation_mae_psi_deg")
     text = (f"The baseline is the linear fit {kept}, the one that predicts the selection's validation runs "
             f"better: held-out MAE psi {num(mine, 3, 'deg')} against {num(theirs, 3, 'deg')} for the {alt} "
             "fit (each the mean over the folds of its validation runs' MAE)")
@@ -462,8 +462,9 @@ def baseline_choice_text(dg: dict) -> str:
     return text
 
 
-def _pooled_baseline(dg: dict) -> float | None:
-    """The baseline's held-out MAE psi pooled over the folds (deg): the ladder's first rung."""
+def pooled_baseline_mae(dg: dict) -> float | None:
+    """The baseline's held-out MAE psi (deg), the mean over the folds of each fold's validation runs'
+    MAE: the ladder's first rung, the number the selection judges by."""
     lad = dg.get("ladder") or []
     return lad[0].get("validation_mae_psi_deg") if lad else None
 
