@@ -932,6 +932,9 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             # the baseline is the linear fit (with or without the ship-sign bounds) of lower pooled
             # held-out MAE psi on the selection's runs (select.Search.choose_baseline); the other beside it
             "sign_bounds": bool(search.baseline_bounded),
+            # which linear fit predicts the selection's held-out runs better (bounded: True), whether or
+            # not it is the reported one (DiagnoseConfig.best_linear_baseline)
+            "best_linear_sign_bounds": search.best_bounded,
             "other_linear": other,
             "choice": _baseline_choice(search, pooled(()), other),
             # a12 held where no training run measures v (fit.latent_sway_a12): the sway parameters are
@@ -1040,10 +1043,13 @@ def _baseline_choice(search: Search, chosen_mae: float, other: dict | None) -> s
     kept = "with the ship-sign bounds a11, a12, a21, a22 <= 0" if search.baseline_bounded else \
         "without sign bounds (unconstrained)"
     alt = "unconstrained" if search.baseline_bounded else "bounded"
+    better = other["validation_mae_psi_deg"] < chosen_mae
     return (f"the baseline is the linear fit {kept}: held-out MAE psi {chosen_mae:.2f} deg on the "
             f"selection's validation runs against {other['validation_mae_psi_deg']:.2f} deg for the {alt} fit"
             + (f", which presses on its bound ({', '.join(other['at_sign_bound'])})"
-               if other["at_sign_bound"] else ""))
+               if other["at_sign_bound"] else "")
+            + (f"; the {alt} fit predicts these runs better, and the gain against it is "
+               "gain.against_other_linear" if better else ""))
 
 
 def _gain_flag(honest: dict, chosen: list[str]) -> str | None:

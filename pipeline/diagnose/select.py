@@ -218,6 +218,9 @@ class Search:
         #: the reported linear baseline is the fit with the ship-sign bounds (True) or the unconstrained
         #: one (False); None: not chosen yet (:meth:`choose_baseline` chooses)
         self.baseline_bounded = baseline_bounded
+        #: the linear fit of lower pooled held-out error is the bounded one (True) or the unconstrained
+        #: one (False); None: not measured (a Search told its baseline)
+        self.best_bounded: bool | None = None
         self._free: dict = {}  # fold -> the unconstrained linear fit (or its ModelError)
         self._linear_evals: dict = {}
 
@@ -250,9 +253,11 @@ class Search:
         SELECTION's held-out runs best: in every fold of ``ks`` the linear model is fitted with the
         ship-sign bounds (a11, a12, a21, a22 <= 0, :meth:`~pipeline.diagnose.fit.Layout.bounds`) and
         without them; the one of lower pooled held-out MAE psi (the mean over the folds, the selection's
-        own measure) is the baseline (:meth:`linear`); a tie keeps the bounded one (the physical prior).
-        The other stays at hand (:meth:`other_linear`), so the report shows both and the gain against
-        both.
+        own measure) is the best linear model (``best_bounded``); a tie keeps the bounded one (the
+        physical prior).  It is the reported baseline (:meth:`linear`) with
+        ``DiagnoseConfig.best_linear_baseline``; otherwise the bounded fit is, and the best one is at
+        hand beside it.  The other fit stays at hand (:meth:`other_linear`), so the report shows both and
+        the gain against both.
 
         The selection's steps keep the bounds (the bound guides the fits: every extension contains the
         bounded linear model, and a step's gain is its effect's).  Fitting the extensions without them
@@ -267,10 +272,12 @@ class Search:
         mb = float(np.mean([self.eval(k, ())[0]["mae_psi_deg"] for k in ks]))
         free = [self.unconstrained(k) for k in ks]
         if any(f is None for f in free):
-            self.baseline_bounded = True
+            self.baseline_bounded = self.best_bounded = True
             return
         mf = float(np.mean([self.linear_eval(k, bounded=False)[0]["mae_psi_deg"] for k in ks]))
-        self.baseline_bounded = not mf < mb
+        self.best_bounded = not mf < mb
+        # reported as THE baseline only with DiagnoseConfig.best_linear_baseline (its reason there)
+        self.baseline_bounded = self.best_bounded if self.cfg.best_linear_baseline else True
 
     def unconstrained(self, k: int) -> FitResult | None:
         """The linear model of fold ``k`` fitted without the sign bounds (None where it cannot be)."""

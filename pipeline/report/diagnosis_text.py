@@ -448,8 +448,11 @@ def baseline_choice_text(dg: dict) -> str:
         "without sign bounds (unconstrained)"
     alt = "unconstrained" if base.get("sign_bounds") else "bounded"
     mine, theirs = pooled_baseline_mae(dg), other.get("validation_mae_psi_deg")
-    text = (f"The baseline is the linear fit {kept}, the one that predicts the selection's validation runs "
-            f"better: held-out MAE psi {num(mine, 3, 'deg')} against {num(theirs, 3, 'deg')} for the {alt} "
+    worse = isinstance(mine, (int, float)) and isinstance(theirs, (int, float)) and theirs < mine
+    text = (f"The baseline is the linear fit {kept}"
+            + (f"; the {alt} fit predicts the selection's validation runs BETTER" if worse else
+               ", the one that predicts the selection's validation runs better")
+            + f": held-out MAE psi {num(mine, 3, 'deg')} against {num(theirs, 3, 'deg')} for the {alt} "
             "fit (each the mean over the folds of its validation runs' MAE)")
     if other.get("at_sign_bound"):
         text += f", which holds {', '.join(other['at_sign_bound'])} at its bound 0"
