@@ -434,7 +434,9 @@ def _nested_one(folds, held, ctx, cfg, noise):
     if not tr_i or not va_i:
         return None
     inner = _inner_folds(folds, held, cfg)
-    isearch = Search(inner, ctx, cfg)
+    # the inner selection chooses its own baseline only where that choice is reported
+    # (DiagnoseConfig.best_linear_baseline); otherwise the bounded fit, as the selection judges
+    isearch = Search(inner, ctx, cfg, baseline_bounded=None if cfg.best_linear_baseline else True)
     try:
         isel = select(isearch, list(range(len(inner))), noise)
         refit = Search([Fold(tr_i + va_i, [held])], ctx, cfg, baseline_bounded=isearch.baseline_bounded)
