@@ -124,6 +124,10 @@ if bp:
              "error describes the unconstrained curvature, not a two-sided interval).")
     if held:
         nb.note(sign_bound_text(held))
+if dt.baseline_choice_text(dg):
+    nb.note(dt.baseline_choice_text(dg))
+if dt.adequacy_text(dg):
+    nb.note(dt.adequacy_text(dg))
 
 # %% [markdown]
 # ## The model ladder
@@ -460,7 +464,8 @@ tests = {v: sum(v in dt.failed_tests(f, settings) for f in findings if not f.get
 points = [
     f"Ship: {ship}; data at {scale_words}.",
     f"The linear baseline is {base_stab} and its held-out heading error is "
-    f"{dt.num((base.get('validation') or {}).get('mae_psi_deg'), 3, 'deg')} on the validation runs.",
+    f"{dt.num(dt.pooled_baseline_mae(dg), 3, 'deg')} on the validation runs (the mean over the folds, the "
+    "number the selection judges by).",
 ]
 if named and has_gain:
     points.append(
@@ -490,6 +495,8 @@ else:
                   "kept" + (f" (the nested selection's held-out change: {dt.gain_text(gain)})"
                             if has_gain else "")
                   + (f". Flagged: {dt.effect_words(gain_block['flag'])}." if gain_block.get("flag") else "."))
+if dt.adequacy_text(dg):
+    points.append(dt.adequacy_text(dg))
 if rejected:
     points.append(f"{len(rejected)} effects rejected (one may fail several tests): "
                   + ", ".join(f"{n} {k}" for k, n in tests.items() if n) + ".")

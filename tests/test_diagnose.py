@@ -729,93 +729,103 @@ def test_step_refuses_an_effect_that_runs_away_or_harms_one_held_out_manoeuvre()
     assert not any("significantly worse" in w for w in st.why) and st.passes, st.why
 
 
+def _gated(effect, gain, folds, cut_deg, t, t_crit, blocks, **measured) -> dict:
+    """A material finding of diagnosis.json that was not named, its ``gates`` judged by the selection's
+    own gates (pipeline.diagnose.gates) on the evidence given (for the report's verdict tests)."""
+    from pipeline.diagnose.gates import Evidence, judge
+
+    ev = Evidence(gain=gain, fold_gains=tuple(folds), min_gain=0.10, abs_gain_deg=cut_deg,
+                  noise_floor_deg=0.1, t=t, t_crit=t_crit, blocks=blocks, carried=(), floor_ok=(True,),
+                  floor_words="", harm=(),
+                  harm_level="0.05/10", short_gain=0.0, short_t=0.0, short_t_crit=1.67, short_horizon_T=1.0,
+                  runaway=())
+    ev = dc.replace(ev, **measured)
+    gates = judge(ev, last=False)
+    if all(g.passed for g in gates):
+        gates += judge(ev, last=True)
+    return {"effect": effect, "significant": False, "material": all(ev.floor_ok), "validation_gain": gain,
+            "validation_gain_folds": list(folds), "abs_gain_deg": cut_deg, "block_t": t,
+            "block_t_crit": t_crit, "blocks": blocks, "gates": [g.to_json() for g in gates],
+            "evidence": "Not named: " + "; ".join(g.words for g in gates if not g.passed)}
+
+
+SETTINGS = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
+
+
 def test_report_verdict_of_an_effect_that_harms_a_held_out_run():
-    """A finding refused only by the no-harm test (measured HSVA evidence text) reads 'harms a held-out
-    run' with the run and its numbers, not 'another effect already explained the same error'."""
+    """A finding refused only by the no-harm gate (measured HSVA numbers) reads 'harms a held-out run'
+    with the run and its numbers, read from the gate's code, not 'another effect already explained the
+    same error'; the gate's value is the run's block t and its threshold minus the critical t."""
+    from pipeline.diagnose.gates import RunTest
     from pipeline.report import diagnosis_text as dt
 
-    f = {"effect": "nonlinear_yaw_damping", "significant": False, "material": True, "validation_gain": 0.12,
-         "validation_gain_folds": [0.04, 0.19], "abs_gain_deg": 0.65, "block_t": 1.8, "block_t_crit": 1.67,
-         "blocks": 76,
-         "evidence": "Not named: significantly worse on a held-out manoeuvre (one-sided block t at 0.05/10, "
-         "Bonferroni over the held-out runs): Z_10_01 2.71 -> 7.81 deg (block t = -4.0) (added to the linear "
-         "baseline: held-out +12%, per fold +4%, +19%); fitted: yaw damping grows."}
-    settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
-    v, why = dt.verdict(f, settings)
+    harm = (RunTest("Z_10_01", -4.0, -2.9, "Z_10_01 2.71 -> 7.81 deg (block t = -4.0)"),)
+    f = _gated("nonlinear_yaw_damping", 0.12, [0.04, 0.19], 0.65, 1.8, 1.67, 76, harm=harm)
+    gate = next(g for g in f["gates"] if g["code"] == "no_harm")
+    assert gate == {"code": "no_harm", "passed": False, "value": -4.0, "threshold": -2.9,
+                    "words": gate["words"]}
+    v, why = dt.verdict(f, SETTINGS)
     assert v == "harms a held-out run" and "Z_10_01 2.71 -> 7.81 deg" in why and "added to" not in why
-    assert dt.failed_tests(f, settings) == ("harms a held-out run",)
-
-
-def _rejected(effect, gain, folds, cut_deg, t, t_crit, blocks, evidence) -> dict:
-    """A material finding of diagnosis.json that was not named (for the report's verdict tests)."""
-    return {"effect": effect, "significant": False, "material": True, "validation_gain": gain,
-            "validation_gain_folds": folds, "abs_gain_deg": cut_deg, "block_t": t, "block_t_crit": t_crit,
-            "blocks": blocks, "evidence": evidence}
+    assert dt.failed_tests(f, SETTINGS) == ("harms a held-out run",)
+    # the report reads the code, not the words: reworded, the verdict is the same
+    gate["words"] = "another wording of the same refusal"
+    assert dt.verdict(f, SETTINGS) == ("harms a held-out run", "another wording of the same refusal")
 
 
 def test_report_verdict_of_an_effect_that_predicts_worse_from_the_measured_state():
-    """A finding refused by the short-horizon judge (measured HSVA evidence text of the dead time) reads
+    """A finding refused by the short-horizon gate (measured HSVA numbers of the dead time) reads
     'worse from the measured state' with its numbers beside the gain threshold it also failed."""
     from pipeline.report import diagnosis_text as dt
 
-    f = _rejected("rudder_delay", 0.03, [0.03, 0.03], 0.19, 1.9, 1.67, 76,
-                  "Not named: held-out gain 3% below 10%; predicts worse from the measured state over 1 "
-                  "ship time scale(s): held-out short-horizon MAE psi +14% (block t = -7.13 below -1.67); "
-                  "it fits the runs' drift, not the ship's response (added to the linear baseline: "
-                  "held-out +3%, per fold +3%, +3%); fitted: the rudder acts 0.84 s after it is logged.")
-    settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
-    v, why = dt.verdict(f, settings)
+    f = _gated("rudder_delay", 0.03, [0.03, 0.03], 0.19, 1.9, 1.67, 76, short_gain=-0.14, short_t=-7.13)
+    v, why = dt.verdict(f, SETTINGS)
     assert v == "immaterial" and "+14% (block t = -7.13 below -1.67)" in why and "added to" not in why
-    assert dt.failed_tests(f, settings) == ("immaterial", "worse from the measured state")
-    f["validation_gain"], f["validation_gain_folds"] = 0.12, [0.11, 0.13]
-    assert dt.verdict(f, settings)[0] == "worse from the measured state"
+    assert dt.failed_tests(f, SETTINGS) == ("immaterial", "worse from the measured state")
+    f = _gated("rudder_delay", 0.12, [0.11, 0.13], 0.19, 1.9, 1.67, 76, short_gain=-0.14, short_t=-7.13)
+    assert dt.verdict(f, SETTINGS)[0] == "worse from the measured state"
 
 
 def test_report_verdict_of_an_effect_that_hinges_on_a_training_run():
-    """A finding that passes every test but the hinge check (the measured evidence of the virtual KCS's
-    cubic yaw damping, six runs with turning circles, 2026-11-25) reads 'hinges on a training run'
-    with the run and its numbers (diagnosis.json's findings[].hinges_on), not 'not significant' (what an
-    unknown reason fell back to)."""
+    """A finding that passes every gate but the hinge (the measured numbers of the virtual KCS's cubic
+    yaw damping, six runs with turning circles) reads 'hinges on a training run' with the run and its
+    numbers, not 'not significant' (what an unknown reason fell back to)."""
     from pipeline.report import diagnosis_text as dt
 
-    f = _rejected("nonlinear_yaw_damping", 0.54, [0.62, 0.44], 6.6, 5.1, 1.66, 82,
-                  "Not named: hinges on one training run: refitted without it, the model no longer makes "
-                  "that manoeuvre (error grown by more than its heading swing): kcs_zigzag_10_10_P 9.11 "
-                  "-> 41.47 deg (heading swing 21.14 deg) (added to the final model: held-out +54%, per "
-                  "fold +62%, +44%); fitted: yaw damping grows with the rate of turn.")
-    f["hinges_on"] = ["kcs_zigzag_10_10_P 9.11 -> 41.47 deg (heading swing 21.14 deg)"]
-    settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
-    v, why = dt.verdict(f, settings)
+    run = "kcs_zigzag_10_10_P 9.11 -> 41.47 deg (heading swing 21.14 deg)"
+    f = _gated("nonlinear_yaw_damping", 0.54, [0.62, 0.44], 6.6, 5.1, 1.66, 82, hinges=(run,))
+    v, why = dt.verdict(f, SETTINGS)
     assert v == "hinges on a training run", (v, why)
-    assert "kcs_zigzag_10_10_P 9.11 -> 41.47 deg (heading swing 21.14 deg)" in why and "added to" not in why
-    assert dt.failed_tests(f, settings) == ("hinges on a training run",)
+    assert run in why and "added to" not in why
+    assert dt.failed_tests(f, SETTINGS) == ("hinges on a training run",)
+    # judged last: a step refused by another gate is not refitted for it, and its gate is not written
+    f = _gated("nonlinear_yaw_damping", 0.05, [0.62, 0.44], 6.6, 5.1, 1.66, 82, hinges=(run,))
+    assert "hinge" not in [g["code"] for g in f["gates"]]
 
 
 def test_report_verdict_of_an_effect_carried_by_one_held_out_run():
     """A finding whose whole-run cut is significant only with one held-out run's blocks (the measured
-    evidence of the virtual KCS's rudder offset, six runs with turning circles, 2026-11-25; the
-    wording of select.py) reads 'carried by one held-out run' with the run and its t, not 'not
-    significant: another effect already explained the same error' (what an unknown reason fell back
-    to, and what the report said until this verdict existed); beside a floor failure both are listed."""
+    numbers of the virtual KCS's rudder offset, six runs with turning circles) reads 'carried by one
+    held-out run' with the run and its t, not 'not significant'; beside a floor failure both are listed,
+    each reason its own gate's words."""
+    from pipeline.diagnose.gates import RunTest
     from pipeline.report import diagnosis_text as dt
 
-    ev = ("Not named: carried by one held-out run: without it the block t-test no longer finds a cut, and "
-          "a free run's blocks are not independent, so the cut is that run's, not the ship's: "
-          "kcs_zigzag_20_20_P (without it block t = 1.24 below 1.67) (added to the linear baseline: "
-          "held-out +18%, per fold +7%, +29%); fitted: the rudder acts as if 1.13 deg to port of its "
-          "logged angle.")
-    f = _rejected("rudder_offset", 0.18, [0.07, 0.29], 2.4, 2.1, 1.66, 82, ev)
-    settings = {"min_gain": 0.10, "min_abs_gain_deg": 0.10, "heading_noise_deg": 0.02}
-    v, why = dt.verdict(f, settings)
+    carried = (RunTest("kcs_zigzag_20_20_P", 1.24, 1.67,
+                       "kcs_zigzag_20_20_P (without it block t = 1.24 below 1.67)"),)
+    f = _gated("rudder_offset", 0.18, [0.07, 0.29], 2.4, 2.1, 1.66, 82, carried=carried)
+    gate = next(g for g in f["gates"] if g["code"] == "carried_by_one_run")
+    assert (gate["passed"], gate["value"], gate["threshold"]) == (False, 1.24, 1.67)
+    v, why = dt.verdict(f, SETTINGS)
     assert v == "carried by one held-out run", (v, why)
     assert why.endswith("kcs_zigzag_20_20_P (without it block t = 1.24 below 1.67)") and "added to" not in why
-    assert dt.failed_tests(f, settings) == ("carried by one held-out run",)
-    f["evidence"] = ev.replace("(without it block t = 1.24 below 1.67)", "(without it block t = 1.24 below "
-                               "1.67); below its physical floor in fold 2: |offset| 0.2 deg (floor 0.3 deg)")
-    f["material"], f["floor"] = False, "|offset| 0.2 deg (floor 0.3 deg)"
-    assert dt.failed_tests(f, settings) == ("immaterial", "carried by one held-out run")
-    # each reason read up to the next: the offset's reason ends at its run, the floor's is its own
-    assert dt.verdict(f, settings)[1].endswith("kcs_zigzag_20_20_P (without it block t = 1.24 below 1.67)")
+    assert dt.failed_tests(f, SETTINGS) == ("carried by one held-out run",)
+    f = _gated("rudder_offset", 0.18, [0.07, 0.29], 2.4, 2.1, 1.66, 82, carried=carried,
+               floor_ok=(True, False),
+               floor_words="below its physical floor in fold 2: |offset| 0.2 deg (floor 0.3 deg)")
+    assert dt.failed_tests(f, SETTINGS) == ("immaterial", "carried by one held-out run")
+    why = dt.verdict(f, SETTINGS)[1]
+    assert why.startswith("below its physical floor in fold 2: |offset| 0.2 deg (floor 0.3 deg); ")
+    assert why.endswith("kcs_zigzag_20_20_P (without it block t = 1.24 below 1.67)")
 
 
 @pytest.mark.slow

@@ -52,6 +52,9 @@ class FakeSearch:
         self._short: dict = {}
         self.steps: list = []
 
+    def choose_baseline(self, ks):
+        """The baseline's choice (Search.choose_baseline) is not what these tests ask: the table's."""
+
     def fit(self, k, structure, start=None):
         """A stand-in fit whose training cost is the table's error (what _pair_pool ranks by)."""
         f = _Fit(_error(structure))
@@ -315,5 +318,6 @@ def test_a_cut_carried_by_one_held_out_run_is_named():
     t = pooled.mean() / (pooled.std(ddof=1) / np.sqrt(pooled.size))
     assert t > stats.t.ppf(0.95, pooled.size - 1), t
     named = sel.carried_by_one_run(one, 0.05)
-    assert len(named) == 1 and named[0].startswith("drift (without it block t = "), named
+    assert len(named) == 1 and named[0].run == "drift", named
+    assert named[0].words.startswith("drift (without it block t = ") and named[0].value < named[0].threshold
     assert sel.carried_by_one_run(one[:2], 0.05) == []

@@ -380,21 +380,13 @@ def run(args: argparse.Namespace) -> int:
     diag.report["runs_not_used"] = not_used
     path = write_outputs(diag, out, plots=not args.no_plots)
     rep = diag.report
-    print(
-        f"diagnosis: cause {rep['cause']}; held-out MAE psi "
-        f"{rep['baseline']['validation']['mae_psi_deg']:.3f} -> "
-        f"{rep['extended']['validation']['mae_psi_deg']:.3f} deg "
-        f"(held-out gain {_pct(rep['gain']['mae_psi_relative_reduction'])} on "
-        f"{', '.join(rep['gain']['measured_on']) or 'no unseen run'}); wrote {path}"
-    )
+    from pipeline.report.diagnosis_text import headline
+
+    print(f"{headline(rep)}; wrote {path}")
     for check in rep["data_checks"].values():
         if check["warning"]:
             print(f"warning: {check['warning']}", file=sys.stderr)
     return 0
-
-
-def _pct(x) -> str:
-    return "n/a" if x is None else f"{x:.0%}"
 
 
 def register(sub) -> None:

@@ -47,6 +47,7 @@ from pipeline.diagnose.fit import (
     Series,
     _derivs,
     _u_ratio,
+    evaluate,
     is_stable,
     latent_sway_a12,
     memoised,
@@ -440,10 +441,12 @@ def _nested_one(folds, held, ctx, cfg, noise):
     if not tr_i or not va_i:
         return None
     inner = _inner_folds(folds, held, cfg)
-    isearch = Search(inner, ctx, cfg)
+    # the inner selection chooses its own baseline only where that choice is reported
+    # (DiagnoseConfig.best_linear_baseline); otherwise the bounded fit, as the selection judges
+    isearch = Search(inner, ctx, cfg, baseline_bounded=None if cfg.best_linear_baseline else True)
     try:
         isel = select(isearch, list(range(len(inner))), noise)
-        refit = Search([Fold(tr_i + va_i, [held])], ctx, cfg)
+        refit = Search([Fold(tr_i + va_i, [held])], ctx, cfg, baseline_bounded=isearch.baseline_bounded)
         b0 = refit.fit(0, (), start=isearch.fit(0, ()))
         st = isel.structure
         if st:
@@ -451,8 +454,10 @@ def _nested_one(folds, held, ctx, cfg, noise):
             refit.refine(0, (), st)
     except ModelError:
         return None
-    pb = refit.eval(0, ())[1]
+    pb = refit.linear_eval(0)[1]      # the baseline the inner selection chose (Search.choose_baseline)
     pe = refit.eval(0, st)[1] if st else pb
+    other = refit.other_linear(0)
+    po = evaluate(other, [held])[1] if other is not None else None
     entry = {
         "fold": f"hold out {held.name}",
         "effects": [e for e, _ in st],
@@ -462,8 +467,10 @@ def _nested_one(folds, held, ctx, cfg, noise):
         "baseline_mae_psi_deg": pb[0]["mae_psi_deg"],
         "extended_mae_psi_deg": pe[0]["mae_psi_deg"],
         "gain": _gain(pb[0]["mae_psi_deg"], pe[0]["mae_psi_deg"]),
+        "baseline_sign_bounds": bool(isearch.baseline_bounded),
+        "other_linear_mae_psi_deg": po[0]["mae_psi_deg"] if po is not None else None,
     }
-    return (pb, pe), entry
+    return (pb, pe, po), entry
 
 
 def _nested_task(folds, i: int, ctx, cfg, noise, plain: bool):
@@ -502,7 +509,8 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
     block_s = cfg.block_T * ctx.t_ship
     rungs = [st for st, _ in sel.ladder]
     if te:
-        allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg)
+        allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
+                        baseline_bounded=search.baseline_bounded)
         fits = {}
         for st in rungs + [sel.structure]:
             key = structure_of(*st)
@@ -519,7 +527,11 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
                 if fits[key] is not None:
                     allrun.refine(0, key, final)
         evs = {k: (allrun.eval(0, k) if f is not None else None) for k, f in fits.items()}
-        b, e = evs[()], evs[structure_of(*sel.structure)]
+        # the reported baseline is the linear fit the selection chose (Search.choose_baseline); with no
+        # effect named, the model kept is that baseline itself
+        evs[()] = allrun.linear_eval(0)
+        b = evs[()]
+        e = evs[structure_of(*sel.structure)] if sel.structure else b
         g, iv, bm, em = _pair_gain([(te, b[1], e[1])], cfg, block_s)
         ladder_test = {}
         for k, ev in evs.items():
@@ -527,6 +539,8 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
                 continue
             gk, ivk, _, mk = _pair_gain([(te, b[1], ev[1])], cfg, block_s)
             ladder_test[k] = {"mae": mk, "gain": gk, "interval": ivk}
+        other = allrun.other_linear(0)
+        po = evaluate(other, te)[1] if other is not None else None
         return {
             "mae_psi_relative_reduction": g,
             "interval_95": iv,
@@ -538,6 +552,7 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
             "per_run": _per_run(te, b[1], e[1]),
             "ladder": ladder_test,
             "nested": [],
+            "against_other_linear": _against_other([(te, po, e[1])] if po is not None else [], cfg, block_s),
         }
     # nested leave-one-run-out: every run of the selection is held out in turn; the whole selection is
     # repeated on the others, the chosen structure refitted on all of them, and measured on the held-out
@@ -553,11 +568,13 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
             nested_results.append(_nested_one(folds, held, ctx, cfg, noise))
             if tick is not None:
                 tick()
+    others = []
     for held, res in zip(runs, nested_results, strict=True):
         if res is None:
             continue
-        (pb, pe), entry = res
+        (pb, pe, po), entry = res
         pairs.append(([held], pb, pe))
+        others.append(([held], po, pe) if po is not None else None)
         measured.append(held.name)
         nested.append(entry)
     if not pairs:
@@ -576,7 +593,20 @@ def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nes
         "per_run": [x for v, pb, pe in pairs for x in _per_run(v, pb, pe)],
         "ladder": {},
         "nested": nested,
+        "against_other_linear": _against_other(others if all(o is not None for o in others) else [],
+                                               cfg, block_s),
     }
+
+
+def _against_other(pairs, cfg, block_s) -> dict | None:
+    """The honest gain of the extended model against the linear fit NOT chosen as the baseline
+    (:meth:`~pipeline.diagnose.select.Search.other_linear`), on the same unseen runs: [(runs, that fit's
+    evaluations, the extended model's)]; None where it could not be fitted on every one."""
+    if not pairs:
+        return None
+    g, iv, bm, em = _pair_gain(pairs, cfg, block_s)
+    return {"mae_psi_relative_reduction": g, "interval_95": iv, "other_linear_mae_psi_deg": bm,
+            "extended_mae_psi_deg": em}
 
 
 def _no_honest_gain(why: str) -> dict:
@@ -588,6 +618,7 @@ def _no_honest_gain(why: str) -> dict:
         "method": why + "; the validation gain in the ladder is optimistic (chosen on the same runs)",
         "ladder": {},
         "nested": [],
+        "against_other_linear": None,
     }
 
 
@@ -605,6 +636,7 @@ def _unjudged(eff, evidence: str) -> dict:
         "physical": "",
         "floor": eff.floor_reason,
         "evidence": evidence,
+        "gates": [],
     }
 
 
@@ -714,14 +746,44 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
             for x, xs in (sel.rivals[effect][1] if chosen and effect in sel.rivals else [])
         ],
         "evidence": evidence,
+        # every criterion of the step judged (pipeline.diagnose.gates): code, passed, value, threshold,
+        # words; the evidence sentence above is made from their words
+        "gates": [g.to_json() for g in step.gates],
     }
+
+
+def _adequacy(base_mae: float, noise: float, cfg: DiagnoseConfig, residuals: dict) -> dict:
+    """diagnosis.json's ``baseline_adequacy``: whether the linear baseline's pooled held-out MAE psi
+    (deg) is within ``cfg.inadequate_floors`` noise floors (the floor of a step's cut, deg), and, when
+    it is not, the effect signatures its residual correlates with most (strongest first)."""
+    floor = max(2.0 * noise, cfg.min_abs_gain_deg)
+    limit = cfg.inadequate_floors * floor
+    ok = not base_mae > limit
+    corr = residuals.get("correlation") or {}
+    sig = sorted(corr.items(), key=lambda kv: -abs(kv[1]))[:3]
+    reason = (
+        f"held-out MAE psi {base_mae:.2f} deg "
+        + (f"within {cfg.inadequate_floors:g} noise floors ({limit:.2f} deg)" if ok else
+           f"above {cfg.inadequate_floors:g} noise floors ({limit:.2f} deg): the linear model is inadequate "
+           "for these runs; its residual follows "
+           + ", ".join(f"{e} ({c:+.2f})" for e, c in sig))
+    )
+    return {"adequate": ok, "mae_psi_deg": base_mae, "threshold_deg": limit, "noise_floor_deg": floor,
+            "floors": cfg.inadequate_floors, "reason": reason,
+            "signatures": [{"effect": e, "correlation": c} for e, c in sig]}
 
 
 def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cfg, noise, runs, rates):
     st = sel.structure
-    base, ext = search.fit(0, ()), search.fit(0, st)
-    base_val, base_per = search.eval(0, ())
-    ext_val, ext_per = search.eval(0, st)
+    # the reported baseline is the linear fit of lower pooled held-out error (Search.choose_baseline);
+    # with no effect named, the extended model is that baseline
+    base = search.linear(0)
+    base_val, base_per = search.linear_eval(0)
+    if st:
+        ext = search.fit(0, st)
+        ext_val, ext_per = search.eval(0, st)
+    else:
+        ext, ext_val, ext_per = base, base_val, base_per
     chosen = [e for e, _ in st]
     rows = [_finding(e.name, sel, search, ctx, cfg, e.name in chosen, st) for e in CATALOGUE]
     rows.sort(
@@ -749,7 +811,9 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
     ks = list(range(len(folds)))
 
     def pooled(structure_):
-        return float(np.mean([search.eval(k, structure_)[0]["mae_psi_deg"] for k in ks]))
+        """Mean over the folds of the validation MAE psi (deg); the reported linear baseline for ()."""
+        return float(np.mean([(search.eval(k, structure_) if structure_ else search.linear_eval(k))[0]
+                              ["mae_psi_deg"] for k in ks]))
 
     ladder = []
     for i, (s_, _step) in enumerate(sel.ladder):
@@ -782,6 +846,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
         for n in honest["nested"]
     ]
     agree = sum(c["cause"] == cause for c in causes)
+    adequacy = _adequacy(pooled(()), noise, cfg, structure)
     flag = _gain_flag(honest, chosen)  # the honest gain's own check: in the summary and gain.flag
     if not chosen:
         summary = (
@@ -799,7 +864,8 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
                 f" Nearest: {name} (held-out {near.gain:+.0%}, per fold "
                 f"{', '.join(f'{g:+.0%}' for g in near.gains)}): {'; '.join(near.why)}."
             )
-        away = [e for e, s_ in sel.alone.items() if any("runs away" in w for w in s_.why)]
+        away = [e for e, s_ in sel.alone.items()
+                if any(g.code == "no_runaway" and not g.passed for g in s_.gates)]
         if away:
             summary += f" Refused for running away on a held-out manoeuvre: {', '.join(away)}."
         hinge = [e for e, s_ in sel.alone.items() if s_.hinges]
@@ -810,6 +876,8 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             )
         if base.at_bound:
             summary += " " + sign_bound_text(base.at_bound)
+        if not adequacy["adequate"]:
+            summary += " The linear model is inadequate: " + adequacy["reason"] + "."
         if flag:
             summary += f" Honest gain flagged: {flag}."
     else:
@@ -830,10 +898,9 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             summary += " " + check["warning"]
     fold_reports = []
     for k, fold in enumerate(folds):
-        b = search.fit(k, ())
-        x = search.fit(k, st)
-        bv, bp = search.eval(k, ())
-        xv, xp = search.eval(k, st)
+        b = search.linear(k)
+        bv, bp = search.linear_eval(k)
+        x, (xv, xp) = (search.fit(k, st), search.eval(k, st)) if st else (b, (bv, bp))
         fold_reports.append(
             {
                 "training_runs": [s.name for s in fold.train],
@@ -862,14 +929,28 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
     gain = {k: v for k, v in honest.items() if k not in ("ladder",)}
     gain["flag"] = flag
     gain["validation_mae_psi_relative_reduction"] = _gain(pooled(()), pooled(structure_of(*st)))
+    other = _other_linear(search, ks)
+    if gain.get("against_other_linear") is not None and other is not None:
+        gain["against_other_linear"]["validation_mae_psi_relative_reduction"] = _gain(
+            other["validation_mae_psi_deg"], pooled(structure_of(*st)))
     report = {
         "cause": cause,
+        "baseline_adequate": adequacy["adequate"],
+        "baseline_adequacy": adequacy,
         "findings": rows,
         "baseline": {
             "parameters": base.params(),
             "uncertainty": {n: base.std[n] for n in PARAM_NAMES},
             "course_stable": is_stable(base.theta),
             "at_sign_bound": list(base.at_bound),
+            # the baseline is the linear fit (with or without the ship-sign bounds) of lower pooled
+            # held-out MAE psi on the selection's runs (select.Search.choose_baseline); the other beside it
+            "sign_bounds": bool(search.baseline_bounded),
+            # which linear fit predicts the selection's held-out runs better (bounded: True), whether or
+            # not it is the reported one (DiagnoseConfig.best_linear_baseline)
+            "best_linear_sign_bounds": search.best_bounded,
+            "other_linear": other,
+            "choice": _baseline_choice(search, pooled(()), other),
             # a12 held where no training run measures v (fit.latent_sway_a12): the sway parameters are
             # then in that convention's units; None where v is measured
             "latent_sway_a12": a12_held,
@@ -916,6 +997,7 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             "time_scale_s": ctx.t_ship,
             "heading_noise_deg": noise,
             "max_effects": cfg.max_effects,
+            "inadequate_floors": cfg.inadequate_floors,
             "structured_r2": cfg.structured_r2,
             "catalogue": [e.name for e in CATALOGUE],
             "two_fold": len(folds) == 2,
@@ -948,6 +1030,40 @@ def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cf
             d["u"] = s.u
         frames.append(pd.DataFrame(d))
     return report, base, ext, pd.concat(frames, ignore_index=True)
+
+
+def _other_linear(search: Search, ks) -> dict | None:
+    """diagnosis.json's ``baseline.other_linear``: the linear fit not chosen as the baseline (fold 0's
+    parameters, its pooled held-out MAE psi over the folds ``ks``, deg); None where it has no fit."""
+    fits = [search.other_linear(k) for k in ks]
+    if any(f is None for f in fits):
+        return None
+    evs = [evaluate(f, search.folds[k].val) for k, f in zip(ks, fits, strict=True)]
+    return {
+        "sign_bounds": bool(fits[0].sign_bounds),
+        "parameters": fits[0].params(),
+        "uncertainty": {n: fits[0].std[n] for n in PARAM_NAMES},
+        "at_sign_bound": list(fits[0].at_bound),
+        "course_stable": is_stable(fits[0].theta),
+        "validation_mae_psi_deg": float(np.mean([ev[0]["mae_psi_deg"] for ev in evs])),
+        "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in evs[0][1]],
+    }
+
+
+def _baseline_choice(search: Search, chosen_mae: float, other: dict | None) -> str:
+    """One sentence: which linear fit is the baseline and why, with both held-out MAEs (deg)."""
+    if other is None:
+        return "the linear model with the ship-sign bounds (the unconstrained fit failed)"
+    kept = "with the ship-sign bounds a11, a12, a21, a22 <= 0" if search.baseline_bounded else \
+        "without sign bounds (unconstrained)"
+    alt = "unconstrained" if search.baseline_bounded else "bounded"
+    better = other["validation_mae_psi_deg"] < chosen_mae
+    return (f"the baseline is the linear fit {kept}: held-out MAE psi {chosen_mae:.2f} deg on the "
+            f"selection's validation runs against {other['validation_mae_psi_deg']:.2f} deg for the {alt} fit"
+            + (f", which presses on its bound ({', '.join(other['at_sign_bound'])})"
+               if other["at_sign_bound"] else "")
+            + (f"; the {alt} fit predicts these runs better, and the gain against it is "
+               "gain.against_other_linear" if better else ""))
 
 
 def _gain_flag(honest: dict, chosen: list[str]) -> str | None:

@@ -330,6 +330,9 @@ def effects_of(structure: Structure) -> list[str]:
 class Layout:
     structure: Structure
     ctx: Context
+    #: the ship-sign bounds a11, a12, a21, a22 <= 0 on (the default); off for the unconstrained
+    #: linear fit the baseline is chosen against (docs/diagnosis.md, "The baseline")
+    sign_bounds: bool = True
 
     @property
     def params(self):
@@ -360,7 +363,8 @@ class Layout:
         # random disturbance in every run a hull nonlinearity then took up the drift on 2 of 7 seeds
         # of the linear Mariner (tests/test_diagnose_generalise.py, MR_DIST_KNOWN_WRONG), and HSVA's
         # held-out baseline error rose from 4.26 to 5.66 deg.
-        hi[0] = hi[1] = hi[2] = hi[3] = 0.0
+        if self.sign_bounds:
+            hi[0] = hi[1] = hi[2] = hi[3] = 0.0
         a12 = latent_sway_a12(self.ctx)
         if a12 is not None:
             # v is latent: its scale is held by a12 (latent_sway_a12); a width of 1e-6 relative, as
@@ -442,6 +446,8 @@ class FitResult:
     #: the training runs' starts of the polish, each as a fraction of its box ([-1, 1] per free state;
     #: :class:`_JointStarts`), empty without boxes: where a warm start from this fit begins them
     start_z: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: whether the ship-sign bounds (Layout.bounds) were on in this fit
+    sign_bounds: bool = True
 
     @property
     def effects(self) -> list[str]:
@@ -823,12 +829,15 @@ def fit_structure(
     start: FitResult | None = None,
     max_nfev: int = 200,
     block_T: float = 2.0,
+    *,
+    sign_bounds: bool = True,
 ) -> FitResult:
     """Fit the linear model plus ``structure`` on ``series`` (module docstring).  ``start``: a fit of
-    a nested structure (its values are reused, new parameters start at their start values)."""
+    a nested structure (its values are reused, new parameters start at their start values).
+    ``sign_bounds``: keep a11, a12, a21, a22 <= 0 (:meth:`Layout.bounds`); False fits them free."""
     memo = _MEMO.get()
     if memo is None or _PLAIN.get():
-        return _fit_structure(series, structure, ctx, start, max_nfev, block_T)
+        return _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds)
     key = (
         tuple(id(s) for s in series),
         structure_of(*structure),
@@ -836,11 +845,13 @@ def fit_structure(
         None if start is None else (start.structure, tuple(start.names), start.p.tobytes()),
         max_nfev,
         block_T,
+        sign_bounds,
     )
     hit = memo.get(key)
     if hit is None:
         try:
-            hit = (list(series), _fit_structure(series, structure, ctx, start, max_nfev, block_T))
+            hit = (list(series),
+                   _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds))
         except ModelError as err:
             hit = (list(series), err)
         memo[key] = hit
@@ -849,8 +860,8 @@ def fit_structure(
     return hit[1]
 
 
-def _fit_structure(series, structure, ctx, start, max_nfev, block_T) -> FitResult:
-    layout = Layout(structure_of(*structure), ctx)
+def _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds=True) -> FitResult:
+    layout = Layout(structure_of(*structure), ctx, sign_bounds)
     lo, hi = layout.bounds()
     need_u = [e for e, _ in layout.structure if BY_NAME[e].needs_u]
     u_ref = reference_speed(series) if need_u else None
@@ -986,6 +997,7 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
         at_bound=tuple(n for i, (n, a) in enumerate(zip(names[:4], res.active_mask[:4], strict=True))
                        if a != 0 and i not in held),
         start_z=np.asarray(res.x[n_p:], dtype=float),
+        sign_bounds=layout.sign_bounds,
     )
 
 

@@ -171,7 +171,8 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     only with that run's blocks: select.carried_by_one_run); hinges on a training run (refitted
     without one of its training runs, the model no longer makes that run: select.py's Search.hinges);
     not significant (block t-test).
-    The reason lists every test it failed, with its numbers.
+    The reason lists every test it failed, with its numbers: the words of the finding's failed
+    ``gates`` (diagnosis.json, read by code), or for a finding without them its numeric keys.
     ``all_tests``: return every verdict it earns instead (see :func:`failed_tests`).
     """
     s = settings or {}
@@ -187,16 +188,34 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
         if ev.lower().startswith("not tried"):
             return "not tried", ev[len("not tried"):].lstrip(": ").rstrip(".") or "not applicable"
         return "fit failed", "its fit failed in some fold, so it was not judged"
+    gates = [g for g in f.get("gates") or [] if isinstance(g, dict) and g.get("passed") is False]
+    if gates:   # the selection's own criteria (diagnosis.json findings[].gates, pipeline.diagnose.gates)
+        reasons = [(GATE_VERDICT.get(str(g.get("code")), "not significant"), effect_words(g.get("words")))
+                   for g in gates]
+    else:       # a finding written without gates: its numeric keys
+        reasons = _reasons_from_keys(f, s)
+    reasons.sort(key=lambda vr: VERDICTS.index(vr[0]))
+    if not reasons:
+        return "not significant", "another effect already explained the same error"
+    if all_tests:
+        return tuple(dict.fromkeys(v for v, _ in reasons))
+    return reasons[0][0], "; ".join(dict.fromkeys(r for _, r in reasons))
+
+
+#: a gate's code (pipeline.diagnose.gates.CODES) -> the report's verdict when it fails
+GATE_VERDICT = {
+    "min_gain": "immaterial", "noise_floor": "immaterial", "physical_floor": "immaterial",
+    "every_fold": "failed a fold", "no_harm": "harms a held-out run", "no_runaway": "harms a held-out run",
+    "short_horizon": "worse from the measured state", "carried_by_one_run": "carried by one held-out run",
+    "hinge": "hinges on a training run", "block_t": "not significant",
+}
+
+
+def _reasons_from_keys(f: dict, s: dict) -> list[tuple[str, str]]:
+    """(verdict, reason) of a finding without ``gates``, from its numeric keys alone."""
     reasons: list[tuple[str, str]] = []
     if f.get("material") is False:
         reasons.append(("immaterial", "below its physical floor (" + floor_measured(f.get("floor")) + ")"))
-    noise = s.get("heading_noise_deg")
-    floor_abs = max(2.0 * noise if isinstance(noise, (int, float)) else 0.0,
-                    s.get("min_abs_gain_deg") or 0.0)
-    cut = f.get("abs_gain_deg")
-    if isinstance(cut, (int, float)) and floor_abs > 0 and cut < floor_abs:
-        reasons.append(("immaterial", f"heading cut {num(cut, 2)} deg below the noise level "
-                        f"{num(floor_abs, 2)} deg"))
     g, gmin = f.get("validation_gain"), s.get("min_gain")
     if isinstance(g, (int, float)) and isinstance(gmin, (int, float)) and g < gmin:
         reasons.append(("immaterial", f"held-out gain {gain_text(g)} below the {pct(gmin)} threshold"))
@@ -204,29 +223,14 @@ def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> t
     if folds and min(folds) <= 0:
         reasons.append(("failed a fold", "worse in a fold (per fold " + ", ".join(gain_text(x) for x in folds)
                         + ")"))
-    # the stage's no-harm, no-run-away and short-horizon tests (select.py) are stated only in the
-    # evidence text: (its words there, the verdict, where its own reason ends)
-    harm, short = "harms a held-out run", "worse from the measured state"
-    for key, v, end in (("significantly worse on a held-out manoeuvre", harm, "; runs away"),
-                        ("runs away on a held-out manoeuvre", harm, "; runs away"),
-                        ("predicts worse from the measured state", short, "; it fits"),
-                        # select.carried_by_one_run's text has no "; " inside: it ends at the next reason
-                        ("carried by one held-out run", "carried by one held-out run", "; ")):
-        if key in ev:
-            part = ev[ev.index(key):].split(" (added to")[0].split(" (in the final")[0]
-            reasons.append((v, part.split(end)[0]))
-    if f.get("hinges_on"):   # the hinge test's runs (select.Search.hinges), a key of their own
+    if f.get("hinges_on"):
         reasons.append(("hinges on a training run", "refitted without it, the model no longer makes that "
                         "training run: " + "; ".join(f["hinges_on"])))
     t, tc = f.get("block_t"), f.get("block_t_crit")
     if isinstance(t, (int, float)) and isinstance(tc, (int, float)) and not t >= tc:
         dof = (f.get("blocks") or 0) - 1
         reasons.append(("not significant", f"block t = {num(t, 2)} below {num(tc, 3)} ({dof} dof)"))
-    if not reasons:
-        return "not significant", "another effect already explained the same error"
-    if all_tests:
-        return tuple(dict.fromkeys(v for v, _ in reasons))
-    return reasons[0][0], "; ".join(dict.fromkeys(r for _, r in reasons))
+    return reasons
 
 
 def failed_tests(f: dict, settings: dict | None = None) -> tuple[str, ...]:
@@ -428,3 +432,89 @@ def binned(x, y, bins: int = 15):
             cs.append(0.5 * (edges[b] + edges[b + 1]))
             ms.append(float(y[m].mean()))
     return np.array(cs), np.array(ms)
+
+
+# ------------------------------------------------------------------------------- baseline choice, adequacy
+def baseline_choice_text(dg: dict) -> str:
+    """Which linear fit is the baseline (with or without the ship-sign bounds), both fits' held-out MAE
+    psi (deg), and the gain of the extended model against the other fit (diagnosis.json
+    ``baseline.sign_bounds``, ``baseline.other_linear``, ``gain.against_other_linear``); "" when the
+    stage wrote no other fit."""
+    base = dg.get("baseline") or {}
+    other = base.get("other_linear")
+    if not isinstance(other, dict):
+        return ""
+    kept = "with the ship-sign bounds (a11, a12, a21, a22 <= 0)" if base.get("sign_bounds") else \
+        "without sign bounds (unconstrained)"
+    alt = "unconstrained" if base.get("sign_bounds") else "bounded"
+    mine, theirs = pooled_baseline_mae(dg), other.get("validation_mae_psi_deg")
+    worse = isinstance(mine, (int, float)) and isinstance(theirs, (int, float)) and theirs < mine
+    text = (f"The baseline is the linear fit {kept}"
+            + (f"; the {alt} fit predicts the selection's validation runs BETTER" if worse else
+               ", the one that predicts the selection's validation runs better")
+            + f": held-out MAE psi {num(mine, 3, 'deg')} against {num(theirs, 3, 'deg')} for the {alt} "
+            "fit (each the mean over the folds of its validation runs' MAE)")
+    if other.get("at_sign_bound"):
+        text += f", which holds {', '.join(other['at_sign_bound'])} at its bound 0"
+    text += "."
+    ag = (dg.get("gain") or {}).get("against_other_linear")
+    if isinstance(ag, dict) and (dg.get("extended") or {}).get("effects"):
+        text += (f" Against the {alt} fit the extended model "
+                 f"{gain_sentence(ag.get('mae_psi_relative_reduction'), ag.get('interval_95'))} on the runs "
+                 f"no choice has seen (validation: {pct(ag.get('validation_mae_psi_relative_reduction'))}).")
+    return text
+
+
+def pooled_baseline_mae(dg: dict) -> float | None:
+    """The baseline's held-out MAE psi (deg), the mean over the folds of each fold's validation runs'
+    MAE: the ladder's first rung, the number the selection judges by."""
+    lad = dg.get("ladder") or []
+    return lad[0].get("validation_mae_psi_deg") if lad else None
+
+
+def adequacy_text(dg: dict) -> str:
+    """A plain sentence when diagnosis.json says the linear baseline is inadequate (``baseline_adequate``
+    false): its error against the stated multiple of the noise floor and the signatures its residual
+    follows, in words; "" when it is adequate or the key is absent."""
+    if dg.get("baseline_adequate") is not False:
+        return ""
+    a = dg.get("baseline_adequacy") or {}
+    sig = ", ".join(f"{effect_label(s.get('effect'))} ({num(s.get('correlation'), 2)})"
+                    for s in a.get("signatures") or [])
+    text = (f"The linear model is inadequate for these runs: its held-out heading error "
+            f"{num(a.get('mae_psi_deg'), 3, 'deg')} is above {num(a.get('floors'), 3)} noise floors "
+            f"({num(a.get('threshold_deg'), 3, 'deg')}).")
+    if dg.get("cause") == "none":
+        text += (" 'None' here means no effect of the catalogue passed the tests, not that the linear model "
+                 "fits.")
+    if sig:
+        text += (f" Its residual follows the signatures of {sig} (correlation with the yaw-acceleration "
+                 "error).")
+    return text
+
+
+def headline(dg: dict) -> str:
+    """The command line's one line: the cause and the honest gain with the MAEs (deg) it is computed
+    from, the runs and the mode it is measured in, all from diagnosis.json's ``gain`` block (one set
+    of numbers: the interval is that gain's own); without an honest gain, the validation MAEs pooled
+    over the folds (the ladder's first and last rungs), said to be chosen on those runs."""
+    g = dg.get("gain") or {}
+    head = f"diagnosis: cause {dg.get('cause', 'none')}"
+    if isinstance(g.get("mae_psi_relative_reduction"), (int, float)):
+        mode = "test runs" if dg.get("test_runs") else "nested leave-one-run-out"
+        ivt = interval(g.get("interval_95"))
+        text = (f"{head}; honest gain {gain_text(g['mae_psi_relative_reduction'])}"
+                + (f" (95 % interval {ivt})" if ivt else "")
+                + f": mean MAE psi {num(g.get('baseline_mae_psi_deg'), 4, 'deg')} (linear baseline) -> "
+                f"{num(g.get('extended_mae_psi_deg'), 4, 'deg')} (the model "
+                + ("kept" if mode == "test runs" else "each selection chose without the run")
+                + f") on {len(g.get('measured_on') or [])} run(s) no choice has seen ({mode})")
+    else:
+        lad = dg.get("ladder") or []
+        first, last = (lad[0], lad[-1]) if lad else ({}, {})
+        text = (f"{head}; validation MAE psi {num(first.get('validation_mae_psi_deg'), 4, 'deg')} -> "
+                f"{num(last.get('validation_mae_psi_deg'), 4, 'deg')} (mean over the folds; chosen on these "
+                "runs, no honest gain)")
+    if dg.get("baseline_adequate") is False:
+        text += "; the linear baseline is inadequate (see baseline_adequacy)"
+    return text

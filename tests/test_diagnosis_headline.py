@@ -1,0 +1,49 @@
+"""One set of numbers (docs/diagnosis.md, "diagnosis.json"): the command line's line and the baseline
+sentences of the report are made from the keys of diagnosis.json alone, in the mode actually used."""
+
+from __future__ import annotations
+
+from pipeline.report import diagnosis_text as dt
+
+
+def _dg(test_runs: list, gain: float | None, flag_inadequate: bool = False) -> dict:
+    return {
+        "cause": "none" if gain == 0 else "nonlinear_sway_damping",
+        "test_runs": test_runs,
+        "baseline_adequate": not flag_inadequate,
+        "baseline": {"validation": {"mae_psi_deg": 12.8}, "sign_bounds": False,
+                     "other_linear": {"validation_mae_psi_deg": 10.1, "at_sign_bound": ["a21"]}},
+        "extended": {"effects": ["nonlinear_sway_damping"], "validation": {"mae_psi_deg": 3.0}},
+        "ladder": [{"validation_mae_psi_deg": 4.9}, {"validation_mae_psi_deg": 2.1}],
+        "gain": {"mae_psi_relative_reduction": gain, "interval_95": [0.55, 0.68] if gain else None,
+                 "baseline_mae_psi_deg": 12.46, "extended_mae_psi_deg": 5.2,
+                 "measured_on": ["a", "b", "c"],
+                 "against_other_linear": {"mae_psi_relative_reduction": 0.4, "interval_95": [0.3, 0.5],
+                                          "validation_mae_psi_relative_reduction": 0.58}},
+    }
+
+
+def test_headline_says_the_mode_and_the_honest_numbers():
+    """Nested mode: the gain, its own interval and the two mean MAEs it is made of (not fold 0's
+    validation MAEs), 'nested leave-one-run-out'; test-run mode says 'test runs'; without an honest gain
+    the pooled validation MAEs of the ladder, said to be chosen on those runs."""
+    nested = dt.headline(_dg([], 0.58))
+    assert "honest gain +58 % (95 % interval [55 %, 68 %])" in nested
+    assert "12.46 deg (linear baseline) -> 5.2 deg" in nested and "nested leave-one-run-out" in nested
+    assert "12.8" not in nested and "on 3 run(s)" in nested
+    test = dt.headline(_dg(["x"], 0.58))
+    assert "(test runs)" in test and "the model kept" in test
+    none = dt.headline({**_dg([], None), "gain": {"mae_psi_relative_reduction": None}})
+    assert "validation MAE psi 4.9 deg -> 2.1 deg (mean over the folds; chosen on these runs" in none
+    assert "inadequate" in dt.headline(_dg([], 0.58, flag_inadequate=True))
+
+
+def test_baseline_choice_sentence_reads_the_json():
+    """The choice sentence gives the pooled MAEs of both linear fits (the ladder's first rung and
+    other_linear's), the bound the other holds, and the gain against the other fit with its interval."""
+    text = dt.baseline_choice_text(_dg([], 0.58))
+    assert "without sign bounds (unconstrained)" in text
+    assert "4.9 deg against 10.1 deg for the bounded" in text
+    assert "holds a21 at its bound 0" in text
+    assert "cuts the heading error by 40 % (95 % interval [30 %, 50 %])" in text and "58 %" in text
+    assert dt.baseline_choice_text({"baseline": {}}) == ""
