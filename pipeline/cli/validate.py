@@ -24,7 +24,7 @@ def register(sub) -> None:
 
 def _run(args) -> int:
     from pipeline.runinfo import choose_runs
-    from pipeline.validate import PAPER_TABLES, validate
+    from pipeline.validate import DEFINITIONS, PAPER_TABLES, validate
 
     cat = catalog(args)
     index = read_json(cat.runs_index)
@@ -55,14 +55,7 @@ def _run(args) -> int:
     rows, preds = validate(estimates, load(ident_id), [load(r) for r in val_ids], FilterConfig())
     doc = {"dataset": args.dataset, "provenance": index.get("provenance"), "ident_run": ident_id,
            "validation_runs": val_ids, "rows": rows, "paper": PAPER_TABLES,
-           "definitions": {
-               "one-step": "prior prediction of each sample by the identifying filter continued over the "
-                           "validation data (parameters still adapting); identification run: from the "
-                           "window's final posterior; held-out runs: states from their first sample, "
-                           "parameters and covariance from the identification",
-               "free-run": "pipeline.model.simulate with the identified parameters from the measured "
-                           "initial state, driven by the measured rudder alone",
-               "units": "mse_v (m/s)^2, mse_r (deg/s)^2, mae_psi deg"}}
+           "definitions": dict(DEFINITIONS)}
     # the identify-side trust flags of each estimate travel with the errors computed from it
     doc["flags"] = {alg: identify_side_flags(est) for alg, est in estimates.items()}
     doc.update(data_label(is_builtin_tank(index), index.get("provenance")))
