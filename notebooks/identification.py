@@ -167,7 +167,7 @@ for ax in axes[1]:
 for col in axes.T:
     nb.time_axes(col, data)
 nb.legend_outside(axes[0, 2])
-nb.show(fig, "Parameter estimates with one-sigma bands (model of SPEC section 5 in data units: "
+nb.show(fig, "Parameter estimates with one-sigma bands (the model of docs/identification.md in data units: "
         "a11, a22 in 1/s; a12 in m/deg/s; a21 in deg/m/s; b11 in m/s^2 per deg; b21 in 1/s^2). "
         "A converged estimate is flat with a narrow band; the paper's values are for its KCS "
         "tank data and need not match another data set.")

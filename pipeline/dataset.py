@@ -1,7 +1,7 @@
-"""Dataset descriptions: ``data/raw/<name>/dataset.toml`` (SPEC section 9), typed.
+"""Dataset descriptions: ``data/raw/<name>/dataset.toml`` (docs/dataset.md), typed.
 
 A dataset is a folder of raw tank files.  Its ``dataset.toml`` (read with :mod:`tomllib`) says what
-the files are.  The SPEC keys, and the project's own (marked *)::
+the files are.  The keys of docs/dataset.md, the project's own marked *::
 
     [ship]
     name = "KVLCC2"

@@ -4,7 +4,7 @@ The logger: SI units (heading and rudder in rad, yaw rate in rad/s, speeds in m/
 rev/s), the heading wrapped to (-pi, pi], the rudder positive to port, its own column names with
 units in brackets, 10 Hz, measured wind and roll columns, the record starting with the model
 accelerating from rest, and empty rows at the end.  The same runs are also written as canonical CSV
-(SPEC section 3) at 0.08 s, starting at the steady approach: what the logger's files must give.
+(docs/contract.md#raw-formats) at 0.08 s, starting at the steady approach: what the logger's files must give.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """Make the ingest test fixtures in tests/data/ (run: .venv/bin/python tests/make_fixtures.py).
 
 1. ``tests/data/marin_zigzag_fullscale.dat``: a MARIN SIMMAN free-running file (exact layout of
-   SPEC section 3: 3 header lines, tab-separated 3-significant-digit E-format, 11 columns, full
+   docs/contract.md#raw-formats: 3 header lines, tab-separated 3-significant-digit E-format, 11 columns, full
    scale, rudder positive to port, earth-fixed dx0/dy0, trailing empty rows) written from a known
    model-scale truth, :func:`marin_truth`.  The tests rebuild the truth and check the conversion.
-2. ``tests/data/bad/``: one small file per refusal of SPEC section 8 (see ``BAD`` for what each
+2. ``tests/data/bad/``: one small file per refusal of docs/contract.md#bad-input (see ``BAD`` for what each
    must say).
 
 Everything is deterministic (no random draws).

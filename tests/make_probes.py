@@ -1,6 +1,6 @@
 """Make the probe corpus ``tests/data/probes/`` (run: .venv/bin/python tests/make_probes.py).
 
-Issue 14: files as a careless or unlucky user produces them, each with its expected outcome
+Files as a careless or unlucky user produces them, each with its expected outcome
 (:data:`PROBES`).  Every probe is a variant of one clean model-scale 20/20 zigzag (``clean.csv``)
 of a ship that is *not* the identification model's (a first-order Nomoto ship with K 0.25 1/s,
 T 6 s and a rudder servo of 14 deg/s, heading from continuous integration at a fine step, logged
@@ -90,7 +90,7 @@ def probes() -> dict[str, bytes]:
     rows = _rows(tr)
     clean = _text(rows)
     out: dict[str, bytes] = {"clean.csv": clean.encode()}
-    # --- real-file quirks (issue 14 item 9)
+    # --- real-file quirks
     out["trailing_excel_rows.csv"] = (clean + ",,,,,,,,\n" * 3).encode()
     out["quoted_numbers.csv"] = _text([[f'"{x}"' for x in r] for r in rows]).encode()
     out["extra_text_column.csv"] = _text([r + [f"note {k % 3}"] for k, r in enumerate(rows)],
@@ -135,7 +135,7 @@ def probes() -> dict[str, bytes]:
     b = [list(r) for r in rows]
     b[150][6] = f"{float(b[150][6]) + 25.0:.5f}"
     out["yaw_rate_spike.csv"] = _text(b).encode()
-    # --- scale (issue 13 item 2)
+    # --- scale
     lam = 45.7
     full = {"time": tr["time"] * np.sqrt(lam), "x0": tr["x0"] * lam, "y0": tr["y0"] * lam, "psi": tr["psi"],
             "u": tr["u"] * np.sqrt(lam), "v": tr["v"] * np.sqrt(lam), "r": tr["r"] / np.sqrt(lam),

@@ -55,7 +55,7 @@ def make_catalog(root: Path, dataset: str = "tiny", provenance: str = "virtual",
     """Write every stage output of a tiny dataset (two zigzags) in the catalog.py schemas.
 
     ``ids``: run ids of the 20/20 and the 10/10 zigzag; ``ship``, ``test_names``: header text;
-    ``rich_diagnosis``: diagnosis.json in the full schema of the diagnosis stage (issue 11): model
+    ``rich_diagnosis``: diagnosis.json in the full schema of the diagnosis stage: model
     ladder, physical words, floors, per-fold gains, honest gain per run, stability
     (:func:`rich_diagnosis_doc`).
     """
@@ -198,7 +198,7 @@ RICH_TEST_SUFFIX = "-test"
 
 
 def rich_diagnosis_doc(id20: str, id10: str) -> dict:
-    """A diagnosis.json in the schema pipeline/diagnose/core.py writes (SPEC section 7 plus issue 11's
+    """A diagnosis.json in the schema pipeline/diagnose/core.py writes (docs/diagnosis.md#diagnosisjson
     keys), with known numbers the report tests check against:
 
     - cause rudder_offset, extended model rudder offset + nonlinear yaw damping;

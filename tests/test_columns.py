@@ -64,7 +64,7 @@ UNIT_CASES = [
                          ids=[f"{c}-{u}-{s:+d}" for c, u, s, _ in UNIT_CASES])
 def test_each_unit_and_sign_maps_back_to_the_canonical_values(col, unit, sign, to_logged):
     """The column under test is logged in ``unit`` with ``sign`` under its own name; every other is
-    canonical.  The run read through the mapping has the canonical values (SPEC section 2)."""
+    canonical.  The run read through the mapping has the canonical values (docs/contract.md#run-data)."""
     truth = _truth()
     logged = truth.copy()
     logged[col] = sign * to_logged(truth[col].to_numpy())

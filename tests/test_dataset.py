@@ -1,4 +1,4 @@
-"""Dataset descriptions (SPEC section 9, issue 13 items 1 and 2): dataset.toml, discovery, scale."""
+"""Dataset descriptions (docs/dataset.md): dataset.toml, discovery, scale."""
 
 from __future__ import annotations
 
@@ -99,7 +99,7 @@ def test_full_scale_folder_scaled_by_its_toml(tmp_path, capsys):
     raw = tmp_path / "raw"
     (raw / "marin").mkdir(parents=True)
     shutil.copy(MARIN, raw / "marin" / "zz_20_s.dat")
-    # without a description: refused, the ship's length is known (issue 13 blocker)
+    # without a description: refused: without the ship's length the scale cannot be checked
     rc = _ingest("--dataset", "marin", "--raw", raw, "--root", tmp_path / "proc")
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert rc == 2 and "look full scale" in err and "zz_20_s.dat" in err

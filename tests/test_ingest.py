@@ -222,7 +222,7 @@ def test_bench_rows():
 
 
 def test_marin_full_scale_without_scale_is_refused():
-    """Issue 13 blocker: full-scale KVLCC2 files taken as model scale must not pass silently."""
+    """Full-scale KVLCC2 files taken as model scale must not pass silently."""
     with pytest.raises(InputError, match=r"Lpp 320 m .*look full scale: give the scale") as err:
         read_raw(MARIN_FILE, config=IngestConfig(max_abs_rate=90.0))
     assert "\n" not in str(err.value) and "marin_zigzag_fullscale.dat" in str(err.value)

@@ -1,4 +1,4 @@
-"""Bad input (SPEC section 8): one clear line, non-zero exit, nothing written, earlier outputs intact."""
+"""Bad input (docs/contract.md#bad-input): one clear line, non-zero exit, nothing written, outputs kept."""
 
 from __future__ import annotations
 

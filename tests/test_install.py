@@ -1,4 +1,4 @@
-"""A non-editable ``pip install .`` can render reports: the notebooks ship as package data (issue 13).
+"""A non-editable ``pip install .`` can render reports: the notebooks ship as package data.
 
 A fresh venv gets the package from a wheel built out of this tree (``--no-deps``); the dependencies
 come from the test's own environment through a ``.pth`` path line (a plain path: no ``.pth`` files of

@@ -1,4 +1,4 @@
-"""The probe corpus (issue 14): every probe gives its expected outcome.
+"""The probe corpus: every probe gives its expected outcome.
 
 Accepted probes must give the clean run back (same columns, same values within the files' printed
 precision); refused ones exit 2 with one line naming the file, and the row or column where it is known.

@@ -1,6 +1,6 @@
 """Reports: data-derived strings never become markup; the same inputs give the same bytes.
 
-Run ids come from file names and test/ship names from CSV headers (issue 14, items 1 and 12), so a
+Run ids come from file names and test/ship names from CSV headers, so a
 dataset is made whose run ids, ship and test names carry HTML payloads; every report is rendered
 from it twice.  The pages are parsed (stdlib HTMLParser): no element or attribute of a payload
 may exist, and the two renders must be byte-identical once the one provenance line (wall-clock

@@ -1,4 +1,4 @@
-"""Study engine (issue 12): spec checks, seeds, byte identity for 1 vs 2 workers, resume, failures,
+"""Study engine: spec checks, seeds, byte identity for 1 vs 2 workers, resume, failures,
 and a study run through a scheduler and worker started as separate processes on the loopback."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""One machine first (issue 12): the SR-UKF step is allocation-free.  (The batch identification on
+"""One machine first: the SR-UKF step is allocation-free.  (The batch identification on
 every core giving each run's serial numbers is tested in tests/test_identify.py.)"""
 
 from __future__ import annotations

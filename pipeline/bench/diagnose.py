@@ -2,7 +2,8 @@
 truth model with a 2 deg rudder offset and cubic damping, 80 s each) with the full effect catalogue,
 both folds, the nested cross-validation of the gain and the per-fold stability selections.
 Wall time of :func:`pipeline.diagnose.diagnose` after a warm-up that compiles the numba kernels (so
-the figure is the method, not the compiler); issue 11's target: < 30 s on the project's 2-core machine.
+the figure is the method, not the compiler); the target is < 30 s on a
+2-core machine (docs/results.md#speed).
 Beside it (not in quick mode) the same case with plain fits (:func:`~pipeline.diagnose.fit.plain_fits`:
 no batched finite differences, no memo) as the same-run baseline, its ratio, and whether the two
 reports are the same bytes; and the same case with the nested leave-one-run-out in this process

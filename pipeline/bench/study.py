@@ -1,4 +1,4 @@
-"""Study engine scaling (issue 12), all measured in one run:
+"""Study engine scaling, all measured in one run:
 
 * throughput (cases/s) of an autopilot Monte Carlo on 1 and 2 local worker processes, the scaling
   efficiency (2-worker throughput / twice the 1-worker one), and the engine's per-case overhead

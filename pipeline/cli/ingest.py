@@ -1,4 +1,4 @@
-"""``python -m pipeline ingest``: raw tank files to processed runs (SPEC sections 2-4, 8, 9).
+"""``python -m pipeline ingest``: raw tank files to processed runs (docs/contract.md, docs/dataset.md).
 
 Two forms:
 

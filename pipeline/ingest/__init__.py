@@ -1,4 +1,4 @@
-"""Ingest stage: raw tank files (SPEC section 3) to validated, resampled runs (SPEC sections 2, 4, 8).
+"""Ingest stage: raw tank files to validated, resampled runs (docs/contract.md, docs/dataset.md).
 
 Public API (other stages code against these names):
 

@@ -1,10 +1,10 @@
-"""Physical checks at ingest: units, signs, spikes and scale that cannot be right (SPEC sections 2, 8).
+"""Physical checks at ingest: units, signs, spikes and scale that cannot be right (docs/contract.md).
 
 Every check works on a run already in canonical names and at model scale (after Froude scaling),
 and refuses with one line (:class:`pipeline.errors.InputError`) naming file, row or column.  The
 thresholds and their reasons:
 
-Yaw rate against heading (``r = d(psi)/dt``, SPEC section 2)
+Yaw rate against heading (``r = d(psi)/dt``, docs/contract.md#run-data)
     The heading change is regressed on the time integral of r, with an offset and a linear drift
     term (a rate-gyro bias integrates to a ramp): ``psi - psi0 = s * int(r dt) + a + b t``.  The
     integral removes the measurement noise that a numerical derivative would amplify.  On every
@@ -27,14 +27,14 @@ Rudder range and units
     ``TURNING_RATE_DEG_S`` deg/s and changes heading by ``MIN_ZIGZAG_HEADING_DEG`` cannot be in
     degrees: no ship turns like that on less than a degree of rudder.
 
-Rudder sign (SPEC section 2: positive delta makes r positive)
+Rudder sign (docs/contract.md#run-data: positive delta makes r positive)
     Over every phase where the rudder is held beyond half its largest angle on one side, the yaw
     rate must change toward that side (the first-order response of any course-stable or mildly
     unstable ship to a held rudder).  The changes are summed with the rudder's sign; a sum below
     zero, larger than ``SIGN_NOISE_FACTOR`` times the noise of r, with most phases against the
     convention, is refused with the hint ``--rudder-sign -1``.
 
-Spikes (issue 14 item 5; SPEC section 8: the run is refused, naming the row)
+Spikes (docs/contract.md#bad-input: the run is refused, naming the row)
     A sample of psi or r that departs from the straight line through its two neighbours by more
     than ``SPIKE_MAD_FACTOR`` robust standard deviations of that departure, and by more than a
     physical floor (``SPIKE_FLOOR_PSI_DEG``: 2 deg in one step, which at the 0.05-0.1 s steps of
@@ -63,7 +63,7 @@ Steady approach (docs/dataset.md, "The start of a run")
     is measured over), otherwise the run is refused, naming why.  A run that starts steady is not
     touched.
 
-Scale (issue 13 item 2)
+Scale
     With the model length L (from the dataset's Lpp over the scale, the file, or a known ship) the
     approach Froude number Fn = U / sqrt(g L) must be in ``FROUDE_BAND`` (0.05-0.45: displacement
     ships are tested for manoeuvring at Fn 0.1-0.3, KVLCC2 0.142, KCS 0.26; below 0.05 the rudder
@@ -239,7 +239,7 @@ def r_psi_ratio(t: np.ndarray, psi: np.ndarray, r: np.ndarray) -> float | None:
 
 def check_units(frame: pd.DataFrame, lines: np.ndarray, meta: dict, name: str, config: IngestConfig,
                 declared: dict[str, str] | None = None) -> None:
-    """Values that cannot be in the units of SPEC section 2 (module docstring)."""
+    """Values that cannot be in the units of docs/contract.md#run-data (module docstring)."""
     declared = declared or {}
     t = frame["time"].to_numpy(dtype=float)
     psi = frame["psi"].to_numpy(dtype=float)
@@ -325,7 +325,8 @@ def check_rudder_sign(frame: pd.DataFrame, name: str) -> dict[str, Any]:
                                      "held rudder phases"}
     if total < 0 and against > agree and -total > SIGN_NOISE_FACTOR * max(noise, 1e-3):
         raise InputError(f"rudder sign is reversed: positive delta gives negative yaw rate in {against} of "
-                         f"{agree + against} rudder phases (SPEC: positive delta makes r positive); if the "
+                         f"{agree + against} rudder phases (docs/contract.md#run-data: positive delta makes "
+                         "r positive); if the "
                          "file's rudder is positive to port, ingest with --rudder-sign -1 (or "
                          "rudder_sign = -1 in dataset.toml, under [data] or the run's [runs.<id>])",
                          file=name, column="delta")

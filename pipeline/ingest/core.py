@@ -1,6 +1,6 @@
-"""Read, validate, scale and resample raw tank files (SPEC sections 2, 3, 4 and 8).
+"""Read, validate, scale and resample raw tank files (docs/contract.md).
 
-Units: everything leaving this module is canonical (SPEC section 2): time s, x0/y0 m, psi deg
+Units: everything leaving this module is canonical (docs/contract.md#run-data): time s, x0/y0 m, psi deg
 (unwrapped), u/v m/s (v to starboard), r deg/s, delta deg (positive gives positive r), rpm 1/min,
 model scale.  Optional columns: phi deg, p deg/s, thrust N, torque N m.
 """
@@ -56,11 +56,12 @@ def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = Non
 
     Parameters
     ----------
-    path : raw file (canonical CSV, MARIN .dat or HSVA .dat; SPEC section 3), optionally gzip-compressed.
+    path : raw file (canonical CSV, MARIN .dat or HSVA .dat; docs/contract.md#raw-formats), optionally
+    gzip-compressed.
     fmt : 'csv', 'marin' or 'hsva' to override recognition from content.
     scale : geometric scale factor of the file's values (full/model); None or 1 = model scale.
         Froude scaling brings the run to model scale (:func:`pipeline.units.froude_to_model`).
-    config : limits used by the validation (SPEC section 8).
+    config : limits used by the validation (docs/contract.md#bad-input).
     rudder_sign : +1, or -1 for files whose rudder is positive to port (beyond what the format's
         reader already converts); applied before the sign check.
     ship, lpp_full : ship name and full-scale Lpp (m) from the dataset description, used for the

@@ -1,4 +1,4 @@
-"""The three raw formats of SPEC section 3: recognise them from content and parse them.
+"""The three raw formats of docs/contract.md#raw-formats: recognise them from content and parse them.
 
 Each parser takes the decoded text and returns a :class:`RawTable`: the numeric columns in
 **canonical names, units and signs but still at the scale of the file** (Froude scaling to model
@@ -7,7 +7,7 @@ number in the file of every data row (so that errors can name the row), and what
 
 Canonical CSV
     Leading ``#`` lines (``key: value`` pairs, or free text), a header row naming at least
-    ``time, psi, r, delta``, comma-separated values in the units and signs of SPEC section 2.
+    ``time, psi, r, delta``, comma-separated values in the units and signs of docs/contract.md#run-data.
 
 MARIN SIMMAN free-running ``.dat``
     3 header lines (institute; test name; blank), then tab-separated E-format numbers with 3
@@ -468,7 +468,8 @@ def header_meta(header: dict[str, str], comments: list[str], file) -> dict[str, 
                                  f"and {hi:g}, got {val:g}", file=file)
             meta[dest] = int(val) if key == "seed" and val.is_integer() else val
     if "model_scale" in meta:
-        meta["file_states_model_scale"] = True      # SPEC: CSV values are model scale; 'scale' is the model's
+        # CSV values are model scale (docs/contract.md#raw-formats); 'scale' is the model's scale factor
+        meta["file_states_model_scale"] = True
     if header:
         meta["header"] = header
     if comments:
@@ -477,7 +478,7 @@ def header_meta(header: dict[str, str], comments: list[str], file) -> dict[str, 
 
 
 def parse_csv(lines: list[str], file=None) -> RawTable:
-    """Canonical CSV (SPEC section 3), also semicolon- (with decimal commas), tab- or
+    """Canonical CSV (docs/contract.md#raw-formats), also semicolon- (with decimal commas), tab- or
     whitespace-delimited, with declared units in the header names converted to canonical ones."""
     meta: dict[str, Any] = {}
     notes: list[str] = []

@@ -4,7 +4,7 @@ The notebooks read ONLY stage outputs under ``<root>/<dataset>/`` (pipeline/cata
 :class:`Data`, which records every file it reads so the banner can list them with their SHA-256.
 A missing file or column raises :class:`pipeline.errors.InputError` naming it (one line).
 
-Units in every table and axis are those of SPEC section 2 (s, m, m/s, deg, deg/s).
+Units in every table and axis are those of docs/contract.md#run-data (s, m, m/s, deg, deg/s).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from pipeline.errors import InputError
 from pipeline.io import read_frame, read_json
 from pipeline.report import particulars
 
-# The paper's figures (SPEC section 6), shown beside ours.  Tables 5 (20/20) and 6 (10/10).
+# The paper's figures (docs/contract.md#metrics), shown beside ours.  Tables 5 (20/20) and 6 (10/10).
 PAPER_TABLES_5_6 = {
     ("20/20", "ffm-ukf"): {"mse_v": 0.0152, "mse_r": 1.28, "mae_psi": 4.43},
     ("20/20", "srukf-ffm"): {"mse_v": 0.0037, "mse_r": 0.71, "mae_psi": 3.55},

@@ -3,7 +3,7 @@
 Where the facts come from (first found wins):
 
 * the dataset description that ingest copies into ``runs/index.json`` from ``dataset.toml``
-  (SPEC section 9): top-level ``"ship"``, a table of ``{"ship" (the name), "lpp_m", "beam_m",
+  (docs/dataset.md): top-level ``"ship"``, a table of ``{"ship" (the name), "lpp_m", "beam_m",
   "draught_m", "design_speed_kn"`` (full scale), ``"scale"`` (full/model of the values in the files),
   ``"model_scale"`` (full/model of the tank model), ``"tank"``, ``"source"``, ``"dataset_toml"``
   (the file it was read from)``}``; the older layouts (``"ship": {"name", ...}`` with

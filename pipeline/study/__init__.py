@@ -1,4 +1,4 @@
-"""Studies at scale on Dask (issue 12): many cases of one kind fanned out over worker processes.
+"""Studies at scale on Dask: many cases of one kind fanned out over worker processes.
 
 A study kind is a small object (:class:`pipeline.study.kind.StudyKind`) in its own module, registered
 in :data:`KIND_MODULES` below: adding a kind is one new file, its line here and its test.  The engine

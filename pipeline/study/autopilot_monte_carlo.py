@@ -6,7 +6,7 @@ keeping (:func:`pipeline.control.simulate.simulate_course`) with a constant wind
 rudder, deg) and a wave disturbance (the paper's G(s) driven by white noise, seeded by the case's own
 seed) on one plant: ``nomoto`` (the linear model the autopilot was designed on) or ``kcs`` (the
 virtual tank's nonlinear KCS, noise-free, the autopilot's servo limits).  Results are the control
-metrics of SPEC section 6 (:func:`pipeline.control.metrics.course_metrics`).
+metrics of docs/contract.md#metrics (:func:`pipeline.control.metrics.course_metrics`).
 
 Summary: per (plant, Tw, wind) the distribution of every metric over the seeds (mean, std, 5 / 50 /
 95 % quantiles, worst), and for each metric the ``worst`` cases of the whole study (with their

@@ -1,13 +1,14 @@
 """Study kind ``batch_identify``: identify (and optionally diagnose) every raw file of an archive.
 
-One case per file (any format of SPEC section 3, recognised from its content or forced by
+One case per file (any format of docs/contract.md#raw-formats, recognised from its content or forced by
 ``format``): ingest (:func:`pipeline.ingest.ingest_file`), identify the first ``samples`` samples with
-the SR-UKF-FFM (:func:`pipeline.identify.identify_run`), Nomoto indices (SPEC section 5), free-run
-validation on the rest of the run (MSE v, MSE r, MAE psi; SPEC section 6), zigzag metrics when the
-run is a zigzag (:func:`pipeline.indices.stage.analyse_run`), and with ``diagnose = true`` the
-diagnosis trained on the identification window and validated on the rest.  The result is one table,
-one row per file, ready for a fleet or archive view; a file that cannot be read is one row with its
-error.  Each case is serial; the engine runs one per worker process, so a batch uses every core.
+the SR-UKF-FFM (:func:`pipeline.identify.identify_run`), Nomoto indices
+(docs/contract.md#the-identification-model), free-run validation on the rest of the run (MSE v, MSE r, MAE
+psi; docs/contract.md#metrics), zigzag metrics when the run is a zigzag
+(:func:`pipeline.indices.stage.analyse_run`), and with ``diagnose = true`` the diagnosis trained on the
+identification window and validated on the rest.  The result is one table, one row per file, ready for a fleet
+or archive view; a file that cannot be read is one row with its error.  Each case is serial; the engine runs
+one per worker process, so a batch uses every core.
 
 A file's case id includes its SHA-256, so a changed file is identified again on resume.  Paths are
 taken relative to the working directory; on a remote cluster the workers must see the same paths.

@@ -1,4 +1,4 @@
-"""Starting dask clusters for studies, benchmarks and tests: one place (issue 12).
+"""Starting dask clusters for studies, benchmarks and tests: one place.
 
 * :func:`local_cluster` / :func:`local_client`: a ``LocalCluster`` of worker *processes*, one thread
   each, numba and OpenMP single-threaded (one case per core; the numba kernels are serial).  Every

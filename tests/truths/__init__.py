@@ -1,4 +1,4 @@
-"""Independent test truths for the diagnosis (SPEC section 7, issue #11).
+"""Independent test truths for the diagnosis (docs/diagnosis.md).
 
 Plain test helpers, deliberately NOT written in the diagnosis method's own formulas and not
 importing ``pipeline.model`` or ``pipeline.diagnose``:
@@ -14,11 +14,12 @@ importing ``pipeline.model`` or ``pipeline.diagnose``:
 - :mod:`truths.mariner`: the Mariner's Abkowitz model (Chislett & Stroem-Tejsen 1965), full scale;
 - :mod:`truths.tanker`: the Van Berlekom & Goddard (1972) large tanker, full scale, course-unstable
   when linear;
-- :mod:`truths.files`: writers of raw files in SPEC section 3 formats (canonical CSV, MARIN .dat);
+- :mod:`truths.files`: writers of raw files in the formats of docs/contract.md#raw-formats (canonical CSV,
+  MARIN .dat);
 - :mod:`truths.cases`: the seeded cases of tests/test_diagnose_generalise.py and how they are judged;
 - ``run_cases.py``: runs every case and prints a table for the lead.
 
-Units and signs everywhere are SPEC section 2's: time s, v m/s positive to starboard, r deg/s,
+Units and signs everywhere are docs/contract.md#run-data's: time s, v m/s positive to starboard, r deg/s,
 psi deg, delta deg with positive delta making r positive, u m/s, model scale unless a function
 says full scale.
 """

@@ -11,7 +11,7 @@ Durations: 60 s on the fast ship (about 4 zigzag periods), 90 s on the slow one 
 is about 75 s).  Magnitudes are drawn from ``np.random.default_rng(seed)`` with the seed from
 configuration (``DiagnoseConfig().seed`` + 2: the existing truth and tank cases use + 0 and + 1).
 
-Judging (:func:`judge`), from diagnosis.json's SPEC keys only:
+Judging (:func:`judge`), from diagnosis.json's documented keys (docs/diagnosis.md) only:
 
 - clean truth: ``cause == "none"`` and ``extended.effects == []``;
 - injected effect: ``cause`` in the case's accepted set, at least one accepted effect in
@@ -54,7 +54,7 @@ from truths.files import write_csv
 MIN_GAIN = 0.30   # a named effect must cut the held-out heading MAE by 30 %: the effects are injected at
 #                   magnitudes where the truth's own structure is worth far more than that (shares of
 #                   0.4-1.0 of the linear term, offsets of 1-2 deg), so a smaller gain is a misfit
-EST_TOL = 0.25    # issue #11: estimates within 25 % where the form matches
+EST_TOL = 0.25    # estimates within 25 % where the form matches (the bar of docs/diagnosis.md)
 HULL_NL = ("nonlinear_sway_damping", "sway_yaw_coupling", "nonlinear_yaw_damping")
 TRAIN = ((20, "starboard"), (10, "port"))
 VALIDATE = ((20, "port"), (10, "starboard"))
@@ -269,10 +269,10 @@ def demonstrable(report: dict, noise_mae: float) -> tuple[bool, str]:
     (:func:`noise_mae_psi`: the measurement noise).  When that room is under the diagnosis's own
     materiality bars, the floor in degrees (max of twice the heading noise and ``min_abs_gain_deg``,
     from the report's settings) or ``MIN_GAIN`` relative, the effect is immaterial in heading on these
-    runs and "none" is as right as the effect's name: issue #11 names an effect only when it is
-    material in held-out heading.  The linear-truth cases apply the same rule with the truth's own
-    structure (tests/test_diagnose_cases.py ``_oracle_gain``).  Measured: a v|v| share of 0.70 on the
-    fast ship leaves the baseline at 0.12 deg against a noise MAE of 0.08 deg."""
+    runs and "none" is as right as the effect's name: the diagnosis names an effect only when it
+    is material in held-out heading (docs/diagnosis.md).  The linear-truth cases apply the same rule with the
+    truth's own structure (tests/test_diagnose_cases.py ``_oracle_gain``).  Measured: a v|v| share of 0.70 on
+    the fast ship leaves the baseline at 0.12 deg against a noise MAE of 0.08 deg."""
     s = report.get("settings", {})
     base = report["baseline"]["validation"]["mae_psi_deg"]
     floor = max(2.0 * s.get("heading_noise_deg", 0.0), s.get("min_abs_gain_deg", 0.0))
@@ -283,7 +283,8 @@ def demonstrable(report: dict, noise_mae: float) -> tuple[bool, str]:
 
 
 def judge(case: Case, report: dict, noise_mae: float | None = None) -> tuple[bool, list[str], dict]:
-    """(passed, reasons it failed, figures for the table) from diagnosis.json's SPEC keys.
+    """(passed, reasons it failed, figures for the table) from diagnosis.json's documented keys
+    (docs/diagnosis.md).
 
     With ``noise_mae`` (:func:`noise_mae_psi` of the validation runs), a case whose effect is not
     :func:`demonstrable` in heading is right when it names the effect or nothing, and names nothing

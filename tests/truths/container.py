@@ -7,7 +7,8 @@ single-screw container ship, L 175 m, B 25.4 m, draught 8.5 m, GM 0.3 m, by Son 
 Ocean Engineering 20:73-83 (from J.S.N.A. Japan 150, 1981), in their prime system (forces on
 1/2 rho L^2 U^2, moments on 1/2 rho L^3 U^2, the instantaneous speed U); the published coefficients
 as tabulated in Fossen, "Guidance and Control of Ocean Vehicles" (Wiley 1994), and carried by his
-Marine Systems Simulator.  Written here from those published numbers, in the SPEC's signs.
+Marine Systems Simulator.  Written here from those published numbers, in the contract's signs
+(docs/contract.md#run-data).
 
 Not written in the diagnosis method's formulas, and unlike every other truth (tests/truths/
 swayyaw.py, kvlcc2.py, mariner.py, tanker.py):
@@ -34,9 +35,10 @@ Variants (:class:`Container` ``form``):
 - ``"noroll"``: the published model with the roll held upright (p = phi = 0): what the heel adds
   is the difference from ``"full"``.
 
-Signs: SPEC section 2.  The published model's positive rudder gives a positive yaw rate (turning to
-starboard) as the SPEC's does: checked by :func:`check_signs`.  psi_dot = r cos(phi): the logged
-yaw rate is the heading's derivative (SPEC: r = d(psi)/dt), the logged sway the horizontal one.
+Signs: docs/contract.md#run-data.  The published model's positive rudder gives a positive yaw rate (turning to
+starboard) as the contract's (docs/contract.md#run-data) does: checked by :func:`check_signs`.  psi_dot = r
+cos(phi): the logged yaw rate is the heading's derivative (docs/contract.md#run-data: r = d(psi)/dt), the
+logged sway the horizontal one.
 """
 
 from __future__ import annotations
@@ -230,8 +232,9 @@ def simulate_zigzag(
     disturbance_deg: float = 0.0,
     disturbance_tau: float = 30.0,
 ) -> pd.DataFrame:
-    """A full-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg (SPEC
-    signs, the *measured* rudder), rpm 1/min, phi deg, p deg/s, logged every ``dt_log`` s.  RK4 at
+    """A full-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg
+    (docs/contract.md#run-data signs, the *measured* rudder), rpm 1/min, phi deg, p deg/s, logged every
+    ``dt_log`` s.  RK4 at
     ``h`` s, counter-rudder on the measured heading, white sensor noise Froude-scaled from model-scale
     figures at 1:``scale`` (as :func:`truths.tanker.simulate_zigzag`, and phi 0.05 deg, p 0.05 deg/s);
     the process disturbance as there.  The ship starts straight and upright at its approach speed."""
@@ -263,8 +266,8 @@ def simulate_zigzag(
 
 
 def check_signs(s: Container | None = None) -> dict:
-    """Steady response to +10 deg (SPEC) rudder after 300 s, noise-free: r > 0, v < 0 and the heel
-    outward (phi > 0 is starboard down in the published axes; a turn to starboard heels to port)."""
+    """Steady response to +10 deg (docs/contract.md#run-data) rudder after 300 s, noise-free: r > 0, v < 0 and
+    the heel outward (phi > 0 is starboard down in the published axes; a turn to starboard heels to port)."""
     f = simulate_zigzag(s or Container(), 10.0, 1e9, "starboard", duration=300.0, noise=False)
     return {"r_deg_s": float(f["r"].iloc[-1]), "v_m_s": float(f["v"].iloc[-1]),
             "phi_deg": float(f["phi"].iloc[-1])}

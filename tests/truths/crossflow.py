@@ -28,7 +28,8 @@ Sensors, not written as the pipeline writes them: heading and yaw rate with AR(1
 correlation 0.9 at 20 Hz: an optical tracker's filtered output), sway and surge with white noise,
 the rudder angle quantised to 0.1 deg by its encoder.  Fresh tank water (1000 kg/m^3).
 
-Signs: SPEC section 2 (positive rudder turns to starboard, r > 0, the ship drifting to port, v < 0):
+Signs: docs/contract.md#run-data (positive rudder turns to starboard, r > 0, the ship drifting to port,
+v < 0):
 checked by :func:`check_signs`.
 """
 
@@ -200,10 +201,10 @@ def simulate_zigzag(
     disturbance_deg: float = 0.0,
     disturbance_tau: float = 5.0,
 ) -> pd.DataFrame:
-    """A model-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg (SPEC
-    signs, the measured rudder quantised to 0.1 deg), logged every ``dt_log`` s; RK4 at ``h`` s,
-    counter-rudder on the measured heading.  ``disturbance_deg``: a random yaw moment (Ornstein-
-    Uhlenbeck, time constant ``disturbance_tau`` s) as that much rudder's, standard deviation."""
+    """A model-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg
+    (docs/contract.md#run-data signs, the measured rudder quantised to 0.1 deg), logged every ``dt_log`` s;
+    RK4 at ``h`` s, counter-rudder on the measured heading.  ``disturbance_deg``: a random yaw moment
+    (Ornstein-Uhlenbeck, time constant ``disturbance_tau`` s) as that much rudder's, standard deviation."""
     n = int(round(duration / dt_log)) + 1
     rate, dmax = s.rudder_rate * RAD, s.rudder_max * RAD
     dist = np.zeros(n)
@@ -237,7 +238,8 @@ def simulate_zigzag(
 
 
 def check_signs(s: Ferry | None = None) -> dict:
-    """Steady response to +10 deg (SPEC) rudder after 60 s, noise-free: r > 0 and v < 0."""
+    """Steady response to +10 deg (docs/contract.md#run-data) rudder after 60 s, noise-free:
+    r > 0 and v < 0."""
     f = simulate_zigzag(s or Ferry(), 10.0, 1e9, "starboard", duration=60.0, noise=False)
     return {"r_deg_s": float(f["r"].iloc[-1]), "v_m_s": float(f["v"].iloc[-1])}
 

@@ -1,6 +1,6 @@
-"""Raw files in SPEC section 3 formats, written directly (no pipeline code), for ``ingest`` to read.
+"""Raw files (docs/contract.md#raw-formats) written directly (no pipeline code) for ``ingest`` to read.
 
-- :func:`write_csv`: canonical CSV, ``#`` key: value header, values in SPEC section 2 units and
+- :func:`write_csv`: canonical CSV, ``#`` key: value header, values in docs/contract.md#run-data units and
   signs, at the scale of the values given (model scale unless the caller passes ``--scale`` on
   reading);
 - :func:`write_marin`: MARIN SIMMAN free-running ``.dat``: 3 header lines (institute; test name;
@@ -40,7 +40,7 @@ def froude_to_model(frame: pd.DataFrame, scale: float) -> pd.DataFrame:
 
 
 def write_csv(frame: pd.DataFrame, path: str | Path, header: dict) -> Path:
-    """Canonical CSV of the columns of ``frame`` that SPEC section 2 names, with ``# key: value``
+    """Canonical CSV of the columns of ``frame`` that docs/contract.md#run-data names, with ``# key: value``
     lines from ``header`` (e.g. ship, test, provenance, lpp, dt, seed)."""
     path = Path(path)
     cols = [c for c in ("time", "x0", "y0", "psi", "u", "v", "r", "delta", "rpm") if c in frame.columns]

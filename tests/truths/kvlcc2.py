@@ -7,7 +7,7 @@ L 320 m, approach 15.5 kn, sea water; the propeller rps is trimmed so that the s
 straight ahead (the paper's model-scale rps does not Froude-scale to full scale: scale effects on
 resistance), then kept constant (free-running test at constant rps, so the ship slows in turns).
 
-Coordinates and signs (MMG = SPEC section 2): x forward, y to starboard, origin at midship;
+Coordinates and signs (MMG = docs/contract.md#run-data): x forward, y to starboard, origin at midship;
 v_m m/s lateral velocity at midship, positive to starboard; r rad/s internally, positive turning to
 starboard; delta positive = trailing edge to port, which turns the ship to starboard, so positive
 delta makes r positive (checked by :func:`check_signs`).  beta = atan(-v_m / u).
@@ -181,8 +181,8 @@ def simulate_zigzag(
     disturbance_tau: float = 30.0,
 ) -> pd.DataFrame:
     """A full-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg
-    (SPEC signs), rpm 1/min, all full scale, logged every ``dt_log`` s.  RK4 at ``h`` s
-    (0.05 s full scale = 0.0074 s at 1:45.7).  Counter-rudder at a logging instant when the
+    (contract signs (docs/contract.md#run-data)), rpm 1/min, all full scale, logged every ``dt_log`` s.  RK4
+    at ``h`` s (0.05 s full scale = 0.0074 s at 1:45.7).  Counter-rudder at a logging instant when the
     measured heading passes +-heading_deg.  White sensor noise, Froude-scaled from model-scale
     figures (psi 0.05 deg, r 0.05 deg/s, u, v 0.005 m/s, delta 0.05 deg at 1:45.7).
 
@@ -257,8 +257,8 @@ def zigzag_metrics(f: pd.DataFrame, heading_deg: float) -> dict:
 
 
 def check_signs(s: KVLCC2 | None = None) -> dict:
-    """Steady response to +10 deg rudder after 120 s (noise-free): r > 0 (SPEC) and v < 0 (drift
-    outward of a starboard turn: the stern slides out, the bow points inside)."""
+    """Steady response to +10 deg rudder after 120 s (noise-free): r > 0 (docs/contract.md#run-data) and v < 0
+    (drift outward of a starboard turn: the stern slides out, the bow points inside)."""
     s = s or KVLCC2()
     f = simulate_zigzag(s, 10.0, 1e9, "starboard", duration=120.0, noise=False)
     return {"r_deg_s": float(f["r"].iloc[-1]), "v_m_s": float(f["v"].iloc[-1])}

@@ -5,7 +5,8 @@ from the planar-motion-mechanism tests of Chislett & Stroem-Tejsen (1965), "Plan
 tests and full-scale steering and manoeuvring predictions for a Mariner class vessel", Hydro- and
 Aerodynamics Laboratory, Lyngby, report Hy-5; the hydrodynamic derivatives are theirs as tabulated
 in Fossen, "Handbook of Marine Craft Hydrodynamics and Motion Control" (Wiley 2011), and carried by
-his Marine Systems Simulator.  Written here from those published numbers, in the SPEC's signs.
+his Marine Systems Simulator.  Written here from those published numbers, in the contract's signs
+(docs/contract.md#run-data).
 
 Not written in the diagnosis method's formulas, and unlike both other truths (tests/truths/swayyaw.py,
 the KVLCC2 MMG of tests/truths/kvlcc2.py):
@@ -32,9 +33,10 @@ Variants (:class:`Mariner` ``form``):
 - ``"full"``: the published model with the surge equation (constant thrust balance, the ship slows in
   turns).
 
-Signs: SPEC section 2 (x forward, y to starboard, psi and r positive turning to starboard; delta
+Signs: docs/contract.md#run-data (x forward, y to starboard, psi and r positive turning to starboard; delta
 positive = trailing edge to port, which turns the ship to starboard).  The published model has N_d < 0
-(its positive rudder turns to port), so its rudder angle is minus the SPEC's: checked by
+(its positive rudder turns to port), so its rudder angle is minus the contract's (docs/contract.md#run-data):
+checked by
 :func:`check_signs`.
 """
 
@@ -152,8 +154,9 @@ def linear_poles(s: Mariner | None = None) -> np.ndarray:
 
 
 def equivalent_offset_deg(s: Mariner | None = None) -> float:
-    """The SPEC-signed rudder offset (deg) that gives the linear Mariner the same steady yaw rate at
-    zero rudder as its Y_0, N_0 do: the ``rudder_offset`` a right diagnosis estimates on the
+    """The contract-signed (docs/contract.md#run-data) rudder offset (deg) that gives the linear Mariner the
+    same steady yaw rate at zero rudder as its Y_0, N_0 do: the ``rudder_offset`` a right diagnosis estimates
+    on the
     ``offset`` form (the two constants are not exactly a rudder force, so the sway differs a little).
     """
     yv, yr, yd = (_coef(Y_, k) for k in LINEAR_KEYS)
@@ -164,7 +167,7 @@ def equivalent_offset_deg(s: Mariner | None = None) -> float:
     A = np.array([[yv, yr], [nv, nr]])
     r_d = np.linalg.solve(A, -np.array([yd, nd]))[1]
     r_0 = np.linalg.solve(A, -np.array([_coef(Y_, "0"), _coef(N_, "0")]))[1]
-    return -(r_0 / r_d) / RAD     # published rudder -> SPEC rudder: minus
+    return -(r_0 / r_d) / RAD     # published rudder -> contract rudder: minus
 
 
 def simulate_zigzag(
@@ -182,9 +185,9 @@ def simulate_zigzag(
     disturbance_deg: float = 0.0,
     disturbance_tau: float = 30.0,
 ) -> pd.DataFrame:
-    """A full-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg (SPEC
-    signs; the *measured* rudder), logged every ``dt_log`` s.  RK4 at ``h`` s.  Counter-rudder at a
-    logging instant when the measured heading passes +-heading_deg.  White sensor noise,
+    """A full-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg
+    (docs/contract.md#run-data signs; the *measured* rudder), logged every ``dt_log`` s.  RK4 at ``h`` s.
+    Counter-rudder at a logging instant when the measured heading passes +-heading_deg.  White sensor noise,
     Froude-scaled from model-scale figures at 1:``scale`` (psi 0.05 deg, r 0.05 deg/s, u, v
     0.005 m/s, delta 0.05 deg).  The ship starts straight at U0 with zero rudder; the first 10 s
     (before the execute) show any drift the hull has of its own.
@@ -219,11 +222,12 @@ def simulate_zigzag(
         rhs, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         lambda t, x: (t, x[4], x[5], x[3] / RAD, s.U0 + x[0], x[1], x[2] / RAD, -x[6] / RAD),
         lambda x: x[3] / RAD, rudder_deg, heading_deg, first_side, n, dt_log, h, t_execute, e["psi"], dist,
-        command=lambda c: -c)     # the published rudder is minus the SPEC's
+        command=lambda c: -c)     # the published rudder is minus the contract's (docs/contract.md#run-data)
     return zigzag.logged(out, ["time", "x0", "y0", "psi", "u", "v", "r", "delta"], e)
 
 
 def check_signs(form: str = "linear") -> dict:
-    """Steady response to +10 deg (SPEC) rudder after 200 s, noise-free: r > 0 and v < 0."""
+    """Steady response to +10 deg (docs/contract.md#run-data) rudder after 200 s, noise-free:
+    r > 0 and v < 0."""
     f = simulate_zigzag(Mariner(form=form), 10.0, 1e9, "starboard", duration=200.0, noise=False)
     return {"r_deg_s": float(f["r"].iloc[-1]), "v_m_s": float(f["v"].iloc[-1])}

@@ -1,8 +1,8 @@
 """An independent output-error fit, to show what the data allow (not the diagnosis method).
 
 Used to check the KVLCC2 stand-in: do side-swap folds really let a richer model cut the held-out
-heading error by half?  If no model can, the >= 50 % target of issue #11 would be unfair on these
-files.  Models (continuous time, SPEC section 2 units, model scale)::
+heading error by half?  If no model can, the >= 50 % target of docs/diagnosis.md would be unfair on these
+files.  Models (continuous time, docs/contract.md#run-data units, model scale)::
 
     v' = a11 v + a12 r + b11 (delta + d0) + sum_j Y_j phi_j(v, r)
     r' = a21 v + a22 r + b21 (delta + d0) + sum_j N_j phi_j(v, r)

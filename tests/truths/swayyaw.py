@@ -6,7 +6,7 @@ written in forms of their own (r|r| beside r^3, a first-order servo lag beside a
 stall, side-dependent effectiveness, |.| cross terms, a surge equation driven by drift and yaw).
 It imports nothing from ``pipeline``.
 
-Equations (units of SPEC section 2: v m/s positive to starboard, r deg/s, psi deg, delta deg,
+Equations (units of docs/contract.md#run-data: v m/s positive to starboard, r deg/s, psi deg, delta deg,
 u m/s, t s; positive delta makes r positive)::
 
     servo      d_log'  = clip(k_s (cmd - d_log), -rate, +rate)          the rudder angle sensor reads d_log
@@ -22,8 +22,8 @@ u m/s, t s; positive delta makes r positive)::
     u' = -(u - U0) / tau_u + x_vr v r_rad  (x_vr >= 0: a turn with drift, v r < 0, slows the ship)
     psi' = r;  x0' = u cos(psi) - v sin(psi);  y0' = u sin(psi) + v cos(psi)
 
-Linear coefficients a11 ... b21 are those of SPEC section 5 in continuous time; each ship is
-specified by its Nomoto indices K, T1, T2, T3 plus the sway damping a11 and the sway rudder force
+Linear coefficients a11 ... b21 are those of docs/contract.md#the-identification-model in continuous time;
+each ship is specified by its Nomoto indices K, T1, T2, T3 plus the sway damping a11 and the sway rudder force
 b11 (:func:`nomoto_to_coefficients`).  Nonlinear magnitudes are usually given as *shares* of the
 ship's own linear behaviour at a reference amplitude (:func:`effect_coefficients`), so one share
 means the same thing on a fast and on a slow ship.
@@ -35,8 +35,9 @@ Zigzag logic: straight approach for ``t_execute`` s at rudder 0, then the comman
 "Clean" means: exactly these equations without any effect (linear hull, linear rudder, no offset,
 no delay, no lag, constant speed), integrated at the fine step, plus seeded sensor noise (white by
 default; AR(1) coloured and an encoder quantisation of the logged rudder are options of
-:class:`Sensors`).  Even clean data are not SPEC's Euler model at 0.08 s, and the logged rudder is
-the servo angle sampled every 0.08 s, not the rudder the integrator saw between samples.
+:class:`Sensors`).  Even clean data are not the Euler model of docs/contract.md#the-identification-model at
+0.08 s, and the logged rudder is the servo angle sampled every 0.08 s, not the rudder the integrator saw
+between samples.
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ RAD = math.pi / 180.0
 
 
 def nomoto_to_coefficients(K: float, T1: float, T2: float, T3: float, a11: float, b11: float) -> dict:
-    """Linear sway-yaw coefficients (SPEC section 5 units) with the given Nomoto indices.
+    """Linear sway-yaw coefficients (docs/contract.md#the-identification-model) from Nomoto indices.
 
     K 1/s, T1, T2, T3 s (Eq. 6: T1 T2 = 1/D, T1 + T2 = -(a11 + a22)/D, K T3 = b21/D,
     K = (a21 b11 - a11 b21)/D, D = a11 a22 - a12 a21); a11 1/s and b11 (m/s^2)/deg are chosen.
@@ -78,7 +79,8 @@ def coefficients_to_nomoto(c: dict) -> dict:
 
 @dataclass(frozen=True)
 class Ship:
-    """A ship at model scale, given by its Nomoto indices (SPEC section 5 / ALGORITHMS Eq. 6).
+    """A ship at model scale, given by its Nomoto indices (docs/contract.md#the-identification-model /
+    docs/indices.md#nomoto-indices-from-the-identified-model).
 
     lpp_m m, u0_m_s m/s approach speed, K 1/s, T1/T2/T3 s, a11 1/s, b11 (m/s^2)/deg,
     rudder_rate deg/s (servo rate limit, model scale), servo_gain 1/s, max_rudder deg.
@@ -106,7 +108,7 @@ class Ship:
         return self.T1 + self.T2 - self.T3
 
     def nondimensional(self) -> dict:
-        """K' = K L/U, T' = T U/L (ALGORITHMS: Nomoto indices)."""
+        """K' = K L/U, T' = T U/L (docs/indices.md#non-dimensional-indices)."""
         lu = self.lpp_m / self.u0_m_s
         return {"K'": self.K * lu, "T1'": self.T1 / lu, "T2'": self.T2 / lu, "T3'": self.T3 / lu,
                 "T'": self.T / lu}
@@ -221,7 +223,8 @@ def _noise(rng: np.random.Generator, sigma: float, n: int, phi: float) -> np.nda
 
 
 def simulate(truth: Truth, zz: Zigzag, seed: int, noise: bool = True) -> pd.DataFrame:
-    """Simulate one zigzag; returns the logged frame (time, x0, y0, psi, u, v, r, delta), SPEC units.
+    """Simulate one zigzag; returns the logged frame (time, x0, y0, psi, u, v, r, delta), units of
+    docs/contract.md#run-data.
 
     Also returned as ``frame.attrs``: the true (noise-free) series under ``"true"`` (a DataFrame
     with the same columns plus ``delta_eff``, the rudder the hull felt, deg).

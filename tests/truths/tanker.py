@@ -4,7 +4,7 @@ Model: the nonlinear manoeuvring model of a large tanker, L 304.8 m, draught 18.
 Van Berlekom & Goddard (1972), "Maneuvering of large tankers", Trans. SNAME 80:264-298, in the
 "bis" system (forces on the ship's mass, lengths on L); the published coefficients as tabulated in
 Fossen, "Guidance and Control of Ocean Vehicles" (Wiley 1994), and carried by his Marine Systems
-Simulator.  Written here from those published numbers, in the SPEC's signs.
+Simulator.  Written here from those published numbers, in the contract's signs (docs/contract.md#run-data).
 
 Not written in the diagnosis method's formulas, and unlike the other truths (the sway-yaw family of
 tests/truths/swayyaw.py, the KVLCC2 MMG of tests/truths/kvlcc2.py, the Mariner Abkowitz model of
@@ -27,8 +27,9 @@ tests/truths/mariner.py):
 The linear part at the approach speed is course-unstable (:func:`linear_poles`: one positive pole):
 what the issue's MARIN hull, "close to course-unstable", asks a baseline to fit and report.
 
-Signs: SPEC section 2.  The published model's positive rudder gives a negative yaw moment
-(N_ccd < 0: it turns the ship to port), so its rudder angle is minus the SPEC's (:func:`check_signs`).
+Signs: docs/contract.md#run-data.  The published model's positive rudder gives a negative yaw moment
+(N_ccd < 0: it turns the ship to port), so its rudder angle is minus the contract's
+(docs/contract.md#run-data) (:func:`check_signs`).
 """
 
 from __future__ import annotations
@@ -171,15 +172,15 @@ def linear_poles(s: Tanker | None = None) -> np.ndarray:
 
 
 def equivalent_offset_deg(s: Tanker | None = None, u: float | None = None) -> float:
-    """The SPEC-signed rudder offset (deg) that gives the tanker linearised at surge speed ``u`` m/s
-    (default its approach speed) the same steady yaw rate at zero rudder as its propeller's constant
-    Y_T, N_T do (as :func:`truths.mariner.equivalent_offset_deg`; the constants are not exactly a
-    rudder force, and they grow as the ship slows: thrust loading rises)."""
+    """The contract-signed (docs/contract.md#run-data) rudder offset (deg) that gives the tanker linearised at
+    surge speed ``u`` m/s (default its approach speed) the same steady yaw rate at zero rudder as its
+    propeller's constant Y_T, N_T do (as :func:`truths.mariner.equivalent_offset_deg`; the constants are not
+    exactly a rudder force, and they grow as the ship slows: thrust loading rises)."""
     s = s or Tanker()
     J, b, f0 = _jacobian(s, approach_speed(s) if u is None else u)
     r_d = np.linalg.solve(J, -b)[1]
     r_0 = np.linalg.solve(J, -f0)[1]
-    return -(r_0 / r_d) / RAD     # published rudder -> SPEC rudder: minus
+    return -(r_0 / r_d) / RAD     # published rudder -> contract rudder: minus
 
 
 def simulate_zigzag(
@@ -197,9 +198,9 @@ def simulate_zigzag(
     disturbance_deg: float = 0.0,
     disturbance_tau: float = 30.0,
 ) -> pd.DataFrame:
-    """A full-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg (SPEC
-    signs, the *measured* rudder), rpm 1/min, logged every ``dt_log`` s.  RK4 at ``h`` s.
-    Counter-rudder at a logging instant when the measured heading passes +-heading_deg.  White
+    """A full-scale zigzag; returns time s, x0, y0 m, psi deg, u, v m/s, r deg/s, delta deg
+    (docs/contract.md#run-data signs, the *measured* rudder), rpm 1/min, logged every ``dt_log`` s.  RK4 at
+    ``h`` s. Counter-rudder at a logging instant when the measured heading passes +-heading_deg.  White
     sensor noise, Froude-scaled from model-scale figures at 1:``scale`` (psi 0.05 deg, r 0.05 deg/s,
     u, v 0.005 m/s, delta 0.05 deg).  The ship starts straight at its approach speed with zero
     rudder; the first 10 s (before the execute) show the drift its propeller gives it.
@@ -229,11 +230,12 @@ def simulate_zigzag(
         rhs, [u0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         lambda t, x: (t, x[4], x[5], x[3] / RAD, x[0], x[1], x[2] / RAD, -x[6] / RAD, s.rpm),
         lambda x: x[3] / RAD, rudder_deg, heading_deg, first_side, n, dt_log, h, t_execute, e["psi"], dist,
-        command=lambda c: -c)     # the published rudder is minus the SPEC's
+        command=lambda c: -c)     # the published rudder is minus the contract's (docs/contract.md#run-data)
     return zigzag.logged(out, ["time", "x0", "y0", "psi", "u", "v", "r", "delta", "rpm"], e)
 
 
 def check_signs(s: Tanker | None = None) -> dict:
-    """Steady response to +10 deg (SPEC) rudder after 300 s, noise-free: r > 0 and v < 0."""
+    """Steady response to +10 deg (docs/contract.md#run-data) rudder after 300 s, noise-free:
+    r > 0 and v < 0."""
     f = simulate_zigzag(s or Tanker(), 10.0, 1e9, "starboard", duration=300.0, noise=False)
     return {"r_deg_s": float(f["r"].iloc[-1]), "v_m_s": float(f["v"].iloc[-1])}

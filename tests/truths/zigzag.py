@@ -47,7 +47,7 @@ def run(
     """The logged rows (``row(t, state)`` at each of ``n`` instants ``dt_log`` apart) of a zigzag.
 
     ``rhs(x, command, n_ext)``: the truth's state derivative under the (truth-signed) rudder command
-    rad and an external disturbance (its units); ``command`` maps the SPEC-signed command (rad,
+    rad and an external disturbance (its units); ``command`` maps the contract-signed command (rad,
     positive turning to starboard) to the truth's sign; ``psi_deg(x)``: the true heading, deg, to
     which ``psi_noise[i]`` is added for the zigzag logic; ``dist[i]``: the disturbance held from
     instant i to i + 1 (none: 0)."""
@@ -55,7 +55,7 @@ def run(
     sign = 1.0 if first_side == "starboard" else -1.0
     x = list(x0)
     out = None
-    cmd, executed = 0.0, False          # SPEC-signed command, rad
+    cmd, executed = 0.0, False          # contract-signed command, rad
     for i in range(n):
         t = i * dt_log
         r = row(t, x)
