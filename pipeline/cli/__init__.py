@@ -65,7 +65,7 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
 
     parser = Parser(
         prog=prog or prog_name(),
-        description="Tank-test analysis pipeline (see README.md and SPEC.md).",
+        description="Tank-test analysis pipeline (see README.md and docs/index.md).",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="stage", metavar="STAGE", required=True, parser_class=Parser)

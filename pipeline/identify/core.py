@@ -311,7 +311,8 @@ def trust_flags(consistency: dict[str, Any], indices: dict[str, float] | None, i
     flags: list[dict[str, Any]] = consistency_flags(consistency)
     if indices is not None and not indices.get("K", 0) > 0:
         flags.append({"check": "nomoto_K", "value": indices.get("K"), "band": [0.0, None],
-                      "reason": "K <= 0: positive rudder must make the yaw rate positive (SPEC section 2); "
+                      "reason": "K <= 0: positive rudder must make the yaw rate positive "
+                                "(docs/contract.md#run-data); "
                                 "the run did not identify the rudder's effect (too little excitation, noise, "
                                 "or a reversed rudder sign)"})
     if indices_error:

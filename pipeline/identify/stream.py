@@ -86,8 +86,9 @@ class StreamingIdentifier:
         return self.last
 
     def estimate(self) -> dict[str, Any]:
-        """Current posterior: state (v, r, psi), parameters (SPEC order and units), their 6 x 6
-        covariance, the Nomoto indices K (1/s), T1, T2, T3, T (s) or None where they do not exist."""
+        """Current posterior: state (v, r, psi), parameters (order and units of
+        docs/contract.md#the-identification-model), their 6 x 6 covariance, the Nomoto indices K (1/s), T1,
+        T2, T3, T (s) or None where they do not exist."""
         theta = self.x[3:].copy()
         try:
             idx = nomoto_indices(theta)

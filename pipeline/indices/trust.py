@@ -141,9 +141,9 @@ def sign_flags(values: dict[str, Any]) -> list[dict[str, Any]]:
     out = []
     k = _finite(values.get("K"))
     if k is not None and k <= 0:
-        out.append(flag("sign", "K", k, "> 0", f"K = {k:.3g} 1/s is not positive: against the SPEC "
-                        "convention (positive rudder gives positive yaw rate), a reversed rudder sign or no "
-                        "real rudder response"))
+        out.append(flag("sign", "K", k, "> 0", f"K = {k:.3g} 1/s is not positive: against the "
+                        "sign convention of docs/contract.md#run-data (positive rudder gives positive yaw "
+                        "rate), a reversed rudder sign or no real rudder response"))
     t = _finite(values.get("T"))
     if t is not None and t <= 0:
         out.append(flag("sign", "T", t, "> 0", f"T = {t:.3g} s is not positive: an unstable or "
