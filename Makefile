@@ -84,7 +84,7 @@ clean:
 	  find data/raw/virtual -mindepth 1 -maxdepth 1 ! -name dataset.toml -exec rm -rf {} + ; fi
 	@touch $(PROC)/.gitkeep reports/.gitkeep
 
-# ---------------------------------------------------------------- studies on Dask (issue 12)
+# ---------------------------------------------------------------- studies on Dask
 # make study                      the full detection-power study (resumable: rerun to continue)
 # make study SPEC=studies/autopilot.toml STUDY_ARGS="--scheduler tcp://host:8786"
 SPEC ?= studies/power-full.toml

@@ -1,7 +1,7 @@
 """make pipeline / pipeline run: names never pass a shell; stages rerun when their inputs or code change.
 
-Issue 14 item 2 (a folder called ``x$(touch${IFS}X)`` ran ``touch`` during ``make reports``; names
-with spaces broke make) and issue 13 (stage targets did not depend on the code they import).
+Names from the user (a folder called ``x$(touch${IFS}X)`` ran ``touch`` during ``make reports``; names
+with spaces must not break make); a stage target depends on the code it imports.
 """
 
 from __future__ import annotations
@@ -92,7 +92,7 @@ def test_unknown_dataset_is_one_line(tmp_path, capsys):
 
 
 def test_stage_code_dependencies_follow_imports():
-    """A stage depends on every pipeline module it imports, directly or not (issue 13)."""
+    """A stage depends on every pipeline module it imports, directly or not."""
     rel = {str(p.relative_to(build.PACKAGE_DIR)) for p in build.import_closure("pipeline.cli.indices")}
     for f in ("config.py", "model.py", "io.py", "cli/__init__.py", "cli/_common.py", "cli/indices.py",
               "indices/stage.py", "indices/zigzag.py", "runinfo.py", "errors.py"):

@@ -111,7 +111,7 @@ def test_cli_writes_contract_and_leaves_nothing_on_failure(tmp_path, capsys):
     assert rep["cause"] == "rudder_offset"
     assert set(rep) >= {"cause", "findings", "baseline", "extended", "gain"}
     assert [f["effect"] for f in rep["findings"]][0] == "rudder_offset"
-    # every effect tried: SPEC section 7's and the open catalogue's own (its sensor effect)
+    # every effect tried: docs/diagnosis.md's and the open catalogue's own (its sensor effect)
     assert {f["effect"] for f in rep["findings"]} == SPEC_EFFECTS | {"heading_misalignment"}
     for f in rep["findings"]:
         assert {
@@ -165,7 +165,7 @@ def hsva_design(hsva_dir):
 
 @pytest.mark.slow
 def test_hsva_measured_kvlcc2(hsva_design):
-    """All 13 measured HSVA zigzags, roles by the stated rule of the catalog mode (issue 11, item 5).
+    """All 13 measured HSVA zigzags, roles by the stated rule of the catalog mode.
 
     Rule (:func:`pipeline.cli.diagnose.pick_catalog_runs`, by amplitude and side, from the test and
     first side ingest reads in each file): twins spanning the amplitudes on both sides are the selection
@@ -192,9 +192,9 @@ def test_hsva_measured_kvlcc2(hsva_design):
     drift = rep["data_checks"]["approach_drift"]
     assert len(drift["per_run"]) == 13 and drift["warning"] is None
     assert max(abs(d) for d in drift["per_run"].values()) < 0.2, drift
-    # HSVA's r is the heading's derivative (SPEC): no run's rate bias is significant, none corrected
-    # (measured 2026-11-25: -0.0009 to +0.0008 deg/s against standard errors of 0.0004-0.0018), all
-    # under the smallest bias a MEMS gyro has (0.003 deg/s)
+    # HSVA's r is the heading's derivative (docs/contract.md#run-data): no run's rate bias is significant,
+    # none corrected (measured 2026-11-25: -0.0009 to +0.0008 deg/s against standard errors of 0.0004-0.0018),
+    # all under the smallest bias a MEMS gyro has (0.003 deg/s)
     rates = rep["data_checks"]["rate_bias"]["per_run"]
     assert len(rates) == 13 and not any(x["corrected"] for x in rates.values()), rates
     assert max(abs(x["bias_deg_s"]) for x in rates.values()) < 0.003, rates
@@ -228,7 +228,7 @@ def test_hsva_measured_kvlcc2(hsva_design):
 
 @pytest.mark.slow
 def test_hsva_same_cause_in_every_fold(hsva_design):
-    """Issue 11, item 7: HSVA gives the same cause in every fold of the chosen design.
+    """HSVA gives the same cause in every fold of the chosen design.
 
     Measured 2026-11-24/25 (a strict xfail until then): folds agreed 1 of 2.  The selection on both
     folds named nothing (held-out 5.64 deg); the fold that trains on the 1 deg zigzag 10/1 alone named
@@ -303,8 +303,9 @@ def _with(run, **cols):
 
 
 def test_robustness_refusals_are_one_line_input_errors(tmp_path, capsys):
-    """Issue 14 (diagnose side): u = 0 at the start or throughout, u < 0 (astern), runs of different
-    ships or approach speeds, and runs without rudder excitation are refused with one line (exit 2)."""
+    """Runs a careless user gives the diagnosis: u = 0 at the start or throughout, u < 0 (astern), runs of
+    different ships or approach speeds, and runs without rudder excitation are refused with one line
+    (exit 2)."""
     cfg = TruthConfig(seed=4)
     a = zigzag_truth(20, 20, "starboard", 30.0, cfg)
     b = zigzag_truth(10, 10, "port", 30.0, dc.replace(cfg, seed=5))
@@ -434,7 +435,7 @@ def _check_design(runs, train, val, test):
 
 
 def test_catalog_rule_spans_hsva_amplitudes():
-    """HSVA's 13 names (issue 11): the crossed 10/10 and 20/10 pairs, the largest rudder twin 35/5 + 30/5
+    """HSVA's 13 names: the crossed 10/10 and 20/10 pairs, the largest rudder twin 35/5 + 30/5
     and two smallest-heading twins 10/1 + 10/5 and 15/1 + 15/5 (a 1 deg zigzag on each side) are the
     selection; the other three are test runs between them in amplitude, except 5/1 (the only 5 deg
     run: no twin, extrapolated, stated)."""
@@ -491,7 +492,7 @@ def _circle(rid, a, side):
 
 
 def test_catalog_rule_uses_turning_circles():
-    """Turning circles are runs a user gave (issue 11, item 5): twins of them join the selection,
+    """Turning circles are runs a user gave: twins of them join the selection,
     crossed (starboard trains in the first twin, then alternately); one without a twin is a test run,
     extrapolated unless the selection holds a turning circle; the zigzags' design is unchanged; an
     index of turning circles alone still gets a design."""
@@ -526,7 +527,7 @@ def test_catalog_rule_uses_turning_circles():
 
 
 def test_catalog_design_keeps_to_one_approach_speed():
-    """A campaign at two speeds (issue 11, item 5): the diagnosis refuses runs more than 15 % apart in
+    """A campaign at two speeds: the diagnosis refuses runs more than 15 % apart in
     approach speed (one linear model holds at one speed), so catalog mode designs on the largest set
     that agrees and leaves the others out with the reason, instead of failing on the whole dataset."""
     from pipeline.cli.diagnose import _other_speed, one_speed
@@ -583,10 +584,10 @@ def test_catalog_mode_says_which_runs_it_left_out(tmp_path, monkeypatch, capsys)
 
 
 def test_catalog_mode_takes_the_descriptions_roles(tmp_path, monkeypatch, capsys):
-    """``diagnose --dataset`` with ``[roles]`` train / validate / test in the dataset's description (SPEC
-    section 9; ingest records them in runs/index.json): the design is the user's, said so, and a run
-    in no role is left out with that reason.  Found 2026-11-26: the roles were recorded and ignored,
-    the stated rule designing instead."""
+    """``diagnose --dataset`` with ``[roles]`` train / validate / test in the dataset's description
+    (docs/dataset.md; ingest records them in runs/index.json): the design is the user's, said so, and a run in
+    no role is left out with that reason.  Found 2026-11-26: the roles were recorded and ignored, the stated
+    rule designing instead."""
     from pipeline.catalog import Catalog
 
     monkeypatch.setattr("pipeline.cli.diagnose.DiagnoseConfig", lambda: SELECTION_ONLY)   # CI time

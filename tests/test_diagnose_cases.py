@@ -1,4 +1,4 @@
-"""Hidden-effect cases for the diagnosis (SPEC section 7).
+"""Hidden-effect cases for the diagnosis (docs/diagnosis.md).
 
 Linear truth model (pipeline.diagnose.truth): >= 20 cases drawn at random (seeded from
 DiagnoseConfig.seed): each effect at a realistic magnitude (offset 1-3 deg, dead time 0.3-1 s,
@@ -135,7 +135,7 @@ def test_hidden_effect_is_found(case):
     floor = max(2 * rep["settings"]["heading_noise_deg"], rep["settings"]["min_abs_gain_deg"])
     if rel < 0.30 or cut < floor:
         # not demonstrable on held-out data by any model: no false cause, and the fit still sees it.
-        # Since issue 11 a held-out gain must also be above the heading noise level in absolute terms
+        # A held-out gain must also be above the heading noise level in absolute terms
         # (case 12: a 0.35 s dead time, oracle cut 0.035 deg of a 0.080 deg baseline, below 0.1 deg)
         assert rep["cause"] in (kind, "none"), summary
         assert set(rep["extended"]["effects"]) <= {kind}, summary
@@ -148,7 +148,7 @@ def test_hidden_effect_is_found(case):
     assert finding["validation_gain"] >= 0.30, summary
     if kind == "nonlinear_yaw_damping" and finding["form"] == "abs":
         # the fit chose the r|r| form on its training cost: the form does not match the r^3 truth, so
-        # (issue 11: "estimates within 25 % where the form matches") only its sense is checked
+        # (estimates are judged within 25 % only where the form matches) only its sense is checked
         assert finding["estimate"]["n_rr_per_deg"] < 0
         return
     est = finding["estimate"][name]
@@ -156,7 +156,7 @@ def test_hidden_effect_is_found(case):
     assert finding["uncertainty"][list(finding["estimate"])[0]] > 0
 
 
-#: Case 12 again (issue 11 item 6), on a design meant to make a 0.35 s dead time material.  Physics:
+#: Case 12 again, on a design meant to make a 0.35 s dead time material.  Physics:
 #: the truth's time scale is T = 4.1 s and its zigzags have a period of ~30 s whatever their size (the
 #: heading trigger scales with the rudder), so the dead time's phase lag at the zigzag frequency is
 #: omega tau = 4 deg on either design and the linear time constants absorb most of it; what is left is

@@ -25,7 +25,7 @@ SPEC_NAMES = {
     "rudder_saturation",
     "rudder_asymmetry",
 }
-#: effects the open catalogue has beyond SPEC section 7's table ("open: more may be added, each with its
+#: effects the open catalogue has beyond docs/diagnosis.md's table ("open: more may be added, each with its
 #: own name")
 OPEN_NAMES = {"heading_misalignment"}
 CTX = Context(t_ship=5.0, h=0.08, d_max=20.0, r_max=3.0, v_max=0.1, u_ref=2.0, u_min_ratio=0.85)
@@ -180,7 +180,7 @@ def test_feature_effects_add_their_terms():
         n_vrr_s_per_m_deg=-2.0,
     )
     assert np.max(np.abs(coup - base)[:, 1]) > 0.05
-    # the modulus form (SPEC section 7: v|r|, r|v|): |v| r and v |r| in both equations, in that order
+    # the modulus form (docs/diagnosis.md: v|r|, r|v|): |v| r and v |r| in both equations, in that order
     e = BY_NAME["sway_yaw_coupling"]
     terms = Terms()
     e.apply(e.form("modulus"), {"y_avr_per_deg": 0.0, "y_var_per_deg": 0.0, "n_avr_per_m": -5.0,

@@ -1,4 +1,4 @@
-"""Does the diagnosis generalise? Cases judged against truths NOT written in its own formulas (issue #11).
+"""Does the diagnosis generalise? Cases judged against truths NOT written in its own formulas.
 
 The truths (tests/truths/, no import of pipeline.model or pipeline.diagnose):
 
@@ -14,7 +14,7 @@ The truths (tests/truths/, no import of pipeline.model or pipeline.diagnose):
 - :mod:`truths.kvlcc2`: another ship and tank: the KVLCC2 MMG model (Yasukawa & Yoshimura 2015) at
   full scale written as MARIN SIMMAN .dat files, read with ``--scale 45.7``.  Side-swap folds (train
   starboard 20/20 + 10/10, validate port; and the reverse): each must name a cause and cut the
-  held-out heading MAE by >= 50 % (issue #11, item 7).
+  held-out heading MAE by >= 50 %.
 - :mod:`truths.mariner`: a third ship and another model family: the Mariner's Abkowitz model
   (Chislett & Stroem-Tejsen 1965) at full scale, only just course-stable when linear, forces made
   non-dimensional by the instantaneous speed, a hull moment Y_0, N_0 worth a 1.1 deg rudder offset,
@@ -82,7 +82,7 @@ CASES = tc.draw_cases(SEED)
 SCALE = 45.7
 KV_DURATION = 800.0       # s full scale (118 s at 1:45.7): 2-3 zigzag periods of the 20/20
 KV_LEGS = ((20, "starboard"), (10, "starboard"), (20, "port"), (10, "port"))
-KV_MIN_GAIN = 0.50        # issue #11 item 7: each side-swap fold cuts the held-out heading MAE by half
+KV_MIN_GAIN = 0.50        # docs/diagnosis.md: each side-swap fold cuts the held-out heading MAE by half
 
 
 # ------------------------------------------------------------------------------------------ runner
@@ -163,7 +163,8 @@ def kvlcc2_fold(files: dict, fold: int, how: str = "full", nested_gain: bool = T
 
 # ------------------------------------------------------------------------------ truths hold up
 def test_truth_signs_and_nomoto():
-    """The truths keep SPEC section 2's signs; each ship's coefficients give back its Nomoto indices."""
+    """The truths keep docs/contract.md#run-data's signs; each ship's coefficients give back its Nomoto
+    indices."""
     for ship in sy.SHIPS.values():
         back = sy.coefficients_to_nomoto(ship.coefficients)
         for k in ("K", "T1", "T2", "T3"):
@@ -230,7 +231,7 @@ def test_kvlcc2_zigzags_against_published():
         for side in ("starboard", "port"):
             m = kv.zigzag_metrics(kv.simulate_zigzag(s, a, a, side, duration=400.0, noise=False), a)
             assert lo < m["overshoots_deg"][0] < hi, (a, side, m)
-    # 20/20 of a full form loses a quarter to a third of its speed (ALGORITHMS; HSVA runs 30 %)
+    # 20/20 of a full form loses a quarter to a third of its speed (docs/diagnosis.md; HSVA runs 30 %)
     m = kv.zigzag_metrics(kv.simulate_zigzag(s, 20, 20, "starboard", duration=400.0, noise=False), 20)
     assert 0.6 < m["lowest_speed_ratio"] < 0.8
 
@@ -360,7 +361,7 @@ def kv_files(tmp_path_factory):
 
 
 def assert_names_a_cause_and_halves(rep: dict) -> None:
-    """Issue #11 item 7's bar on one side-swap fold's report: a cause named, and the extended model
+    """The side-swap bar (``KV_MIN_GAIN``) on one fold's report: a cause named, and the extended model
     cutting the held-out heading MAE of the fold by at least KV_MIN_GAIN."""
     base = rep["baseline"]["validation"]["mae_psi_deg"]
     ext = rep["extended"]["validation"]["mae_psi_deg"]
@@ -383,7 +384,7 @@ def _kv_report(files, fold: int) -> dict:
 
 @pytest.mark.parametrize("fold", [1, 2])
 def test_kvlcc2_marin_side_swap(kv_files, fold):
-    """Issue #11 item 7: each side-swap fold names a cause, and the extended model cuts the held-out
+    """Each side-swap fold names a cause, and the extended model cuts the held-out
     heading MAE of that fold (the runs of the other side, never trained on) by at least half.
 
     And the honest gain (item 4: nested leave-one-run-out, each of the 4 runs held out, the effects
@@ -419,7 +420,7 @@ def _kv_dist_param(seed, fold):
 @pytest.mark.parametrize("seed,fold", [_kv_dist_param(s, f) for s in KV_DIST_SEEDS for f in (1, 2)
                                        if FULL or f == 1])
 def test_kvlcc2_marin_side_swap_with_a_process_disturbance(tmp_path, seed, fold):
-    """Issue #11 item 7 on runs that carry what measured runs carry and no model has: a random external
+    """The side-swap bar on runs that carry what measured runs carry and no model has: a random external
     yaw moment in every run (0.5 deg of rudder, 30 s; truths.kvlcc2.simulate_zigzag).  Each side-swap
     fold must still name a cause and cut the held-out heading MAE by at least half.
 
@@ -448,7 +449,7 @@ KV_FAULT_RUNS = ((SEED * 100, False), *(((700, True), (2000, True), (3000, True)
 @pytest.mark.parametrize("seed,disturbed,fold", [(s, d, k) for s, d in KV_FAULT_RUNS for k in (1, 2)
                                                  if FULL or k == 1])
 def test_kvlcc2_rate_gyro_bias_beside_a_misalignment(tmp_path, seed, disturbed, fold):
-    """Issue #11 item 7 with two sensor faults a new tank's files may carry together
+    """The side-swap bar with two sensor faults a new tank's files may carry together
     (KV_SENSOR_FAULTS): the rate bias is read against the heading without a model and corrected
     before any fit (pipeline.diagnose.datacheck.rate_bias), said in the summary, and the side-swap
     fold names a cause and cuts the held-out heading MAE by half, with no misalignment named but
@@ -509,7 +510,7 @@ def test_kvlcc2_same_cause_model_scale_file(kv_files):
 
 
 def test_kvlcc2_full_scale_files_without_scale_are_refused(kv_files):
-    """Full-scale files read without --scale would be a 320 m "model": since issue #13 ingest refuses
+    """Full-scale files read without --scale would be a 320 m "model": ingest refuses
     them in one line (the verdict can no longer silently change with a forgotten --scale)."""
     from pipeline.errors import InputError
 
@@ -605,9 +606,10 @@ def test_disturbance_is_the_stated_process():
 
 
 def test_mariner_truth_is_what_it_says():
-    """SPEC signs in every form; the linear Mariner is only just stable (slow pole 118 s); the published
-    model loses speed in a 20/20 zigzag and overshoots far less than its linear part (its nonlinear
-    sway and cross terms stabilise it); the equivalent offset balances the hull constants."""
+    """contract signs (docs/contract.md#run-data) in every form; the linear Mariner is only just stable (slow
+    pole 118 s); the published model loses speed in a 20/20 zigzag and overshoots far less than its linear
+    part (its nonlinear sway and cross terms stabilise it); the equivalent offset balances the hull
+    constants."""
     for form in ("linear", "offset", "full"):
         s = mr.check_signs(form)
         assert s["r_deg_s"] > 0 and s["v_m_s"] < 0, (form, s)
@@ -617,9 +619,9 @@ def test_mariner_truth_is_what_it_says():
     lin = kv.zigzag_metrics(mr.simulate_zigzag(mr.Mariner(form="linear"), 20, 20, noise=False), 20)
     assert full["lowest_speed_ratio"] < 0.9 and lin["lowest_speed_ratio"] == 1.0
     assert max(full["overshoots_deg"]) < 0.5 * max(lin["overshoots_deg"]), (full, lin)
-    # the offset: the linear ship with the rudder at the equivalent offset (SPEC sign; the published
-    # rudder is its minus) and the constants' ship at zero rudder have the same steady yaw rate: the
-    # yaw rates at which each ship's linear forces vanish
+    # the offset: the linear ship with the rudder at the equivalent offset (contract sign,
+    # docs/contract.md#run-data; the published rudder is its minus) and the constants' ship at zero rudder
+    # have the same steady yaw rate: the yaw rates at which each ship's linear forces vanish
     d0 = mr.equivalent_offset_deg() * mr.RAD
     lin_s, off_s = mr.Mariner(form="linear"), mr.Mariner(form="offset")
 
@@ -661,7 +663,7 @@ def _mr_seed_param(seed):
 @pytest.mark.parametrize("seed", [_mr_seed_param(s) for s in (MR_SEED, *(MR_SEEDS if FULL else ()))])
 @pytest.mark.parametrize("fold", [1, 2])
 def test_mariner_side_swap(mr_root, fold, seed):
-    """The published Mariner, as the MARIN KVLCC2 folds (issue #11 item 7): each side-swap fold names
+    """The published Mariner, as the MARIN KVLCC2 folds: each side-swap fold names
     a cause and cuts the held-out heading MAE by at least half; every named effect is one the truth
     has (hull nonlinearity, speed dependence, the constants as an offset, the cubic rudder terms),
     and the hull's offset is among them, within 25 % of its equivalent.  Fold 1 also measures the
@@ -731,7 +733,7 @@ def _dist_param(form, seed):
                                        for s in (MR_SEED, *(MR_SEEDS if FULL else ()))])
 @pytest.mark.parametrize("fold", [1, 2])
 def test_mariner_process_disturbance_is_not_an_effect(mr_root, form, fold, seed):
-    """Issue 11 (clean data gets effects named that are not there), with an error no candidate
+    """Clean data must not get effects named that are not there, with an error no candidate
     describes and that is not repeatable: a random external yaw moment in every run (wind gusts at
     sea, a tank's residual circulation), on top of the linear Mariner (truth "none") and of the
     linear Mariner with its hull constants (truth: the 1.108 deg offset).  Whatever the disturbance
@@ -841,10 +843,11 @@ def tk_root(tmp_path_factory):
 
 
 def test_tanker_truth_is_what_it_says():
-    """SPEC signs in every form; the linearised tanker is course-unstable (one pole > 0, time constant
-    380 s, 10 L/U) with a fast stable one; the published model loses speed in a 20/20 zigzag and
-    overshoots less than its linear part (its |v| v, |v| r terms stabilise it); the propeller's
-    constants act as a rudder offset to port (SPEC negative) that grows as the ship slows."""
+    """contract signs (docs/contract.md#run-data) in every form; the linearised tanker is course-unstable (one
+    pole > 0, time constant 380 s, 10 L/U) with a fast stable one; the published model loses speed in a 20/20
+    zigzag and overshoots less than its linear part (its |v| v, |v| r terms stabilise it); the propeller's
+    constants act as a rudder offset to port (negative in docs/contract.md#run-data) that grows as the ship
+    slows."""
     for form in ("linear", "offset", "full"):
         s = tk.check_signs(tk.Tanker(form=form))
         assert s["r_deg_s"] > 0 and s["v_m_s"] < 0, (form, s)
@@ -871,7 +874,7 @@ def _tk_param(form, seed):
 def test_tanker_side_swap(tk_root, form, fold, seed):
     """A ship, a tank layout and a model family no part of the method was tuned on (added after the
     method, run as found): the Van Berlekom & Goddard tanker, course-unstable when linear, full-scale
-    MARIN .dat read with ``--scale 50``, the side-swap folds of issue #11 item 7.
+    MARIN .dat read with ``--scale 50``, the side-swap folds (``KV_MIN_GAIN``).
 
     - linear (the baseline's own family, course-unstable): none;
     - offset (linear + the propeller's constants): rudder_offset alone, within 25 % of its equivalent;
@@ -940,7 +943,8 @@ def test_tanker_linear_baseline_recovers_the_course_unstable_truth(tk_root):
     fit = fit_structure(series, (), ctx)
     J, b, _ = tk._linear(tk.Tanker(form="linear"))
     q, rad = math.sqrt(TK_SCALE), math.pi / 180.0
-    # model scale: rates x sqrt(lambda); r in deg/s; the published rudder is minus the SPEC's
+    # model scale: rates x sqrt(lambda); r in deg/s; the published rudder is minus the contract's
+    # (docs/contract.md#run-data)
     truth = [J[0, 0] * q, J[0, 1] * rad / q, J[1, 0] / rad * TK_SCALE * q, J[1, 1] * q, -b[0] * rad,
              -b[1] * TK_SCALE]
     for name, got, want in zip(("a11", "a12", "a21", "a22", "b11", "b21"), fit.theta, truth, strict=True):
@@ -1098,7 +1102,7 @@ TK_CIRCLE_WRONG: dict = {}
     known_wrong((f, s), TK_CIRCLE_WRONG, (f, s), f"{f}-{s}")
     for f in ("linear", "full") for s in (TK_SEED, 2000) if FULL or (f, s) == ("linear", TK_SEED)])  # CI time
 def test_tanker_with_turning_circles(tk_root, form, seed):
-    """The runs a tank gives beside its zigzags: a turning circle to each side (issue 11, item 5: use
+    """The runs a tank gives beside its zigzags: a turning circle to each side (item 5: use
     all the runs).  The catalog rule (pipeline.cli.diagnose.pick_catalog_runs) puts them in the
     selection, one trained and one validated, the zigzag pairs crossed beside them; no run is left for
     a test, so the gain is the nested leave-one-run-out's.
@@ -1230,10 +1234,10 @@ def ct_root(tmp_path_factory):
 
 
 def test_container_truth_is_what_it_says():
-    """SPEC signs and an outward heel in a steady turn; a lightly damped roll mode in the zigzag's band
-    (linearised: a complex pair of period 20-40 s, damping ratio under 0.1) beside two real, stable
-    sway-yaw poles; the published model slows in a 20/20 zigzag, heels several degrees, and the heel
-    changes the heading it makes (its overshoots differ from the same ship held upright)."""
+    """contract signs (docs/contract.md#run-data) and an outward heel in a steady turn; a lightly damped roll
+    mode in the zigzag's band (linearised: a complex pair of period 20-40 s, damping ratio under 0.1) beside
+    two real, stable sway-yaw poles; the published model slows in a 20/20 zigzag, heels several degrees, and
+    the heel changes the heading it makes (its overshoots differ from the same ship held upright)."""
     s = ct.check_signs()
     assert s["r_deg_s"] > 0 and s["v_m_s"] < 0 and -10.0 < s["phi_deg"] < -2.0, s
     poles = ct.linear_poles()
@@ -1255,7 +1259,7 @@ def test_container_side_swap(ct_root, form, seed, dist, fold):
     """A ship, a model family and a degree of freedom no part of the method was built for (added after
     the method, run as found): the Son & Nomoto container ship, whose heel in a turn feeds back into sway
     and yaw (tests/truths/container.py), full-scale MARIN .dat read with ``--scale 35``, the side-swap
-    folds of issue #11 item 7; clean, and with the process disturbance of the Mariner and tanker tests.
+    folds (``KV_MIN_GAIN``); clean, and with the process disturbance of the Mariner and tanker tests.
 
     - linear (the baseline's family plus the roll mode, speed held): none.  The roll is in no candidate's
       formula; whatever it leaves must not be named as a rudder lag, a dead time or a hull term;
@@ -1286,7 +1290,7 @@ FY_HULLS = ("ferry", "bulker")
 FY_HULL_KINDS = ("nonlinear_yaw_damping", "nonlinear_sway_damping", "sway_yaw_coupling")
 #: disturbed runs: where the truth's own equations (no disturbance, free run from the logged rudder)
 #: cut the fold's held-out heading MAE by this much against the linear baseline, the data show the
-#: hull's nonlinearity and a hull kind must be named; the bar of issue #11's hidden-effect cases
+#: hull's nonlinearity and a hull kind must be named; the bar of the hidden-effect cases
 #: (an effect worth less than 30 % held-out is not asked for); below it the data may not show it
 FY_ORACLE_BAR = 0.30
 
@@ -1339,9 +1343,9 @@ def fy_root(tmp_path_factory):
 def test_crossflow_truth_is_what_it_says():
     """The closed-form cross-flow integrals against quadrature (where the cross-flow changes sign on the
     hull and where it does not, and r -> 0); Hoerner's coefficient at the ferry's B/2T = 2 (0.6489,
-    between the table's points at 1.86 and 2.31); SPEC signs; both hulls' linear parts stable, the
-    bulker's slow pole within 0.02 1/s of course instability; the cross-flow drag at least a third off
-    the linear hull's 20/20 overshoots; the oracle's free run replays a noise-free run."""
+    between the table's points at 1.86 and 2.31); contract signs (docs/contract.md#run-data); both hulls'
+    linear parts stable, the bulker's slow pole within 0.02 1/s of course instability; the cross-flow drag at
+    least a third off the linear hull's 20/20 overshoots; the oracle's free run replays a noise-free run."""
     from scipy.integrate import quad
 
     L = 4.0

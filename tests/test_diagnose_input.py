@@ -1,5 +1,5 @@
 """Diagnosis refuses, in one line and with exit 2, runs it cannot learn from or that do not belong
-together (issue #14 items 3 and 7): u = 0 at the start or throughout, u < 0 (astern), different ships,
+together: u = 0 at the start or throughout, u < 0 (astern), different ships,
 different approach speeds.  Before, u = 0 raised ZeroDivisionError and u < 0 put a complex number
 into diagnosis.json."""
 

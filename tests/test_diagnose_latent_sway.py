@@ -1,4 +1,5 @@
-"""Runs without the sway velocity v (a canonical CSV needs only time, psi, r, delta: SPEC section 3).
+"""Runs without the sway velocity v (a canonical CSV needs only time, psi, r, delta:
+docs/contract.md#raw-formats).
 
 Without v the sway velocity is a latent state of the model: its scale is fixed by no output (v -> k v
 with a12, b11 -> k a12, k b11 and a21 -> a21 / k leaves every heading and yaw rate unchanged), so the

@@ -5,7 +5,7 @@ starboard).  These tests hold three things: a course-unstable ship is still fitt
 is the coupling a12 a21 > a11 a22, which the bounds leave free); a linear truth is recovered with
 nothing at a bound; and an unmodelled servo lag, which the unbounded output-error fit absorbed by
 turning a21 positive, now presses the baseline against a21 <= 0, is reported so, and is found by the
-diagnosis with its time constant right (issue 11, truth cases 12/13).
+diagnosis with its time constant right (truth cases 12/13).
 """
 
 from __future__ import annotations

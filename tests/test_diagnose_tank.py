@@ -1,4 +1,4 @@
-"""Hidden-effect cases on the virtual tank (issue 6): effects injected into the MMG KCS.
+"""Hidden-effect cases on the virtual tank: effects injected into the MMG KCS.
 
 Unlike the linear truth model (tests/test_diagnose_cases.py) the KCS is not linear: it has cubic yaw
 damping of its own (Yoshimura's N'_rrr, N'_vvr, ... and the rudder's inflow), so a "clean" tank is
@@ -31,7 +31,7 @@ the rudder's inflow up (u_R falls 2.5 % for a 10 % speed loss, so the rudder for
 19 %), the yaw dynamics hardly change, and speed dependence gains -5 % / -1 % held-out with a fitted
 exponent of 0.10 / 0.06.  On the linear truth model both are found (test_diagnose_cases.py).
 
-Other designs (issue 11 item 6), judged first by an oracle: the truth's structure as far as the
+Other designs, judged first by an oracle: the truth's structure as far as the
 diagnosis can write it (the ship's own cubic damping + the injected effect) fitted on the same runs,
 against the same without the effect, held-out MAE psi in both folds (:func:`_oracle`).
 
@@ -397,7 +397,7 @@ def _pull_out_design(deg: int) -> dict:
     }
 
 
-#: the pull-out design (issue 11 item 6 names the manoeuvre; module docstring's last tables) at 10 deg
+#: the pull-out design (docs/diagnosis.md names the manoeuvre; module docstring's last tables) at 10 deg
 PULL_OUT = _pull_out_design(10)
 #: the same at 20 deg: twice the yaw rate, so a dead time's heading error (r tau after each rudder
 #: step) twice the 10 deg design's, above the 0.1 deg heading floor where the 10 deg design's sits on it
@@ -504,7 +504,7 @@ def test_tank_dead_time_is_found_with_a_10_deg_pull_out():
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [TankConfig().seed, 12], ids=["seed_default", "seed_12"])
 def test_tank_dead_time_is_found_with_a_pull_out(seed):
-    """Issue 11 item 6, the dead time on the virtual KCS, found where the manoeuvre lets it matter: the
+    """The dead time on the virtual KCS, found where the manoeuvre lets it matter: the
     20 deg pull-out design (PULL_OUT_20), 0.6 s injected.  By the criteria of the injected effects: in
     the extended model beside nothing but the ship's own hull terms, significant, worth >= 30 % in
     both folds inside it, nothing else significant; its estimate within 25 %.  Seed 12 is the seed at

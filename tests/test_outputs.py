@@ -1,4 +1,4 @@
-"""Output locations and directory sets (issue 14 items 8 and 11; SPEC section 8)."""
+"""Output locations and directory sets (docs/contract.md#bad-input)."""
 
 from __future__ import annotations
 

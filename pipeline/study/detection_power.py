@@ -384,7 +384,7 @@ def summarise(frame: pd.DataFrame, cfg: DetectionPowerConfig, study_seed: int) -
         }
     return {
         "definitions": {
-            "detected": "the injected effect's finding is significant (SPEC section 7 criteria)",
+            "detected": "the injected effect's finding is significant (docs/diagnosis.md criteria)",
             "min_detectable_90": (f"magnitude detected in {cfg.level:.0%} of cases: logistic fit of "
                                   f"detection on log magnitude; interval: {conf:.0%} percentile bootstrap "
                                   "over cases within each magnitude; null with a note when the level is "
