@@ -48,8 +48,9 @@ def repository_files() -> list[str]:
     out = []
     for folder, dirs, files in os.walk(ROOT):
         rel = Path(folder).relative_to(ROOT)
-        dirs[:] = sorted(d for d in dirs if d not in SKIP_DIRS and not d.endswith(".egg-info")
-                         and not (rel.parts[:1] == ("data",) and len(rel.parts) >= 2 and rel.parts[1] != "raw"))
+        in_data_not_raw = rel.parts[:1] == ("data",) and len(rel.parts) >= 2 and rel.parts[1] != "raw"
+        dirs[:] = sorted(d for d in dirs
+                         if d not in SKIP_DIRS and not d.endswith(".egg-info") and not in_data_not_raw)
         for name in sorted(files):
             p = Path(folder) / name
             if rel.parts[:1] == ("data",) and name != "dataset.toml":
@@ -83,9 +84,10 @@ def test_the_pattern_finds_citations_and_leaves_code_names():
                   "see ALGORITHMS.md", "(issue 14 item 5)", "issue #11's bar", "Issue 13 blocker",
                   "(ALGORITHMS; HSVA runs 30 %)", "SPEC signs in every form", "SPEC: r = d(psi)/dt"):
         assert CITES.search(re.sub(r"\s*\n\s*", " ", cited)), cited
-    for code in ("python -m pipeline study SPEC.toml", "$(PY) -m pipeline study $(SPEC) --out", "SPEC ?= x",
-                 "SPEC_KEYS = {}", "ALGORITHMS = ('srukf-ffm',)", "join(ALGORITHMS)", "for a in ALGORITHMS:",
-                 "make study SPEC=studies/autopilot.toml", "an issue with the file", "docs/contract.md#run-data"):
+    for code in ("python -m pipeline study SPEC.toml", "$(PY) -m pipeline study $(SPEC) --out",
+                 "SPEC ?= x", "SPEC_KEYS = {}", "ALGORITHMS = ('srukf-ffm',)", "join(ALGORITHMS)",
+                 "for a in ALGORITHMS:", "make study SPEC=studies/autopilot.toml", "an issue with the file",
+                 "docs/contract.md#run-data"):
         assert not CITES.search(code), code
 
 
@@ -132,7 +134,8 @@ def github_anchors(markdown: str) -> set[str]:
 
 
 def test_anchor_rule_known_answers():
-    text = "# Title\n## Run data\n### identify/ALGORITHM/ (identify)\n## 6. `control/metrics.json`\n## Run data\n"
+    text = ("# Title\n## Run data\n### identify/ALGORITHM/ (identify)\n## 6. `control/metrics.json`\n"
+            "## Run data\n")
     assert github_anchors(text) == {"title", "run-data", "identifyalgorithm-identify", "6-controlmetricsjson",
                                     "run-data-1"}
     assert github_anchors("```\n# not a heading\n```\n## Yes\n") == {"yes"}
