@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from pipeline import paper
+
 
 @dataclass(frozen=True)
 class TankConfig:
@@ -45,6 +47,81 @@ class TankConfig:
 
 
 @dataclass(frozen=True)
+class KnownShips:
+    """Published particulars of the benchmark ships the pipeline recognises by name, used only where
+    neither the file nor the dataset's description gives them (docs/dataset.md)."""
+
+    # m, full-scale length between perpendiculars (SIMMAN particulars: KVLCC2 320 m, KCS 230 m)
+    lpp_full_m: dict[str, float] = field(default_factory=lambda: {"KVLCC2": 320.0, "KCS": 230.0})
+    # full/model scale of HSVA's KVLCC2 model, as the HSVA data's README states it (1:45.7)
+    hsva_kvlcc2_scale: float = 45.7
+    # m, that model's Lpp as the README states it (320 m / 45.7 = 7.002 m, rounded there to 7.0)
+    hsva_kvlcc2_lpp_m: float = 7.0
+
+
+KNOWN_SHIPS = KnownShips()
+
+
+@dataclass(frozen=True)
+class IngestChecks:
+    """Thresholds of the physical checks at ingest (pipeline/ingest/checks.py's module docstring
+    gives each check; docs/dataset.md#the-checks-run-after-reading-and-after-the-mapping)."""
+
+    # yaw rate against heading: the slope s of psi - psi0 on the integral of r is accepted within
+    # this share of 1 (a rate sensor and a heading sensor are each calibrated within a few per cent)
+    r_tolerance: float = 0.10
+    # deg: the r-psi comparison is skipped when neither psi nor int(r dt) departs from a straight
+    # line by this much (nothing to compare; the logging noise of a heading is ~0.05 deg)
+    min_excitation_deg: float = 0.5
+    # deg: least heading change before a zigzag's rudder reverses when no trigger is stated (a
+    # trigger below 2 deg is no zigzag; a heading logged in radians changes by less)
+    min_zigzag_heading_deg: float = 2.0
+    # deg: least heading change of a turning circle (a ship on a held 5 deg or more rudder turns
+    # through far more; radians would read under 30 deg for any turn short of 30 rad)
+    min_turn_heading_deg: float = 30.0
+    # largest |delta| taken as radians: 0.7 rad is 40 deg, beyond any rudder's stop, while 0.7 deg
+    # is under any test's rudder angle
+    rad_rudder_max: float = 0.7
+    # deg/s: a ship turning at this rate or more is not on under a degree of rudder (so a rudder of
+    # at most rad_rudder_max is in radians)
+    turning_rate_deg_s: float = 1.0
+    # a reversed rudder sign is refused only when the summed yaw-rate change against the rudder
+    # exceeds this many standard deviations of r's noise (5 sigma: chance is below 1e-6)
+    sign_noise_factor: float = 5.0
+    # a spike departs from the line through its neighbours by this many robust standard deviations
+    # of that departure (30: far beyond a Gaussian tail; a turning ship's curvature stays within it)
+    spike_mad_factor: float = 30.0
+    # deg: and by at least this much of heading in one step (at the 0.05-0.1 s steps of tank logging,
+    # a yaw acceleration above 400 deg/s^2, which no ship model makes)
+    spike_floor_psi_deg: float = 2.0
+    # deg/s: the same floor for the yaw rate in one step
+    spike_floor_r_deg_s: float = 2.0
+    # share of the test's largest rudder a steady approach's rudder stays within (a course-keeping
+    # trim of 1-2 deg stays inside 10 % of a 10-35 deg test)
+    quiet_rudder_share: float = 0.10
+    # share of the approach speed a steady approach's speed stays within (a model at constant
+    # propeller rpm keeps its speed to about 1 %; one accelerating from rest departs by up to 100 %)
+    steady_speed_share: float = 0.03
+    # s: the speed is averaged over this long before it is compared (the logging noise of u)
+    speed_smooth_s: float = 1.0
+    # approach Froude number U / sqrt(g L) accepted: manoeuvring tests are at Fn 0.1-0.3 (KVLCC2
+    # 0.142, KCS 0.26); below 0.05 the rudder force is too small to test, above 0.45 a displacement
+    # hull is beyond its hump speed
+    froude_band: tuple[float, float] = (0.05, 0.45)
+    # m: a model's Lpp (free-running models are 2-12 m)
+    model_lpp_band_m: tuple[float, float] = (1.0, 15.0)
+    # m/s: approach speed of a model when its length is not known (the Froude band over 1-12 m models)
+    model_speed_band_m_s: tuple[float, float] = (0.15, 5.0)
+    # samples either side of a long time step that give the local logging step and the time base's
+    # offset (pipeline.ingest.core.gap_note): 20 steps average a stamp's jitter, and are short
+    # against a run
+    gap_window: int = 20
+    # fewer samples than this on either side of a long step: the offset is not measured (a fit of
+    # a step and two offsets needs several samples per side)
+    gap_edge: int = 5
+
+
+@dataclass(frozen=True)
 class IngestConfig:
     """Reading and resampling raw tank files (docs/contract.md: raw formats, resampling, bad input)."""
 
@@ -59,6 +136,10 @@ class IngestConfig:
     # full/model scale factors accepted: a model is not larger than its ship (1), and 1 m models of the
     # largest ships (about 500 m) are 1:500; beyond 1000 no tank model is meant (a typo or a unit)
     scale_range: tuple[float, float] = (1.0, 1000.0)
+    # bytes: largest a gzip-compressed file may expand to (a tank file is megabytes: more is a
+    # broken or hostile archive)
+    max_decompressed_bytes: int = 1 << 30
+    checks: IngestChecks = field(default_factory=IngestChecks)   # thresholds of the physical checks
 
 
 @dataclass(frozen=True)
@@ -185,8 +266,9 @@ class IndicesConfig:
     # thresholds of reading the manoeuvres from the logged signals
     manoeuvre: ManoeuvreConfig = field(default_factory=ManoeuvreConfig)
     # IMO check: model scale factor by ship, used when the run's metadata does not give it
-    # (L/U is a full-scale time; KVLCC2 HSVA 1:45.7 from the data README, KCS SIMMAN 1:37.89).
-    ship_scales: dict[str, float] = field(default_factory=lambda: {"KVLCC2": 45.7, "KCS": TankConfig.scale})
+    # (L/U is a full-scale time; KVLCC2: HSVA's model, KnownShips; KCS: the virtual tank's, SIMMAN).
+    ship_scales: dict[str, float] = field(default_factory=lambda: {"KVLCC2": KNOWN_SHIPS.hsva_kvlcc2_scale,
+                                                                   "KCS": TankConfig.scale})
     # Trust flags (pipeline/indices/trust.py says why): relative one-sigma uncertainty above which an
     # index's 95 % interval reaches zero; share of Monte Carlo draws without real positive time
     # constants above which the Gaussian bounds are local only.
@@ -466,10 +548,10 @@ class AutopilotStudyConfig:
     wind_rudder: tuple[float, ...] = (0.0, 2.0, 4.0)  # deg, wind as constant equivalent rudder
     seeds: int = 10                      # wave seeds per (plant, Tw, wind)
     design: str = "first_order"          # 'first_order' (K, T) or 'second_order' (K, T1, T2, T3)
-    K: float = 0.3867                    # 1/s, Nomoto gain (paper Table 7)
-    T1: float = 3.9688                   # s
-    T2: float = 0.4094                   # s
-    T3: float = 0.6960                   # s
+    K: float = paper.TABLE7["K"]         # 1/s, Nomoto gain (paper Table 7, pipeline/paper.py)
+    T1: float = paper.TABLE7["T1"]       # s
+    T2: float = paper.TABLE7["T2"]       # s
+    T3: float = paper.TABLE7["T3"]       # s
     worst: int = 5                       # worst cases listed per metric in summary.json
     control: dict[str, float | int | bool | str] = field(default_factory=dict)  # ControlConfig overrides
 

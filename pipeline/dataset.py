@@ -67,7 +67,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pipeline.config import IngestConfig
+from pipeline.config import KNOWN_SHIPS, IngestConfig
 from pipeline.errors import InputError
 
 TOML_NAME = "dataset.toml"
@@ -98,7 +98,7 @@ samples = 585             # the paper setting (the paper case: 20/20 zigzag at 0
 measurement_noise = "data"  # R from the runs' measured noise: the tank logs r and psi with 0.05 deg/s and
                           # 0.05 deg, 2.5 and 5 times the paper's R (the filter then gave mean NIS 18)
 ''',
-    "hsva": '''# Measured KVLCC2 zigzags, HSVA CPMC (SIMMAN 2008), model 1:45.7.
+    "hsva": f'''# Measured KVLCC2 zigzags, HSVA CPMC (SIMMAN 2008), model 1:{KNOWN_SHIPS.hsva_kvlcc2_scale:g}.
 [ship]
 name = "KVLCC2"
 lpp_m = 320.0
@@ -108,7 +108,7 @@ design_speed_kn = 15.5
 
 [data]
 scale = 1.0               # the files are model scale
-model_scale = 45.7
+model_scale = {KNOWN_SHIPS.hsva_kvlcc2_scale:g}
 tank = "HSVA"
 source = "SIMMAN 2008 free-running tests (CPMC)"
 files_dir = "../../../../shared/data/kvlcc2_hsva"   # relative to this file: ../shared from the project root

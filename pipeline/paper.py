@@ -5,12 +5,26 @@ section) it is printed in; docs/results.md shows them side by side with the meas
 are those of docs/contract.md: parameters a11 a12 a21 a22 in 1/s, b11 b21 in 1/s^2 (the paper's
 deg-based rudder input), K 1/s, T's s, MSE v (m/s)^2, MSE r (deg/s)^2, MAE psi deg, times s,
 angles deg.
+
+Examples
+--------
+>>> from pipeline import paper
+>>> paper.TABLE7["K"], paper.TABLES_5_6["table5"]["rows"]["srukf-ffm"]["mae_psi"]
+(0.3867, 3.55)
+
+Table 7 is Eq. 6 of Table 4 (:func:`pipeline.model.nomoto_indices`) to Table 4's rounding:
+
+>>> from pipeline.model import nomoto_indices
+>>> round(nomoto_indices(paper.TABLE4)["K"], 3)
+0.387
 """
 
 from __future__ import annotations
 
 #: Where the figures come from.
 REFERENCE = "Meng et al., Ocean Engineering 294 (2024) 116853"
+#: The ship the paper's figures are for (its tank data): they are for it alone.
+SHIP = "KCS"
 
 #: Table 4: the sway-yaw parameters identified by SR-UKF-FFM on the KCS 20/20 zigzag.
 TABLE4 = {"a11": -1.882, "a12": -0.1232, "a21": -7.422, "a22": -0.8129, "b11": 0.0099, "b21": 0.1657}

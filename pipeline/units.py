@@ -10,6 +10,9 @@ import numpy as np
 DEG = np.pi / 180.0
 """One degree in radians."""
 
+G = 9.81
+"""Acceleration of gravity, m/s^2 (the Froude number's g)."""
+
 
 def deg2rad(x):
     """Degrees (or deg/s) to radians (or rad/s).
@@ -23,6 +26,13 @@ def deg2rad(x):
     -------
     float or array
         The same in rad (rad/s).
+
+    Examples
+    --------
+    >>> deg2rad(180.0)
+    3.141592653589793
+    >>> deg2rad([90.0, -90.0]).round(4).tolist()
+    [1.5708, -1.5708]
     """
     return np.asarray(x, dtype=float) * DEG if np.ndim(x) else float(x) * DEG
 
@@ -39,6 +49,11 @@ def rad2deg(x):
     -------
     float or array
         The same in deg (deg/s).
+
+    Examples
+    --------
+    >>> rad2deg(np.pi / 2)
+    90.0
     """
     return np.asarray(x, dtype=float) / DEG if np.ndim(x) else float(x) / DEG
 
@@ -85,6 +100,19 @@ def froude_to_model(value, kind: str, scale: float):
     ------
     ValueError
         For an unknown ``kind`` or a scale that is not positive.
+
+    Examples
+    --------
+    The KCS's 230 m Lpp and a 10 s full-scale interval at the SIMMAN scale 1:37.89:
+
+    >>> round(float(froude_to_model(230.0, "length", 37.89)), 4)     # m
+    6.0702
+    >>> round(float(froude_to_model(10.0, "time", 37.89)), 4)        # s
+    1.6246
+    >>> froude_to_model(1.0, "weight", 37.89)
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown Froude quantity kind 'weight'
     """
     if kind not in FROUDE_EXPONENT:
         raise ValueError(f"unknown Froude quantity kind {kind!r}")
@@ -107,6 +135,14 @@ def body_velocities(dx0, dy0, psi_deg):
     -------
     tuple
         (u, v), m/s.
+
+    Examples
+    --------
+    A ship heading east (psi 90 deg) while moving north at 1 m/s drifts to port (v < 0):
+
+    >>> u, v = body_velocities(1.0, 0.0, 90.0)
+    >>> round(float(u), 12), round(float(v), 12)
+    (0.0, -1.0)
     """
     p = np.asarray(psi_deg, dtype=float) * DEG
     dx0 = np.asarray(dx0, dtype=float)

@@ -12,12 +12,13 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from pipeline.config import TankConfig
 from pipeline.io import Run
 from pipeline.model import PAPER_TABLE4, as_theta
 
 
 def zigzag(theta=None, *, rudder: float = 20.0, heading: float = 20.0, n: int = 1200, h: float = 0.08,
-           rate: float = 14.28, noise=(0.02, 0.02, 0.01), seed: int = 0, first: int = 1,
+           rate: float = TankConfig.rudder_rate, noise=(0.02, 0.02, 0.01), seed: int = 0, first: int = 1,
            process_noise=None):
     """Simulate a zigzag.  Returns (time s, delta deg, clean (n, 3), noisy (n, 3)) of v m/s, r deg/s,
     psi deg.  ``first`` = +1 starts with positive rudder (positive delta makes r positive)."""

@@ -2,43 +2,44 @@
 
 Every check works on a run already in canonical names and at model scale (after Froude scaling),
 and refuses with one line (:class:`pipeline.errors.InputError`) naming file, row or column.  The
-thresholds and their reasons:
+thresholds (:class:`pipeline.config.IngestChecks`, each with its unit and reason there) and
+the checks:
 
 Yaw rate against heading (``r = d(psi)/dt``, docs/contract.md#run-data)
     The heading change is regressed on the time integral of r, with an offset and a linear drift
     term (a rate-gyro bias integrates to a ramp): ``psi - psi0 = s * int(r dt) + a + b t``.  The
     integral removes the measurement noise that a numerical derivative would amplify.  On every
     run we hold (6 virtual-tank runs, 13 HSVA runs, the MARIN fixture) ``s`` is within 0.5 % of 1.
-    Accepted: ``|s - 1| <= R_TOLERANCE`` (10 %: a rate sensor and a heading sensor calibrated
+    Accepted: ``|s - 1| <= r_tolerance`` (10 %: a rate sensor and a heading sensor calibrated
     within a few per cent each).  ``s`` near pi/180 means psi in rad with r in deg/s, near 180/pi r in rad/s
     with psi in deg, near -1 a reversed sign: each is named.  Skipped when neither signal moves by
-    ``MIN_EXCITATION_DEG`` (nothing to compare).
+    ``min_excitation_deg`` (nothing to compare).
 
 Heading amplitude against the test
     A zigzag's heading must pass its heading trigger (that is what triggers the rudder): once the
     rudder has been reversed, the heading change before the reversal must reach half the stated
-    trigger, or ``MIN_ZIGZAG_HEADING_DEG`` when no trigger is stated.  A turning circle turns on:
-    at least ``MIN_TURN_HEADING_DEG``.  Heading and yaw rate both in radians pass the r-psi test but
+    trigger, or ``min_zigzag_heading_deg`` when no trigger is stated.  A turning circle turns on:
+    at least ``min_turn_heading_deg``.  Heading and yaw rate both in radians pass the r-psi test but
     fail this one.
 
 Rudder range and units
     Beyond +-``IngestConfig.max_abs_rudder`` (90 deg) no rudder is.  A rudder that never exceeds
-    ``RAD_RUDDER_MAX`` (0.7, i.e. 40 deg read as radians) while the ship turns at more than
-    ``TURNING_RATE_DEG_S`` deg/s and changes heading by ``MIN_ZIGZAG_HEADING_DEG`` cannot be in
+    ``rad_rudder_max`` (0.7, i.e. 40 deg read as radians) while the ship turns at more than
+    ``turning_rate_deg_s`` deg/s and changes heading by ``min_zigzag_heading_deg`` cannot be in
     degrees: no ship turns like that on less than a degree of rudder.
 
 Rudder sign (docs/contract.md#run-data: positive delta makes r positive)
     Over every phase where the rudder is held beyond half its largest angle on one side, the yaw
     rate must change toward that side (the first-order response of any course-stable or mildly
     unstable ship to a held rudder).  The changes are summed with the rudder's sign; a sum below
-    zero, larger than ``SIGN_NOISE_FACTOR`` times the noise of r, with most phases against the
+    zero, larger than ``sign_noise_factor`` times the noise of r, with most phases against the
     convention, is refused with the hint ``--rudder-sign -1``.
 
 Spikes (docs/contract.md#bad-input: the run is refused, naming the row)
     A sample of psi or r that departs from the straight line through its two neighbours by more
-    than ``SPIKE_MAD_FACTOR`` robust standard deviations of that departure, and by more than a
-    physical floor (``SPIKE_FLOOR_PSI_DEG``: 2 deg in one step, which at the 0.05-0.1 s steps of
-    tank logging would take a yaw acceleration above 400 deg/s^2; ``SPIKE_FLOOR_R_DEG_S`` 2 deg/s),
+    than ``spike_mad_factor`` robust standard deviations of that departure, and by more than a
+    physical floor (``spike_floor_psi_deg``: 2 deg in one step, which at the 0.05-0.1 s steps of
+    tank logging would take a yaw acceleration above 400 deg/s^2; ``spike_floor_r_deg_s`` 2 deg/s),
     is a spike.  Refused rather than removed: a sample the logger got wrong may have neighbours that
     are wrong too, and the user should see the file.  In a format that writes few significant digits
     (MARIN: 3) the rounding alone moves a sample's departure by up to one unit of the last digit
@@ -54,10 +55,10 @@ Steady approach (docs/dataset.md, "The start of a run")
     A record that starts less than ``approach_window`` (2 s) before it is taken as it is (tank files
     often start at the execute).  Otherwise the approach values are the mean surge speed and median
     rudder over the last ``approach_window`` before the execute.  When the record's start departs
-    from them (the speed, averaged over ``SPEED_SMOOTH_S``, by more than ``STEADY_SPEED_SHARE`` = 3 %
+    from them (the speed, averaged over ``speed_smooth_s``, by more than ``steady_speed_share`` = 3 %
     of the approach speed: a model held at constant propeller rpm keeps its approach speed to about
     1 %, a model accelerating from rest departs by up to 100 %; or the rudder by more than
-    ``QUIET_RUDDER_SHARE`` = 10 % of the test's largest angle: a course-keeping trim of 1-2 deg stays
+    ``quiet_rudder_share`` = 10 % of the test's largest angle: a course-keeping trim of 1-2 deg stays
     inside 10 % of a 10-35 deg test), the run is trimmed to start at the first sample after the last
     departure.  At least ``approach_window`` of steady approach must remain (what the approach speed
     is measured over), otherwise the run is refused, naming why.  A run that starts steady is not
@@ -65,11 +66,11 @@ Steady approach (docs/dataset.md, "The start of a run")
 
 Scale
     With the model length L (from the dataset's Lpp over the scale, the file, or a known ship) the
-    approach Froude number Fn = U / sqrt(g L) must be in ``FROUDE_BAND`` (0.05-0.45: displacement
+    approach Froude number Fn = U / sqrt(g L) must be in ``froude_band`` (0.05-0.45: displacement
     ships are tested for manoeuvring at Fn 0.1-0.3, KVLCC2 0.142, KCS 0.26; below 0.05 the rudder
     force is too small to test, above 0.45 a displacement hull is beyond its hump speed).  The model
-    itself must be a model: L in ``MODEL_LPP_BAND`` (1-15 m; free-running models are 2-12 m).
-    Without L the approach speed must be in ``MODEL_SPEED_BAND`` (0.15-5 m/s: the Froude band over
+    itself must be a model: L in ``model_lpp_band_m`` (1-15 m; free-running models are 2-12 m).
+    Without L the approach speed must be in ``model_speed_band_m_s`` (0.15-5 m/s: the Froude band over
     1-12 m models).  A file that states itself model scale (a model scale in its header) is refused
     when a further scale is given (double scaling).
 """
@@ -81,26 +82,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pipeline.config import IngestConfig
+from pipeline.config import IngestChecks, IngestConfig
 from pipeline.errors import InputError
+from pipeline.units import G
 
-R_TOLERANCE = 0.10
-MIN_EXCITATION_DEG = 0.5
-MIN_ZIGZAG_HEADING_DEG = 2.0
-MIN_TURN_HEADING_DEG = 30.0
-RAD_RUDDER_MAX = 0.7
-TURNING_RATE_DEG_S = 1.0
-SIGN_NOISE_FACTOR = 5.0
-SPIKE_MAD_FACTOR = 30.0
-SPIKE_FLOOR_PSI_DEG = 2.0
-SPIKE_FLOOR_R_DEG_S = 2.0
-QUIET_RUDDER_SHARE = 0.10
-STEADY_SPEED_SHARE = 0.03
-SPEED_SMOOTH_S = 1.0
-FROUDE_BAND = (0.05, 0.45)
-MODEL_LPP_BAND = (1.0, 15.0)
-MODEL_SPEED_BAND = (0.15, 5.0)
-G = 9.81
+#: the thresholds of every check, with their units and reasons, are in one place: pipeline/config.py
+DEFAULT_CHECKS = IngestChecks()
 
 
 def _row(lines: np.ndarray, k: int) -> int | None:
@@ -179,13 +166,15 @@ def last_digit_unit(x: np.ndarray, digits: int) -> np.ndarray:
 
 
 def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str,
-                 logged: pd.DataFrame | None = None, digits: int | None = None) -> None:
+                 logged: pd.DataFrame | None = None, digits: int | None = None, *,
+                 checks: IngestChecks = DEFAULT_CHECKS) -> None:
     """Refuse a one-sample jump of psi or r that no ship can make (module docstring).
 
     ``frame`` is the run with heading unwrapped; ``logged`` (same rows) gives the value as the file
     has it, for the message and, with ``digits`` (the significant digits the file writes), for the
     rounding unit added to the threshold, brought to the frame's scale."""
-    for col, floor, unit in (("psi", SPIKE_FLOOR_PSI_DEG, "deg"), ("r", SPIKE_FLOOR_R_DEG_S, "deg/s")):
+    floors = (("psi", checks.spike_floor_psi_deg, "deg"), ("r", checks.spike_floor_r_deg_s, "deg/s"))
+    for col, floor, unit in floors:
         x = frame[col].to_numpy(dtype=float)
         if x.size < 5:
             continue
@@ -195,7 +184,7 @@ def check_spikes(frame: pd.DataFrame, lines: np.ndarray, name: str,
         d[-1] = x[-1] - (2 * x[-2] - x[-3])
         inner = d[1:-1]
         mad = 1.4826 * float(np.median(np.abs(inner - np.median(inner))))
-        thr = np.full(x.size, max(floor, SPIKE_MAD_FACTOR * mad))
+        thr = np.full(x.size, max(floor, checks.spike_mad_factor * mad))
         if digits and logged is not None and col in logged:
             raw = logged[col].to_numpy(dtype=float)
             # the file's unit at the frame's scale: psi is scale-free (and may differ from the file's
@@ -222,14 +211,15 @@ def _integral(t: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(t))])
 
 
-def r_psi_ratio(t: np.ndarray, psi: np.ndarray, r: np.ndarray) -> float | None:
+def r_psi_ratio(t: np.ndarray, psi: np.ndarray, r: np.ndarray, *,
+                checks: IngestChecks = DEFAULT_CHECKS) -> float | None:
     """Slope s of ``psi - psi0 = s int(r dt) + a + b t`` (None when neither signal moves)."""
     ir = _integral(t, r)
     tt = t - t[0]
     a = np.column_stack([np.ones_like(tt), tt])
     res_psi = psi - psi[0] - a @ np.linalg.lstsq(a, psi - psi[0], rcond=None)[0]
     res_ir = ir - a @ np.linalg.lstsq(a, ir, rcond=None)[0]
-    if max(np.std(res_psi), np.std(res_ir)) < MIN_EXCITATION_DEG:
+    if max(np.std(res_psi), np.std(res_ir)) < checks.min_excitation_deg:
         return None
     den = float(np.dot(res_ir, res_ir))
     if den <= 1e-300:
@@ -240,6 +230,7 @@ def r_psi_ratio(t: np.ndarray, psi: np.ndarray, r: np.ndarray) -> float | None:
 def check_units(frame: pd.DataFrame, lines: np.ndarray, meta: dict, name: str, config: IngestConfig,
                 declared: dict[str, str] | None = None) -> None:
     """Values that cannot be in the units of docs/contract.md#run-data (module docstring)."""
+    checks = config.checks
     declared = declared or {}
     t = frame["time"].to_numpy(dtype=float)
     psi = frame["psi"].to_numpy(dtype=float)
@@ -255,8 +246,8 @@ def check_units(frame: pd.DataFrame, lines: np.ndarray, meta: dict, name: str, c
                          "scale: units (or --scale) cannot be right", file=name, row=_row(lines, k),
                          column="r")
     if len(t) >= 5:
-        s = r_psi_ratio(t, psi, r)
-        if s is not None and abs(s - 1.0) > R_TOLERANCE:
+        s = r_psi_ratio(t, psi, r, checks=checks)
+        if s is not None and abs(s - 1.0) > checks.r_tolerance:
             deg = 180.0 / np.pi
             hint = " (declare the unit in the header, e.g. 'psi [rad]', or convert)"
             if abs(s * deg - 1.0) <= 0.15:
@@ -271,18 +262,19 @@ def check_units(frame: pd.DataFrame, lines: np.ndarray, meta: dict, name: str, c
                 raise InputError("yaw rate has the opposite sign of d(psi)/dt (r must be d(psi)/dt, "
                                  "positive to starboard)", file=name, column="r")
             raise InputError(f"yaw rate is not d(psi)/dt: the heading changes {s:.3g} times the integral "
-                             f"of r (accepted within {R_TOLERANCE:.0%}); units or columns cannot be right",
+                             f"of r (accepted within {checks.r_tolerance:.0%}); units or columns cannot be "
+                             "right",
                              file=name, column="r")
     change = float(np.max(np.abs(psi - psi[0]))) if psi.size else 0.0
     kind = meta.get("kind")
     rud = meta.get("rudder_deg")
     amax = float(np.max(np.abs(delta))) if delta.size else 0.0
     if "delta" not in declared:
-        if rud and rud >= 5 and amax < 0.2 * rud and amax <= RAD_RUDDER_MAX:
+        if rud and rud >= 5 and amax < 0.2 * rud and amax <= checks.rad_rudder_max:
             raise InputError(f"rudder looks like radians (largest {amax:.3g} for a {rud:g} deg test): "
                              "declare 'delta [rad]' in the header or convert", file=name, column="delta")
-        if (0 < amax <= RAD_RUDDER_MAX and change >= MIN_ZIGZAG_HEADING_DEG
-                and np.max(np.abs(r)) >= TURNING_RATE_DEG_S):
+        if (0 < amax <= checks.rad_rudder_max and change >= checks.min_zigzag_heading_deg
+                and np.max(np.abs(r)) >= checks.turning_rate_deg_s):
             raise InputError(f"rudder looks like radians (largest {amax:.3g} while the ship turns at up "
                              f"to {np.max(np.abs(r)):.3g} deg/s): declare 'delta [rad]' in the header or "
                              "convert", file=name, column="delta")
@@ -291,19 +283,20 @@ def check_units(frame: pd.DataFrame, lines: np.ndarray, meta: dict, name: str, c
     if kind == "zigzag" and reversed_once:
         # the rudder was reversed, so the heading reached the trigger before the reversal
         trig = meta.get("heading_deg") if meta.get("test_from") != "rudder signal" else None
-        need = 0.5 * trig if trig else MIN_ZIGZAG_HEADING_DEG
+        need = 0.5 * trig if trig else checks.min_zigzag_heading_deg
         change = float(np.max(np.abs(psi[: phases[1][0] + 1] - psi[0])))
         if change < need:
             raise InputError(f"heading changes by only {change:.3g} during a zigzag that needs {need:g} deg "
                              "to trigger its rudder: heading (and yaw rate) probably in radians; declare "
                              "'psi [rad]' in the header or convert", file=name, column="psi")
-    elif kind == "turning" and amax >= 5 and change < MIN_TURN_HEADING_DEG and t[-1] - t[0] > 20:
+    elif kind == "turning" and amax >= 5 and change < checks.min_turn_heading_deg and t[-1] - t[0] > 20:
         raise InputError(f"heading changes by only {change:.3g} during a turning circle (at least "
-                         f"{MIN_TURN_HEADING_DEG:g} deg expected): heading probably in radians", file=name,
-                         column="psi")
+                         f"{checks.min_turn_heading_deg:g} deg expected): heading probably in radians",
+                         file=name, column="psi")
 
 
-def check_rudder_sign(frame: pd.DataFrame, name: str) -> dict[str, Any]:
+def check_rudder_sign(frame: pd.DataFrame, name: str, *,
+                      checks: IngestChecks = DEFAULT_CHECKS) -> dict[str, Any]:
     """Positive delta must make r positive (module docstring); returns the evidence for metadata."""
     t = frame["time"].to_numpy(dtype=float)
     r = frame["r"].to_numpy(dtype=float)
@@ -323,7 +316,7 @@ def check_rudder_sign(frame: pd.DataFrame, name: str) -> dict[str, Any]:
         against += sgn * change < 0
     evidence = {"rudder_sign_check": f"yaw rate changed toward the rudder in {agree} of {agree + against} "
                                      "held rudder phases"}
-    if total < 0 and against > agree and -total > SIGN_NOISE_FACTOR * max(noise, 1e-3):
+    if total < 0 and against > agree and -total > checks.sign_noise_factor * max(noise, 1e-3):
         raise InputError(f"rudder sign is reversed: positive delta gives negative yaw rate in {against} of "
                          f"{agree + against} rudder phases (docs/contract.md#run-data: positive delta makes "
                          "r positive); if the "
@@ -335,7 +328,7 @@ def check_rudder_sign(frame: pd.DataFrame, name: str) -> dict[str, Any]:
 
 # ------------------------------------------------------------------ scale
 def check_scale(meta: dict, frame: pd.DataFrame, name: str, scale: float, lpp_model: float | None,
-                lpp_source: str | None) -> dict[str, Any]:
+                lpp_source: str | None, *, checks: IngestChecks = DEFAULT_CHECKS) -> dict[str, Any]:
     """Froude number and speed plausible for the stated scale (module docstring)."""
     if scale != 1.0 and meta.get("model_scale") and meta.get("file_states_model_scale"):
         raise InputError(f"the file states it is model scale (1:{meta['model_scale']:g}); a scale of "
@@ -354,7 +347,7 @@ def check_scale(meta: dict, frame: pd.DataFrame, name: str, scale: float, lpp_mo
     hint_twice = ("the files look scaled twice: they may already be model scale (drop --scale, or "
                   "[data] scale = 1)" if scale != 1.0 else "check the speed column's units")
     if lpp_model is not None:
-        lo, hi = MODEL_LPP_BAND
+        lo, hi = checks.model_lpp_band_m
         if not lo <= lpp_model <= hi:
             raise InputError(f"a model of Lpp {lpp_model:.4g} m ({lpp_source}) at scale {scale:g} is not a "
                              f"tank model ({lo:g}-{hi:g} m): {hint_full if lpp_model > hi else hint_twice}",
@@ -365,14 +358,14 @@ def check_scale(meta: dict, frame: pd.DataFrame, name: str, scale: float, lpp_mo
     if lpp_model is not None:
         fn = u / np.sqrt(G * lpp_model)
         out["froude_number"] = float(fn)
-        lo, hi = FROUDE_BAND
+        lo, hi = checks.froude_band
         if not lo <= fn <= hi:
             raise InputError(f"approach speed {u:.3g} m/s at model scale is Froude number {fn:.3g} for a "
                              f"{lpp_model:.3g} m model ({lpp_source}), outside {lo:g}-{hi:g} for a "
                              f"manoeuvring test: {hint_full if fn > hi else hint_twice}", file=name,
                              column="u" if "u" in frame.columns else None)
     else:
-        lo, hi = MODEL_SPEED_BAND
+        lo, hi = checks.model_speed_band_m_s
         if not lo <= u <= hi:
             raise InputError(f"approach speed {u:.3g} m/s is not a model's ({lo:g}-{hi:g} m/s at scale "
                              f"{scale:g}): {hint_full if u > hi else hint_twice}", file=name,
@@ -395,6 +388,7 @@ def steady_start(frame: pd.DataFrame, name: str, config: IngestConfig) -> tuple[
     """Where the test's steady approach starts (module docstring): (first sample to keep, a note
     saying what was trimmed, or None when the run starts steady).  Raises :class:`InputError` when
     less than ``config.approach_window`` of steady approach precedes the first execute."""
+    checks = config.checks
     t = frame["time"].to_numpy(dtype=float)
     delta = frame["delta"].to_numpy(dtype=float)
     phases = rudder_phases(t, delta)
@@ -402,7 +396,7 @@ def steady_start(frame: pd.DataFrame, name: str, config: IngestConfig) -> tuple[
         return 0, None
     p0, sgn = phases[0][0], phases[0][2]
     peak = float(np.max(np.abs(delta)))
-    quiet = QUIET_RUDDER_SHARE * peak
+    quiet = checks.quiet_rudder_share * peak
     # the execute: back from the phase along the rudder's swing toward it (each step moving the
     # rudder toward the phase's side) to where the swing starts
     k_e = p0
@@ -418,11 +412,11 @@ def steady_start(frame: pd.DataFrame, name: str, config: IngestConfig) -> tuple[
     u_app = None
     if u is not None:
         h = float(np.median(np.diff(t)))
-        w = max(1, int(round(SPEED_SMOOTH_S / h)))
+        w = max(1, int(round(checks.speed_smooth_s / h)))
         us = np.convolve(u, np.ones(w) / w, mode="same") if len(u) >= w else u
         us[: w // 2] = us[w // 2]                 # the average's edge: take the first full window
         u_app = float(np.mean(u[:k_e + 1][app]))
-        bad_speed = np.abs(us[:k_e + 1] - u_app) > STEADY_SPEED_SHARE * abs(u_app)
+        bad_speed = np.abs(us[:k_e + 1] - u_app) > checks.steady_speed_share * abs(u_app)
     bad = np.flatnonzero(bad_rudder | bad_speed)
     if not bad.size:
         return 0, None
@@ -433,12 +427,13 @@ def steady_start(frame: pd.DataFrame, name: str, config: IngestConfig) -> tuple[
         what = (f"u {u_app:.3g} m/s" if u_app is not None else "") + (
             f"{', ' if u_app is not None else ''}rudder {d_app:.3g} deg")
         raise InputError(f"no steady approach before the first rudder execute at {t[k_e] - t[0]:.4g} s: "
-                         f"{why} ({what}; speed within {STEADY_SPEED_SHARE:.0%}, rudder within "
+                         f"{why} ({what}; speed within {checks.steady_speed_share:.0%}, rudder within "
                          f"{quiet:.3g} deg), steady for only {steady:.3g} s before it, at least "
                          f"{config.approach_window:g} s needed", file=name)
     note = (f"start trimmed to the steady approach: {t[start] - t[0]:.4g} s removed before the first "
-            f"execute at {t[k_e] - t[0]:.4g} s ({why} until then: speed within {STEADY_SPEED_SHARE:.0%} "
-            f"of {u_app:.3g} m/s and rudder within {quiet:.3g} deg of {d_app:.3g} deg kept)"
+            f"execute at {t[k_e] - t[0]:.4g} s ({why} until then: speed within "
+            f"{checks.steady_speed_share:.0%} of {u_app:.3g} m/s and rudder within {quiet:.3g} deg of "
+            f"{d_app:.3g} deg kept)"
             if u_app is not None else
             f"start trimmed to the steady approach: {t[start] - t[0]:.4g} s removed before the first "
             f"execute at {t[k_e] - t[0]:.4g} s ({why} until then)")

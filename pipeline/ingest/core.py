@@ -17,13 +17,12 @@ import numpy as np
 import pandas as pd
 from scipy import interpolate, signal
 
-from pipeline.config import IngestConfig
+from pipeline.config import KNOWN_SHIPS, IngestChecks, IngestConfig
 from pipeline.errors import InputError
 from pipeline.ingest import checks
 from pipeline.ingest.formats import (
     ECHO_CONTENT,
     FORMATS,
-    KNOWN_SHIPS_LPP_FULL,
     PARSERS,
     RawTable,
     decode_with_note,
@@ -56,27 +55,62 @@ def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = Non
 
     Parameters
     ----------
-    path : raw file (canonical CSV, MARIN .dat or HSVA .dat; docs/contract.md#raw-formats), optionally
-    gzip-compressed.
-    fmt : 'csv', 'marin' or 'hsva' to override recognition from content.
-    scale : geometric scale factor of the file's values (full/model); None or 1 = model scale.
-        Froude scaling brings the run to model scale (:func:`pipeline.units.froude_to_model`).
-    config : limits used by the validation (docs/contract.md#bad-input).
-    rudder_sign : +1, or -1 for files whose rudder is positive to port (beyond what the format's
-        reader already converts); applied before the sign check.
-    ship, lpp_full : ship name and full-scale Lpp (m) from the dataset description, used for the
-        scale check and recorded (model Lpp = lpp_full / model_scale).
-    model_scale : full/model of the tank model (default: ``scale``); with model-scale files
-        (scale 1) it is what makes a full-scale Lpp a model Lpp.
-    test_name : overrides the test title of the file (dataset.toml per-run override).
-    kind : 'zigzag', 'turning' or 'other' when the title says none (dataset.toml ``[runs.<id>] kind``);
+    path : str or Path
+        Raw file (canonical CSV, MARIN .dat or HSVA .dat; docs/contract.md#raw-formats), optionally
+        gzip-compressed.
+    fmt : str, optional
+        'csv', 'marin' or 'hsva' to override recognition from content.
+    scale : float, optional
+        Geometric scale factor of the file's values (full/model); None or 1 = model scale.  Froude
+        scaling brings the run to model scale (:func:`pipeline.units.froude_to_model`).
+    config : IngestConfig
+        Limits used by the validation (docs/contract.md#bad-input; the checks' thresholds are
+        ``config.checks``).
+    rudder_sign : int
+        +1, or -1 for files whose rudder is positive to port (beyond what the format's reader
+        already converts); applied before the sign check.
+    ship : str, optional
+        Ship name from the dataset description, used for the scale check and recorded.
+    lpp_full : float, optional
+        Full-scale Lpp (m) from the dataset description (model Lpp = lpp_full / model_scale).
+    model_scale : float, optional
+        Full/model of the tank model (default: ``scale``); with model-scale files (scale 1) it is
+        what makes a full-scale Lpp a model Lpp.
+    test_name : str, optional
+        Overrides the test title of the file (dataset.toml per-run override).
+    kind : str, optional
+        'zigzag', 'turning' or 'other' when the title says none (dataset.toml ``[runs.<id>] kind``);
         the rudder angle, heading trigger and side are then read from the rudder signal.
-    columns : a :class:`pipeline.ingest.columns.ColumnMap` (dataset.toml ``[columns]``): the file is a
-        logger's own table, read through that mapping instead of a format (docs/dataset.md).
+    columns : pipeline.ingest.columns.ColumnMap, optional
+        dataset.toml ``[columns]``: the file is a logger's own table, read through that mapping
+        instead of a format (docs/dataset.md).
 
-    Returns a Run in canonical units and signs, model scale, original (possibly non-uniform) time
-    steps, heading unwrapped.  Raises :class:`InputError` naming the file, row (1-based line in the
-    file) or column for every refused input.
+    Returns
+    -------
+    Run
+        Canonical units and signs (time s, psi deg, r deg/s, delta deg, u v m/s, x0 y0 m), model
+        scale, the original (possibly non-uniform) time steps, heading unwrapped.
+
+    Raises
+    ------
+    InputError
+        Naming the file, row (1-based line in the file) or column for every refused input.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pipeline.identify.synthetic import zigzag
+    >>> t, delta, _, y = zigzag(n=600, seed=1)
+    >>> rows = [f"{a:.2f},{p:.4f},{r:.4f},{d:.3f}" for a, p, r, d in zip(t, y[:, 2], y[:, 1], delta)]
+    >>> path = Path(tempfile.mkdtemp()) / "zz_20_s.csv"
+    >>> _ = path.write_text("\\n".join(["# test: zigzag 20/20 starboard", "time,psi,r,delta", *rows]))
+    >>> run = read_raw(path)
+    >>> run.name, run.meta["source_format"], run.meta["first_side"]
+    ('zz_20_s', 'csv', 'starboard')
+    >>> read_raw(path.with_name("missing.csv"))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    pipeline.errors.InputError: .../missing.csv: file not found
     """
     path = Path(path)
     name = path.name
@@ -118,7 +152,44 @@ def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None
               config: IngestConfig = DEFAULT_CONFIG, rudder_sign: int = 1, ship: str | None = None,
               lpp_full: float | None = None, model_scale: float | None = None,
               test_name: str | None = None, kind: str | None = None, columns=None) -> Run:
-    """:func:`read_raw` on the file's content (bytes or text); ``name`` is used in messages."""
+    """:func:`read_raw` on the file's content (bytes or text).
+
+    Parameters
+    ----------
+    data : bytes or str
+        The file's content (bytes may be gzip-compressed or UTF-16).
+    name : str
+        The file's name, used in messages and as the run id's source.
+    fmt, scale, config, rudder_sign, ship, lpp_full, model_scale, test_name, kind, columns
+        As for :func:`read_raw`.
+
+    Returns
+    -------
+    Run
+        As :func:`read_raw` returns it.
+
+    Raises
+    ------
+    InputError
+        Naming ``name``, the row or column, for every refused input.
+
+    Examples
+    --------
+    A canonical CSV of a 20/20 zigzag simulated from the paper's model (time s, psi deg, r deg/s,
+    delta deg), read from text:
+
+    >>> from pipeline.identify.synthetic import zigzag
+    >>> t, delta, _, y = zigzag(n=600, seed=1)
+    >>> rows = [f"{a:.2f},{p:.4f},{r:.4f},{d:.3f}" for a, p, r, d in zip(t, y[:, 2], y[:, 1], delta)]
+    >>> text = "\\n".join(["# test: zigzag 20/20 starboard", "time,psi,r,delta", *rows])
+    >>> run = parse_raw(text, name="zz.csv")
+    >>> run.meta["kind"], run.meta["rudder_deg"], run.meta["heading_deg"], len(run.frame)
+    ('zigzag', 20.0, 20.0, 600)
+    >>> parse_raw(text.replace("delta", "rudder"), name="bad.csv")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    pipeline.errors.InputError: bad.csv, row 2, column 'delta': required column is missing from the header ...
+    """
     raw_bytes = data.encode("utf-8") if isinstance(data, str) else bytes(data)
     content, notes = unpack(raw_bytes, file=name)
     text, encoding = decode_with_note(content)
@@ -159,7 +230,7 @@ def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None
         table.lines = table.lines[start:]
         table.frame = table.frame.iloc[start:].reset_index(drop=True)
         notes.append(trim_note)
-    meta = _base_meta(table, name, raw_bytes, scale, frame, kind)
+    meta = _base_meta(table, name, raw_bytes, scale, frame, kind, limits=config.checks)
     if ship:
         meta["ship"] = ship
     if model_scale:
@@ -176,10 +247,10 @@ def parse_raw(data: bytes | str, *, name: str = "<text>", fmt: str | None = None
     if n_grid < config.min_samples:
         raise InputError(f"too few samples: {n_grid} at {config.dt:g} s over {t[-1] - t[0]:.3g} s, need at "
                          f"least {config.min_samples}", file=name)
-    meta.update(checks.check_scale(meta, frame, name, scale, lpp_model, lpp_source))
-    checks.check_spikes(frame, table.lines, name, table.frame, digits=table.digits)
+    meta.update(checks.check_scale(meta, frame, name, scale, lpp_model, lpp_source, checks=config.checks))
+    checks.check_spikes(frame, table.lines, name, table.frame, digits=table.digits, checks=config.checks)
     checks.check_units(frame, table.lines, meta, name, config, meta.get("declared_units"))
-    meta.update(checks.check_rudder_sign(frame, name))
+    meta.update(checks.check_rudder_sign(frame, name, checks=config.checks))
     if notes:
         meta["ingest_notes"] = notes + list(meta.get("ingest_notes", []))
     meta.update(_run_figures(frame, config))
@@ -196,8 +267,8 @@ def _model_lpp(meta: dict, scale: float, lpp_full: float | None,
     if meta.get("lpp"):
         return float(meta["lpp"]), meta.get("lpp_source", "the file's header")
     ship = str(meta.get("ship", "")).upper()
-    if ship in KNOWN_SHIPS_LPP_FULL:
-        full = KNOWN_SHIPS_LPP_FULL[ship]
+    if ship in KNOWN_SHIPS.lpp_full_m:
+        full = KNOWN_SHIPS.lpp_full_m[ship]
         ms = model_scale or scale   # model-scale files (scale 1) of a known ship: its model scale
         return full / ms, f"{ship} Lpp {full:g} m / {'model ' if model_scale else ''}scale {ms:g}"
     return None, None
@@ -287,28 +358,24 @@ def _rebuild_step(t: np.ndarray, lines: np.ndarray, name: str) -> np.ndarray:
     return a + h * k
 
 
-GAP_WINDOW = 20        # steps either side that give the local logging step and the time base's offset
-GAP_EDGE = 5           # fewer samples than this on a side: the offset is not measured (see gap_note)
-
-
-def gap_note(t: np.ndarray) -> str | None:
+def gap_note(t: np.ndarray, *, limits: IngestChecks = DEFAULT_CONFIG.checks) -> str | None:
     """A note on samples missing from a time base ``t`` (s), which the resampling bridges by
     interpolation (a gap beyond ``IngestConfig.max_gap`` is refused before this); None when none are.
 
     A step is a gap when it is longer than 1.5 local logging steps (the larger of the median steps
-    of the ``GAP_WINDOW`` steps before and after it: a logger changing its rate is not missing
+    of the ``limits.gap_window`` steps before and after it: a logger changing its rate is not missing
     samples) and the time base after it is shifted by more than half a step against the one before
-    it: the stamps of ``GAP_WINDOW`` samples each side are fitted with one step and an offset that
+    it: the stamps of ``limits.gap_window`` samples each side are fitted with one step and an offset that
     changes between them; a dropped sample moves every later stamp by a step, a jittered stamp only
     itself.  Within
-    ``GAP_EDGE`` samples of either end the offset cannot be measured: there a step counts as a gap
+    ``limits.gap_edge`` samples of either end the offset cannot be measured: there a step counts as a gap
     only beyond 1.9 local steps (a stamp jittered by less than 0.45 of a step on either side of it
     cannot make one).
     """
     steps = np.diff(t)
     if steps.size < 2:
         return None
-    w = GAP_WINDOW
+    w = limits.gap_window
     holes, longest = [], -1
     for k in np.flatnonzero(steps > 1.5 * np.median(steps)):
         prev, nxt = steps[max(0, k - w):k], steps[k + 1:k + 1 + w]
@@ -316,7 +383,7 @@ def gap_note(t: np.ndarray) -> str | None:
         if h <= 0 or steps[k] <= 1.5 * h:
             continue
         j0, j1 = np.arange(max(0, k - w + 1), k + 1), np.arange(k + 1, min(len(t), k + 1 + w))
-        if min(j0.size, j1.size) < GAP_EDGE:
+        if min(j0.size, j1.size) < limits.gap_edge:
             if steps[k] <= 1.9 * h:
                 continue
         else:
@@ -336,7 +403,7 @@ def gap_note(t: np.ndarray) -> str | None:
 
 
 def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.DataFrame,
-               kind: str | None = None) -> dict[str, Any]:
+               kind: str | None = None, *, limits: IngestChecks = DEFAULT_CONFIG.checks) -> dict[str, Any]:
     meta: dict[str, Any] = {
         "run_id": Path(name).stem,
         "source_file": name,
@@ -352,7 +419,7 @@ def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.D
         meta["lpp_source"] = "the file's header"
     t = frame["time"].to_numpy()
     meta["original_dt"] = float(f"{np.median(np.diff(t)):.10g}")
-    note = gap_note(t)
+    note = gap_note(t, limits=limits)
     if note:
         meta.setdefault("ingest_notes", []).append(note)
     test = parse_test_name(meta["test_name"])
@@ -434,7 +501,34 @@ def resample(run: Run, dt: float | None = None, *, config: IngestConfig = DEFAUL
     ``config.cutoff_ratio`` times the new Nyquist frequency 0.5/dt) on a uniform grid at the original
     step, then interpolated linearly onto the new grid; a finer or equal ``dt`` interpolates only
     (nothing is invented above the original content).  The output grid never extends past the last
-    sample.  Raises :class:`InputError` if fewer than ``config.min_samples`` samples result.
+    sample.
+
+    Parameters
+    ----------
+    run : Run
+        A run as :func:`read_raw` returns it (time s, heading deg).
+    dt : float, optional
+        The new step, s (default ``config.dt``, 0.08 s).
+    config : IngestConfig
+        Filter order, corner ratio and the fewest samples a run may have.
+
+    Returns
+    -------
+    Run
+        The same columns on the grid 0, dt, 2 dt, ...; ``meta["dt"]`` the step and ``meta["antialias"]``
+        the filter used.
+
+    Raises
+    ------
+    InputError
+        When fewer than ``config.min_samples`` samples result or ``dt`` is not positive.
+
+    Examples
+    --------
+    >>> from pipeline.identify.synthetic import zigzag_run
+    >>> run = resample(zigzag_run("zz", n=600), 0.16)       # 0.08 s to 0.16 s, anti-aliased
+    >>> len(run.frame), run.meta["dt"], run.meta["antialias"]
+    (300, 0.16, 'Butterworth order 8 forwards-backwards, corner 2.5 Hz')
     """
     dt = float(dt if dt is not None else config.dt)
     name = str(run.meta.get("source_file") or run.name)
@@ -492,7 +586,32 @@ def ingest_file(path: str | Path, *, fmt: str | None = None, scale: float | None
                 config: IngestConfig = DEFAULT_CONFIG, **kwargs) -> Run:
     """Read, validate and resample a raw file to ``config.dt``: what every stage calls for a raw file.
 
-    ``kwargs``: rudder_sign, ship, lpp_full, model_scale, test_name, kind, columns (see :func:`read_raw`)."""
+    Parameters
+    ----------
+    path : str or Path
+        The raw file (docs/contract.md#raw-formats).
+    fmt, scale, config
+        As for :func:`read_raw`.
+    **kwargs
+        rudder_sign, ship, lpp_full, model_scale, test_name, kind, columns (see :func:`read_raw`).
+
+    Returns
+    -------
+    Run
+        :func:`resample` of :func:`read_raw`: canonical units, model scale, step ``config.dt`` (s).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pipeline.identify.synthetic import zigzag
+    >>> t, delta, _, y = zigzag(n=600, seed=1)
+    >>> rows = [f"{a:.2f},{p:.4f},{r:.4f},{d:.3f}" for a, p, r, d in zip(t, y[:, 2], y[:, 1], delta)]
+    >>> path = Path(tempfile.mkdtemp()) / "zz_20_s.csv"
+    >>> _ = path.write_text("\\n".join(["# test: zigzag 20/20 starboard", "time,psi,r,delta", *rows]))
+    >>> run = ingest_file(path)
+    >>> run.meta["dt"], len(run.frame), run.frame.columns.tolist()
+    (0.08, 600, ['time', 'psi', 'r', 'delta'])
+    """
     return resample(read_raw(path, fmt=fmt, scale=scale, config=config, **kwargs), config.dt, config=config)
 
 

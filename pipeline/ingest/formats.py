@@ -71,6 +71,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from pipeline.config import KNOWN_SHIPS, IngestConfig
 from pipeline.errors import InputError
 from pipeline.units import body_velocities
 
@@ -79,9 +80,6 @@ FORMATS = ("csv", "marin", "hsva")
 MARIN_COLUMNS = ("time", "x0", "y0", "phi", "psi", "dx0", "dy0", "p", "r", "delta", "rev")
 HSVA_COLUMNS = ("time", "x0", "y0", "psi", "dx0", "dy0", "r", "phi", "rudder", "revs", "thrust", "torque")
 CSV_REQUIRED = ("time", "psi", "r", "delta")
-
-# Full-scale Lpp (m) of ships whose files do not say it; the model Lpp is this over the scale.
-KNOWN_SHIPS_LPP_FULL = {"KVLCC2": 320.0, "KCS": 230.0}
 
 _KEY_VALUE = re.compile(r"^#\s*([A-Za-z_][\w .-]*?)\s*:\s*(.*?)\s*$")
 _NUMBER = re.compile(r"^[+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?$")
@@ -115,7 +113,7 @@ def shown(text: str, limit: int, before: str = "", after: str = "") -> str:
 
 
 GZIP_MAGIC = b"\x1f\x8b"
-MAX_DECOMPRESSED = 1 << 30          # bytes; a tank file is megabytes: more is a broken or hostile archive
+MAX_DECOMPRESSED = IngestConfig().max_decompressed_bytes   # bytes (pipeline/config.py says why)
 
 
 def unpack(data: bytes, file=None) -> tuple[bytes, list[str]]:
@@ -590,9 +588,9 @@ def parse_hsva(lines: list[str], file=None) -> RawTable:
         "thrust": raw["thrust"], "torque": raw["torque"],
     })
     if meta.get("ship") == "KVLCC2":
-        meta["lpp"] = 7.0           # HSVA model, scale 1:45.7 (shared/data/kvlcc2_hsva/README.md)
+        meta["lpp"] = KNOWN_SHIPS.hsva_kvlcc2_lpp_m       # HSVA's model, as the data's README states it
         meta["lpp_source"] = "HSVA KVLCC2 model"
-        meta["model_scale"] = 45.7
+        meta["model_scale"] = KNOWN_SHIPS.hsva_kvlcc2_scale
         meta["file_states_model_scale"] = True      # CPMC files are model-scale measurements
     return RawTable("hsva", frame, linenos, meta)
 

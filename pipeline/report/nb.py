@@ -20,23 +20,19 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from pipeline import paper
 from pipeline.catalog import Catalog, is_builtin_tank
 from pipeline.errors import InputError
 from pipeline.io import read_frame, read_json
 from pipeline.report import particulars
 
-# The paper's figures (docs/contract.md#metrics), shown beside ours.  Tables 5 (20/20) and 6 (10/10).
-PAPER_TABLES_5_6 = {
-    ("20/20", "ffm-ukf"): {"mse_v": 0.0152, "mse_r": 1.28, "mae_psi": 4.43},
-    ("20/20", "srukf-ffm"): {"mse_v": 0.0037, "mse_r": 0.71, "mae_psi": 3.55},
-    ("10/10", "ffm-ukf"): {"mse_v": 0.0046, "mse_r": 0.83, "mae_psi": 3.69},
-    ("10/10", "srukf-ffm"): {"mse_v": 0.0016, "mse_r": 0.49, "mae_psi": 1.95},
-}
-PAPER_IDENT_SECONDS = 0.377      # identification time for 585 samples (paper)
-PAPER_CONTROL = {"rise_time": 24.0, "max_deviation": 1.46, "steady_mae": 0.86, "max_rudder": "< 25",
-                 "steady_rudder_range": "[-3.78, -1.09]", "mean_rudder": -1.70}
-PAPER_SHIP = "KCS"               # the paper's ship (Meng et al. 2024): its values are for it alone
-PAPER = "Meng et al., Ocean Engineering 294 (2024) 116853"
+# The paper's figures (pipeline/paper.py; definitions docs/contract.md#metrics), shown beside ours:
+# Tables 5 (the 20/20 zigzag) and 6 (the 10/10) by (zigzag, algorithm).
+PAPER_TABLES_5_6 = {(amp, alg): row for amp, table in (("20/20", "table5"), ("10/10", "table6"))
+                    for alg, row in paper.TABLES_5_6[table]["rows"].items()}
+PAPER_IDENT_SECONDS = paper.IDENT_SECONDS    # s, identification time for the paper's window
+PAPER_SHIP = paper.SHIP                      # the paper's ship: its values are for it alone
+PAPER = paper.REFERENCE
 ALG_LABEL = {"srukf-ffm": "SR-UKF-FFM", "ffm-ukf": "FFM-UKF"}
 ALG_COLOR = {"srukf-ffm": "tab:red", "ffm-ukf": "tab:blue"}
 UNITS = {"v": "m/s", "r": "deg/s", "psi": "deg", "delta": "deg", "u": "m/s", "time": "s",

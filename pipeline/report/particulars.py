@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.units import FROUDE_EXPONENT
+from pipeline.units import FROUDE_EXPONENT, G
 
 NOT_GIVEN = "not given"
 KNOT_M_S = 1852.0 / 3600.0          # one knot in m/s (international nautical mile per hour)
@@ -93,7 +93,7 @@ def particulars(index: dict) -> dict[str, Any]:
     u_range = (min(speeds), max(speeds)) if speeds else None
     froude = None
     if u_range and lpp_model:
-        froude = tuple(u / math.sqrt(9.81 * lpp_model) for u in u_range)
+        froude = tuple(u / math.sqrt(G * lpp_model) for u in u_range)
     return {
         "ship": ship,
         "scale": scale,

@@ -98,7 +98,8 @@ def warm(cfg: AutopilotStudyConfig) -> None:
     if "kcs" in cfg.plants:
         from pipeline.control.simulate import make_kcs_ship
 
-        ship = make_kcs_ship(35.0, 14.28)
+        gear = ControlConfig()
+        ship = make_kcs_ship(gear.rudder_max, gear.rudder_rate)
         ship.reset()
         ship.step(1.0, 0.08, disturbance_deg=0.0)
 
