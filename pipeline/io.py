@@ -47,6 +47,21 @@ class Run:
     rpm 1/min, plus optional ones); ``meta`` holds the provenance (source_file, source_sha256,
     source_format, scale_factor, original_dt, dt, test_name, provenance 'measured'|'virtual', and
     the parsed test: kind, rudder_deg, heading_deg, first_side).
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> run = Run(frame=pd.DataFrame({"time": [0.0, 0.08, 0.16], "psi": [0.0, 0.08, 0.16],
+    ...                               "r": [1.0, 1.0, 1.0], "delta": [5.0, 5.0, 5.0]}),
+    ...           meta={"run_id": "zz_20_s", "provenance": "virtual"})
+    >>> run.name, run.dt, run.is_virtual
+    ('zz_20_s', 0.08, True)
+    >>> run.col("r").tolist()
+    [1.0, 1.0, 1.0]
+    >>> run.col("v")
+    Traceback (most recent call last):
+    ...
+    pipeline.errors.InputError: zz_20_s, column 'v': column is missing
     """
 
     frame: pd.DataFrame
@@ -338,7 +353,29 @@ def _jsonable(obj: Any) -> Any:
 
 
 def write_json(path: str | Path, obj: Any) -> Path:
-    """Write ``obj`` as indented JSON atomically (numpy types converted, NaN/inf as null)."""
+    """Write ``obj`` as indented JSON atomically (numpy types converted, NaN/inf as null).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file; its folder must exist.  Written to a temporary name and renamed, so a failure
+        leaves an earlier file intact.
+    obj : Any
+        JSON-able data; numpy scalars and arrays become numbers and lists, NaN and inf ``null``.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Examples
+    --------
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> write_json(folder / "x.json", {"K": np.float64(0.39), "T": float("nan"), "a": np.arange(2)}).name
+    'x.json'
+    >>> read_json(folder / "x.json")
+    {'K': 0.39, 'T': None, 'a': [0, 1]}
+    """
     path = Path(path)
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(_jsonable(obj), indent=2, allow_nan=False) + "\n")
@@ -346,6 +383,31 @@ def write_json(path: str | Path, obj: Any) -> Path:
 
 
 def read_json(path: str | Path) -> Any:
+    """Read a JSON file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    Any
+        The parsed document.
+
+    Raises
+    ------
+    InputError
+        One line naming the file when it is missing or not valid JSON.
+
+    Examples
+    --------
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> read_json(folder / "missing.json")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    pipeline.errors.InputError: .../missing.json: file not found (run the stage that makes it first)
+    """
     path = Path(path)
     try:
         return json.loads(path.read_text())
@@ -356,7 +418,22 @@ def read_json(path: str | Path) -> Any:
 
 
 def write_frame(path: str | Path, frame: pd.DataFrame, meta: dict[str, Any] | None = None) -> Path:
-    """Write a data frame as Parquet atomically, with ``meta`` (JSON) in the schema metadata."""
+    """Write a data frame as Parquet atomically, with ``meta`` (JSON) in the schema metadata.
+
+    Parameters
+    ----------
+    path : str or Path
+        The Parquet file; written to a temporary name and renamed.
+    frame : pandas.DataFrame
+        The table (its index is not stored).
+    meta : dict, optional
+        JSON-able metadata, stored under the schema key ``tanktest.run``.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     table = pa.Table.from_pandas(frame, preserve_index=False)
     if meta is not None:
@@ -369,7 +446,23 @@ def write_frame(path: str | Path, frame: pd.DataFrame, meta: dict[str, Any] | No
 
 
 def read_frame(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Read a Parquet file written by :func:`write_frame`; returns (frame, meta)."""
+    """Read a Parquet file written by :func:`write_frame`.
+
+    Parameters
+    ----------
+    path : str or Path
+        The Parquet file.
+
+    Returns
+    -------
+    tuple
+        (pandas.DataFrame, dict): the table and its ``tanktest.run`` metadata ({} when none).
+
+    Raises
+    ------
+    InputError
+        One line naming the file when it is missing, not Parquet, or its metadata is damaged.
+    """
     path = Path(path)
     table = _parquet(pq.read_table, path)
     return table.to_pandas(), _run_meta(table.schema.metadata, path)
@@ -413,12 +506,52 @@ def read_meta(path: str | Path) -> dict[str, Any] | None:
 
 
 def write_run(path: str | Path, run: Run) -> Path:
-    """Write a processed run (docs/contract.md#run-data) atomically."""
+    """Write a processed run (docs/contract.md#run-data) atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        The Parquet file (``runs/<run_id>.parquet`` in a dataset).
+    run : Run
+        The run; its ``meta`` goes into the file's schema metadata.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return write_frame(path, run.frame, run.meta)
 
 
 def read_run(path: str | Path) -> Run:
-    """Read a processed run and check it has the required columns."""
+    """Read a processed run and check it has the required columns.
+
+    Parameters
+    ----------
+    path : str or Path
+        A Parquet file written by :func:`write_run`.
+
+    Returns
+    -------
+    Run
+        The run (canonical columns in the units of docs/contract.md#run-data); ``meta["run_id"]``
+        defaults to the file's stem.
+
+    Raises
+    ------
+    InputError
+        Naming the file (and column) when it is unreadable or lacks time, psi, r or delta.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> frame = pd.DataFrame({"time": [0.0, 0.08], "psi": [0.0, 0.08], "r": [1.0, 1.0], "delta": [5.0, 5.0]})
+    >>> path = write_run(folder / "zz_20_s.parquet", Run(frame=frame, meta={"dt": 0.08}))
+    >>> run = read_run(path)
+    >>> run.meta, run.frame.columns.tolist()
+    ({'dt': 0.08, 'run_id': 'zz_20_s'}, ['time', 'psi', 'r', 'delta'])
+    """
     frame, meta = read_frame(path)
     for c in REQUIRED_COLUMNS:
         if c not in frame.columns:

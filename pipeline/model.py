@@ -55,6 +55,15 @@ def as_theta(params) -> np.ndarray:
     ------
     ModelError
         When a parameter is missing or the sequence does not hold 6 values.
+
+    Examples
+    --------
+    >>> as_theta(PAPER_TABLE4).tolist()
+    [-1.882, -0.1232, -7.422, -0.8129, 0.0099, 0.1657]
+    >>> as_theta([1.0, 2.0])
+    Traceback (most recent call last):
+    ...
+    pipeline.errors.ModelError: expected 6 parameters (a11 a12 a21 a22 b11 b21), got 2
     """
     if isinstance(params, dict):
         missing = [n for n in PARAM_NAMES if n not in params]
@@ -83,6 +92,13 @@ def rhs(x, delta, theta):
     -------
     numpy.ndarray
         (..., 3) = (dv/dt m/s^2, dr/dt deg/s^2, dpsi/dt deg/s).
+
+    Examples
+    --------
+    The paper's KCS (Table 4) turning at 1 deg/s with 10 deg of rudder:
+
+    >>> rhs([0.0, 1.0, 0.0], 10.0, PAPER_TABLE4).round(4).tolist()
+    [-0.0242, 0.8441, 1.0]
     """
     a11, a12, a21, a22, b11, b21 = as_theta(theta)
     x = np.asarray(x, dtype=float)
@@ -107,6 +123,12 @@ def state_matrices(theta) -> tuple[np.ndarray, np.ndarray]:
     tuple of numpy.ndarray
         A (3, 3) and B (3,), in the units that map (v m/s, r deg/s, psi deg) and delta (deg) to their
         rates.
+
+    Examples
+    --------
+    >>> A, B = state_matrices(PAPER_TABLE4)
+    >>> A[:2, :2].tolist(), B.tolist()
+    ([[-1.882, -0.1232], [-7.422, -0.8129]], [0.0099, 0.1657, 0.0])
     """
     A = np.column_stack([rhs(e, 0.0, theta) for e in np.eye(3)])
     B = rhs(np.zeros(3), 1.0, theta)
@@ -131,6 +153,11 @@ def step(x, delta, theta, h: float):
     -------
     numpy.ndarray
         The state one step later, same shape and units as ``x``.
+
+    Examples
+    --------
+    >>> step([0.0, 0.0, 0.0], 10.0, PAPER_TABLE4, 0.08).round(5).tolist()
+    [0.00792, 0.13256, 0.0]
     """
     x = np.asarray(x, dtype=float)
     return x + h * rhs(x, delta, theta)
@@ -151,6 +178,15 @@ def zoh_matrices(theta, h: float) -> tuple[np.ndarray, np.ndarray]:
     -------
     tuple of numpy.ndarray
         Ad (3, 3) and Bd (3,): x[k+1] = Ad x[k] + Bd delta[k] (x in m/s, deg/s, deg; delta deg).
+
+    Examples
+    --------
+    At a small step the exact discretisation approaches the Euler step (I + A h, B h):
+
+    >>> Ad, Bd = zoh_matrices(PAPER_TABLE4, 1e-4)
+    >>> A, B = state_matrices(PAPER_TABLE4)
+    >>> bool(np.allclose(Ad, np.eye(3) + A * 1e-4, atol=1e-7) and np.allclose(Bd, B * 1e-4, atol=1e-9))
+    True
     """
     from scipy.linalg import expm
 
@@ -181,6 +217,14 @@ def simulate_zoh(theta, x0, delta, h: float) -> np.ndarray:
     -------
     numpy.ndarray
         (N, 3) of (v, r, psi); row 0 is ``x0``, row k+1 follows from row k and delta[k].
+
+    Examples
+    --------
+    A held 10 deg rudder for 8 s: the yaw rate settles toward K delta (K 0.387 1/s, 3.87 deg/s):
+
+    >>> x = simulate_zoh(PAPER_TABLE4, [0.0, 0.0, 0.0], np.full(101, 10.0), 0.08)
+    >>> x.shape, round(float(x[-1, 1]), 2)
+    ((101, 3), 3.4)
     """
     Ad, Bd = zoh_matrices(theta, h)
     d = np.asarray(delta, dtype=float)
@@ -193,18 +237,30 @@ def simulate_zoh(theta, x0, delta, h: float) -> np.ndarray:
 
 
 def simulate(theta, x0, delta, h: float) -> np.ndarray:
-    """Free-run simulation driven by the rudder alone.
+    """Free-run simulation of the paper's discrete (Euler) model driven by the rudder alone.
 
     Parameters
     ----------
-    theta : the six parameters (mapping or sequence).
-    x0 : initial (v m/s, r deg/s, psi deg).
-    delta : rudder angle sequence, deg, length N.
-    h : step, s.
+    theta : mapping or sequence
+        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+    x0 : sequence
+        Initial (v m/s, r deg/s, psi deg).
+    delta : array
+        Rudder angle sequence, deg, length N.
+    h : float
+        Step, s.
 
     Returns
     -------
-    (N, 3) array of (v, r, psi); row 0 is ``x0``, row k+1 follows from row k and delta[k].
+    numpy.ndarray
+        (N, 3) of (v m/s, r deg/s, psi deg); row 0 is ``x0``, row k+1 follows from row k and delta[k]
+        by :func:`step`.
+
+    Examples
+    --------
+    >>> x = simulate(PAPER_TABLE4, [0.0, 0.0, 0.0], np.full(100, 10.0), 0.08)
+    >>> x.shape, x[0].tolist(), round(float(x[-1, 1]), 2)
+    ((100, 3), [0.0, 0.0, 0.0], 3.4)
     """
     A, B = state_matrices(theta)
     Ad, Bd = np.eye(3) + h * A, h * B  # the Euler step of rhs, as a matrix (exactly :func:`step`)
@@ -237,6 +293,14 @@ def nomoto_indices(params) -> dict[str, float]:
     ------
     ModelError
         When the time constants are not real and positive (D <= 0, complex roots) or K = 0.
+
+    Examples
+    --------
+    Table 4 of the paper gives back its Table 7 (K 0.3867 1/s, T1 3.9688 s, ...) to the rounding of
+    Table 4:
+
+    >>> {k: round(v, 3) for k, v in nomoto_indices(PAPER_TABLE4).items()}
+    {'K': 0.387, 'T1': 3.969, 'T2': 0.409, 'T3': 0.695, 'T': 3.683}
     """
     a11, a12, a21, a22, b11, b21 = as_theta(params)
     det = a11 * a22 - a12 * a21
