@@ -44,6 +44,12 @@ class TankConfig:
     # are read through it (v cos eps - u sin eps); the track x0, y0 is true
     heading_misalignment: float = 0.0
     hold_speed: bool = False             # True: surge speed held at approach speed (no speed loss)
+    # s, model scale, default record lengths from the execute (pipeline.tank.manoeuvres): the 20/20
+    # and 10/10 periods of this ship are about 33 s, so 150 s holds 4.5 periods (the 46.8 s
+    # identification window of 585 samples at 0.08 s, then about three periods for validation); a
+    # 35 deg turning circle turns through more than 400 deg of heading in 90 s
+    zigzag_duration: float = 150.0
+    turning_duration: float = 90.0
 
 
 @dataclass(frozen=True)

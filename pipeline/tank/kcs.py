@@ -51,6 +51,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -270,19 +271,51 @@ def _servo_effects(d_in, lag_state, h, lag, asym, stall):
     return d_in, lag_state
 
 
-@njit(cache=True)
-def _run(p, s0, zigzag, rudder, trigger, side, n_log, substeps, h, rate, dmax,
-         delay_steps, offset, psi_noise, lag=0.0, asym=0.0, stall=0.0, release=-1):
-    """Simulate a manoeuvre; returns (n_log, 7): u, v, r, x0, y0, psi, servo rudder (SI, rad).
+class Grid(NamedTuple):
+    """The time grid of :func:`_run`."""
 
-    Row k is the state at t = k * substeps * h.  The rudder command is decided at each logging
-    instant from the MEASURED heading psi + psi_noise[k] (zigzag: counter-rudder when the measured
-    heading reaches +-trigger; otherwise a constant command side * rudder, returned to 0 from logging
-    row ``release`` on when release >= 0: a pull-out).  The servo moves toward
-    the command at ``rate`` (rad/s) within +-dmax; the force model sees the servo angle
-    ``delay_steps`` integration steps earlier, through :func:`_servo_effects` (``lag`` s, ``asym``,
-    ``stall`` rad), plus ``offset``.
+    n_log: int            # logged rows
+    substeps: int         # integration steps per logging step
+    h: float              # s, integration step
+
+
+class Command(NamedTuple):
+    """What the helm asks of :func:`_run` (angles in rad)."""
+
+    zigzag: bool          # True: counter-rudder when the measured heading reaches +-trigger
+    rudder: float         # rad, the rudder angle asked for
+    trigger: float        # rad, the zigzag's heading trigger
+    side: float           # +1 the first rudder to starboard, -1 to port
+    release: int = -1     # logging row from which the command is 0 (a pull-out); -1: never
+
+
+class Servo(NamedTuple):
+    """The steering gear and the rudder effects of :func:`_run` (:func:`_servo_effects`)."""
+
+    rate: float           # rad/s, rate limit
+    dmax: float           # rad, angle limit
+    delay_steps: int      # integration steps of dead time between the servo and the force model
+    offset: float         # rad, added to the effective rudder
+    lag: float = 0.0      # s, first-order lag of the effective rudder
+    asym: float = 0.0     # effective angle x (1 + asym sign(angle))
+    stall: float = 0.0    # rad, effective angle = stall tanh(angle / stall); 0 = off
+
+
+@njit(cache=True)
+def _run(p, s0, grid, command, servo, psi_noise):
+    """Simulate a manoeuvre; returns (grid.n_log, 7): u, v, r, x0, y0, psi, servo rudder (SI, rad).
+
+    Row k is the state at t = k * substeps * h (:class:`Grid`).  The rudder command is decided at
+    each logging instant from the MEASURED heading psi + psi_noise[k] (:class:`Command`: zigzag,
+    counter-rudder when the measured heading reaches +-trigger; otherwise a constant command
+    side * rudder, returned to 0 from logging row ``release`` on when release >= 0: a pull-out).  The
+    servo moves toward the command at ``rate`` (rad/s) within +-dmax; the force model sees the servo
+    angle ``delay_steps`` integration steps earlier, through :func:`_servo_effects` (``lag`` s,
+    ``asym``, ``stall`` rad), plus ``offset`` (:class:`Servo`).
     """
+    n_log, substeps, h = grid
+    zigzag, rudder, trigger, side, release = command
+    rate, dmax, delay_steps, offset, lag, asym, stall = servo
     out = np.empty((n_log, 7))
     s = s0.copy()
     delta = 0.0

@@ -12,16 +12,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from pipeline.config import TankConfig
 from pipeline.errors import InputError
 
 SIDES = ("starboard", "port")
 
-#: Default zigzag length: the 20/20 and 10/10 periods of this ship are about 33 s at model scale, so
-#: 150 s holds 4.5 periods: the 46.8 s identification window (585 samples at 0.08 s), then about
-#: three periods for validation.
-ZIGZAG_DURATION = 150.0
-#: Default turning-circle length: enough for more than 400 deg of heading at 35 deg rudder.
-TURNING_DURATION = 90.0
+#: Default record lengths, s at model scale (pipeline/config.py TankConfig says why).
+ZIGZAG_DURATION = TankConfig.zigzag_duration
+TURNING_DURATION = TankConfig.turning_duration
 
 
 def _num(x: float) -> str:

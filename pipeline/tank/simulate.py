@@ -23,7 +23,17 @@ from pipeline.config import TankConfig
 from pipeline.errors import InputError
 from pipeline.io import CANONICAL_COLUMNS, Run, atomic_path
 from pipeline.runinfo import parse_test_name
-from pipeline.tank.kcs import DEFAULT_TANK, KCSCoefficients, _run, initial_state, param_vector, trim_rps
+from pipeline.tank.kcs import (
+    DEFAULT_TANK,
+    Command,
+    Grid,
+    KCSCoefficients,
+    Servo,
+    _run,
+    initial_state,
+    param_vector,
+    trim_rps,
+)
 from pipeline.tank.manoeuvres import Manoeuvre
 from pipeline.units import deg2rad, rad2deg
 
@@ -119,12 +129,13 @@ def simulate(manoeuvre: Manoeuvre, cfg: TankConfig = DEFAULT_TANK,
     noise = {k: rng.standard_normal(n_log) * (s if cfg.noise else 0.0) for k, s in sizes.items()}
     rps = trim_rps(cfg, coeffs)
     p = param_vector(cfg, coeffs, rps)
-    out = _run(p, initial_state(cfg), manoeuvre.kind == "zigzag", deg2rad(manoeuvre.rudder_deg),
-               deg2rad(manoeuvre.heading_deg or 0.0), manoeuvre.sign, n_log, sub, h,
-               deg2rad(cfg.rudder_rate), deg2rad(cfg.rudder_max), int(round(cfg.rudder_delay / h)),
-               deg2rad(cfg.rudder_offset), deg2rad(noise["psi"]), float(cfg.rudder_lag),
-               float(cfg.rudder_asymmetry), deg2rad(cfg.rudder_stall_deg),
-               int(round(manoeuvre.pull_out_s / cfg.log_dt)) if manoeuvre.pull_out_s is not None else -1)
+    release = int(round(manoeuvre.pull_out_s / cfg.log_dt)) if manoeuvre.pull_out_s is not None else -1
+    command = Command(manoeuvre.kind == "zigzag", deg2rad(manoeuvre.rudder_deg),
+                      deg2rad(manoeuvre.heading_deg or 0.0), manoeuvre.sign, release)
+    servo = Servo(deg2rad(cfg.rudder_rate), deg2rad(cfg.rudder_max), int(round(cfg.rudder_delay / h)),
+                  deg2rad(cfg.rudder_offset), float(cfg.rudder_lag), float(cfg.rudder_asymmetry),
+                  deg2rad(cfg.rudder_stall_deg))
+    out = _run(p, initial_state(cfg), Grid(n_log, sub, h), command, servo, deg2rad(noise["psi"]))
     time = np.arange(n_log) * cfg.log_dt
     eps = deg2rad(cfg.heading_misalignment)     # 0: the readings are the ship's, bit for bit
     u_read, v_read = read_through_heading(out[:, 0], out[:, 1], eps)
