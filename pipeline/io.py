@@ -174,7 +174,29 @@ def _naming(tmp: Path, dest: Path) -> Iterator[None]:
 
 @contextlib.contextmanager
 def atomic_path(dest: str | Path, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path beside ``dest``; rename it onto ``dest`` only if the block succeeds."""
+    """Yield a temporary path beside ``dest``; rename it onto ``dest`` only if the block succeeds.
+
+    Parameters
+    ----------
+    dest : str or Path
+        The file to write; its folder is made when missing.
+    suffix : str, optional
+        The temporary's suffix (a writer that needs one, e.g. ``.parquet``).
+
+    Yields
+    ------
+    Path
+        The temporary path to write; renamed onto ``dest`` when the block ends without an
+        exception, removed when it raises (``dest`` then untouched).
+
+    Examples
+    --------
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> with atomic_path(folder / "a.txt") as tmp:
+    ...     _ = tmp.write_text("done")
+    >>> (folder / "a.txt").read_text(), sorted(p.name for p in folder.iterdir())
+    ('done', ['a.txt'])
+    """
     dest = Path(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
     clean_stale_temporaries(dest)
@@ -276,6 +298,26 @@ def atomic_dir(dest: str | Path, writer: str = "") -> Iterator[Path]:
       several commands: ingest's runs, then identify's estimates): only a set of the same writer
       counts as the previous set, so one command never removes another's files.
     - Temporaries of killed runs beside ``dest`` are removed first (:func:`clean_stale_temporaries`).
+
+    Parameters
+    ----------
+    dest : str or Path
+        The output folder.
+    writer : str
+        The command writing the set.
+
+    Yields
+    ------
+    Path
+        The temporary folder to write the set into.
+
+    Examples
+    --------
+    >>> folder = Path(tempfile.mkdtemp()) / "runs"
+    >>> with atomic_dir(folder, writer="example") as tmp:
+    ...     _ = (tmp / "a.json").write_text("{}")
+    >>> sorted(p.name for p in folder.iterdir() if not p.name.startswith("."))
+    ['a.json']
     """
     dest = Path(os.path.abspath(dest))          # '.' has no name to put a temporary beside
     dest.parent.mkdir(parents=True, exist_ok=True)

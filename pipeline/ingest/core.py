@@ -475,8 +475,33 @@ def _run_figures(frame: pd.DataFrame, config: IngestConfig) -> dict[str, Any]:
 def lowpass(x: np.ndarray, fs: float, cutoff: float, order: int) -> np.ndarray:
     """Zero-phase Butterworth low-pass (forwards and backwards), columns along axis 0.
 
-    ``fs`` and ``cutoff`` in Hz.  The magnitude response is the Butterworth one squared: -6 dB at the
-    corner, falling at 2 * order * 6 dB per octave above it.
+    The magnitude response is the Butterworth one squared: -6 dB at the corner, falling at
+    2 * order * 6 dB per octave above it.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Samples at the uniform rate ``fs``, one column per signal (axis 0 is time).
+    fs : float
+        Sampling rate, Hz.
+    cutoff : float
+        Corner frequency, Hz (below fs / 2).
+    order : int
+        Butterworth order of one pass.
+
+    Returns
+    -------
+    numpy.ndarray
+        The filtered samples, same shape and units as ``x``.
+
+    Examples
+    --------
+    A constant passes unchanged; a tone at the Nyquist frequency is removed:
+
+    >>> x = np.column_stack([np.ones(200), np.cos(np.pi * np.arange(200))])
+    >>> y = lowpass(x, 12.5, 2.5, 8)
+    >>> bool(np.max(np.abs(y[:, 0] - 1.0)) < 1e-9), bool(np.max(np.abs(y[50:150, 1])) < 1e-4)
+    (True, True)
     """
     sos = signal.butter(order, cutoff, btype="low", fs=fs, output="sos")
     x = np.asarray(x, dtype=float)
@@ -616,5 +641,23 @@ def ingest_file(path: str | Path, *, fmt: str | None = None, scale: float | None
 
 
 def with_dt(config: IngestConfig, dt: float | None) -> IngestConfig:
-    """``config`` with another output step (None keeps it)."""
+    """``config`` with another output step.
+
+    Parameters
+    ----------
+    config : IngestConfig
+        The settings.
+    dt : float, optional
+        The new step, s; None keeps ``config.dt``.
+
+    Returns
+    -------
+    IngestConfig
+        ``config`` with ``dt`` replaced.
+
+    Examples
+    --------
+    >>> with_dt(IngestConfig(), 0.1).dt, with_dt(IngestConfig(), None).dt
+    (0.1, 0.08)
+    """
     return config if dt is None else replace(config, dt=float(dt))

@@ -212,6 +212,28 @@ def detect_format(lines: list[str], file: str | Path | None = None) -> str:
 
     A delimited table whose header names a ``time`` column is read as canonical CSV, whatever the
     delimiter (comma, semicolon, tab, whitespace): :func:`parse_csv` says what is missing.
+
+    Parameters
+    ----------
+    lines : list of str
+        The file's text, line by line (decoded).
+    file : str or Path, optional
+        The file's name, for messages.
+
+    Returns
+    -------
+    str
+        'csv', 'marin' or 'hsva' (docs/contract.md#raw-formats).
+
+    Raises
+    ------
+    InputError
+        Naming the file when the content is none of the formats.
+
+    Examples
+    --------
+    >>> detect_format(["# test: zigzag 20/20 starboard", "time,psi,r,delta", "0,0,0,0"])
+    'csv'
     """
     if table_header(lines) is not None:
         return "csv"
