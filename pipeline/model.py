@@ -241,14 +241,9 @@ def simulate(theta, x0, delta, h: float) -> np.ndarray:
 
     Parameters
     ----------
-    theta : mapping or sequence
-        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
-    x0 : sequence
-        Initial (v m/s, r deg/s, psi deg).
-    delta : array
-        Rudder angle sequence, deg, length N.
-    h : float
-        Step, s.
+    theta, x0, delta, h
+        As for :func:`simulate_zoh`: the six parameters (1/s, 1/s^2), the initial (v m/s, r deg/s,
+        psi deg), the rudder sequence (deg, length N) and the step (s).
 
     Returns
     -------

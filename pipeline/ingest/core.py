@@ -627,15 +627,15 @@ def ingest_file(path: str | Path, *, fmt: str | None = None, scale: float | None
 
     Examples
     --------
+    A logger's CSV of a zigzag simulated from the paper's model, its test named by the caller:
+
     >>> import tempfile
-    >>> from pipeline.identify.synthetic import zigzag
-    >>> t, delta, _, y = zigzag(n=600, seed=1)
-    >>> rows = [f"{a:.2f},{p:.4f},{r:.4f},{d:.3f}" for a, p, r, d in zip(t, y[:, 2], y[:, 1], delta)]
+    >>> from pipeline.identify.synthetic import zigzag_run
     >>> path = Path(tempfile.mkdtemp()) / "zz_20_s.csv"
-    >>> _ = path.write_text("\\n".join(["# test: zigzag 20/20 starboard", "time,psi,r,delta", *rows]))
-    >>> run = ingest_file(path)
-    >>> run.meta["dt"], len(run.frame), run.frame.columns.tolist()
-    (0.08, 600, ['time', 'psi', 'r', 'delta'])
+    >>> zigzag_run("zz", n=600).frame[["time", "psi", "r", "delta"]].to_csv(path, index=False)
+    >>> run = ingest_file(path, test_name="zigzag 20/20 starboard")
+    >>> run.meta["dt"], len(run.frame), run.meta["kind"], run.meta["rudder_deg"]
+    (0.08, 600, 'zigzag', 20.0)
     """
     return resample(read_raw(path, fmt=fmt, scale=scale, config=config, **kwargs), config.dt, config=config)
 
