@@ -361,12 +361,25 @@ def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True
     display(HTML(styler.to_html()))
 
 
+def plain_log_ticks(fig) -> None:
+    """Label every logarithmic axis of ``fig`` with plain numbers (0.01, 0.1, 1, 10): matplotlib's
+    default log labels are mathtext, which :func:`setup` turns off, so they would print as source."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    for ax in fig.axes:
+        for axis, scale in ((ax.xaxis, ax.get_xscale()), (ax.yaxis, ax.get_yscale())):
+            if scale == "log":
+                axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+                axis.set_minor_formatter(NullFormatter())
+
+
 def show(fig, caption: str) -> None:
     """Display a figure (PNG) with a numbered caption that says what to see; closes it."""
     import matplotlib.pyplot as plt
     from IPython.display import HTML, display
 
     _FIG["n"] += 1
+    plain_log_ticks(fig)
     display(fig)
     plt.close(fig)
     display(HTML(f"<p style='margin:0 0 1.2em 0'><b>Figure {_FIG['n']}.</b> {esc(caption)}</p>"))
