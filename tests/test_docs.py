@@ -31,7 +31,8 @@ CITES = re.compile(
 
 #: files other branches are rewriting now; their citations are mapped once those branches are merged
 MAPPED_AFTER_MERGE = ("pipeline/diagnose/", "pipeline/control/", "pipeline/report/diagnosis_text.py",
-                      "notebooks/diagnosis.py", "notebooks/control.py")
+                      "notebooks/diagnosis.py", "notebooks/control.py", "pipeline/cli/diagnose.py",
+                      "docs/operations.md")
 
 #: text files of the repository (what a clone holds, not what a run writes)
 TEXT_SUFFIXES = {".py", ".md", ".toml", ".txt", ".cfg", ".ini", ".yml", ".yaml", ".sh"}
