@@ -121,6 +121,16 @@ def clean_stale_temporaries(dest: str | Path) -> list[Path]:
     between the two renames of the fallback swap is put back when ``dest`` is missing; otherwise it is
     removed.  Temporaries of the earlier naming (``.<name>.`` + 8 random characters, no process id)
     are removed too.
+
+    Parameters
+    ----------
+    dest : str or Path
+        The output file or folder whose temporaries are looked for beside it.
+
+    Returns
+    -------
+    list of Path
+        What was removed (or put back).
     """
     dest = Path(dest)
     parent = dest.parent
@@ -238,6 +248,21 @@ def set_manifest_path(dest: str | Path) -> Path:
 
     It lists the files of the last complete set written into ``dest``.  It sits beside the
     directory, not in it, so that a directory holds exactly the stage's outputs.
+
+    Parameters
+    ----------
+    dest : str or Path
+        The output folder.
+
+    Returns
+    -------
+    Path
+        The manifest's path.
+
+    Examples
+    --------
+    >>> set_manifest_path("data/processed/virtual/runs").as_posix()
+    'data/processed/virtual/.runs.set.json'
     """
     dest = Path(dest)
     return dest.parent / f".{dest.name}.set.json"

@@ -13,9 +13,9 @@ import pytest
 MODULES = {
     "pipeline.units": 4,
     "pipeline.model": 8,
-    "pipeline.io": 6,
+    "pipeline.io": 7,
     "pipeline.paper": 1,
-    "pipeline.ingest.core": 6,
+    "pipeline.ingest.core": 7,
     "pipeline.ingest.formats": 1,
     "pipeline.validate": 2,
     "pipeline.tank.simulate": 1,

@@ -367,10 +367,29 @@ def gap_note(t: np.ndarray, *, limits: IngestChecks = DEFAULT_CONFIG.checks) -> 
     samples) and the time base after it is shifted by more than half a step against the one before
     it: the stamps of ``limits.gap_window`` samples each side are fitted with one step and an offset that
     changes between them; a dropped sample moves every later stamp by a step, a jittered stamp only
-    itself.  Within
-    ``limits.gap_edge`` samples of either end the offset cannot be measured: there a step counts as a gap
-    only beyond 1.9 local steps (a stamp jittered by less than 0.45 of a step on either side of it
-    cannot make one).
+    itself.  Within ``limits.gap_edge`` samples of either end the offset cannot be measured: there a
+    step counts as a gap only beyond 1.9 local steps (a stamp jittered by less than 0.45 of a step on
+    either side of it cannot make one).
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        The time stamps, s, increasing.
+    limits : IngestChecks
+        ``gap_window`` and ``gap_edge`` (pipeline/config.py says why).
+
+    Returns
+    -------
+    str or None
+        One sentence: how many gaps, the longest (s) and where (s); None when no sample is missing.
+
+    Examples
+    --------
+    >>> t = np.arange(60) * 0.1
+    >>> gap_note(t) is None
+    True
+    >>> gap_note(np.delete(t, 30))
+    '1 gap in time (samples missing), the longest 0.2 s after 2.9 s; interpolated over by the resampling'
     """
     steps = np.diff(t)
     if steps.size < 2:
