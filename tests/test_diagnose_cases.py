@@ -84,7 +84,7 @@ def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float, t_ship: floa
     baseline 0.074 deg, the truth model itself 0.087 deg.
     """
     from pipeline.diagnose.effects import Terms
-    from pipeline.diagnose.fit import evaluate, series_from_run, set_initial_states
+    from pipeline.diagnose.fit import evaluate, series_from_run, with_initial_states
 
     terms, ratio = Terms(), False
     if kind == "rudder_offset":
@@ -97,7 +97,8 @@ def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float, t_ship: floa
         terms.speed_exponent, ratio = 1.0, True
     d = DiagnoseConfig()
     series = [series_from_run(r) for r in val_runs]
-    set_initial_states(series, d.x0_window_T * t_ship if d.x0_window_T > 0 else None, None, d.x0_box_sigma)
+    series = with_initial_states(series, d.x0_window_T * t_ship if d.x0_window_T > 0 else None, None,
+                                 d.x0_box_sigma)
     oracle = SimpleNamespace(theta=np.array(cfg.theta), terms=terms, u_ref=cfg.u0 if ratio else None)
     mae = evaluate(oracle, series)[0]["mae_psi_deg"]
     return (base_mae - mae) / base_mae, base_mae - mae

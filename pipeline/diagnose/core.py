@@ -56,10 +56,10 @@ from pipeline.diagnose.fit import (
     profile_time_params,
     reference_speed,
     series_from_run,
-    set_initial_states,
     ship_time_scale,
     sign_bound_text,
     structure_of,
+    with_initial_states,
 )
 from pipeline.diagnose.select import Fold, Search, Selection, _gain, heading_noise_deg, select
 from pipeline.errors import InputError, ModelError
@@ -303,16 +303,16 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     rates = rate_bias(tr + va + te)
     tr, va, te = (correct_rate_bias(x, rates) for x in (tr, va, te))
 
-    folds = [Fold(tr, va)]
-    if cfg.two_fold and len(tr) >= 2 and len(va) >= 2 and _exchangeable(tr, va):
-        folds.append(Fold(va, tr))
     ctx = _context(tr + va)
-    set_initial_states(
-        tr + va + te,
+    tr, va, te = (with_initial_states(
+        x,
         cfg.x0_window_T * ctx.t_ship if cfg.x0_window_T > 0 else None,
         cfg.x0_model_window_T * ctx.t_ship if cfg.x0_model_window_T > 0 else None,
         cfg.x0_box_sigma,
-    )
+    ) for x in (tr, va, te))
+    folds = [Fold(tr, va)]
+    if cfg.two_fold and len(tr) >= 2 and len(va) >= 2 and _exchangeable(tr, va):
+        folds.append(Fold(va, tr))
     noise = heading_noise_deg(va, ctx.t_ship)
     # the nested leave-one-run-out's selections do not depend on the main one: with workers, they run
     # in worker processes while this one makes the main selection (same results, any worker count)
