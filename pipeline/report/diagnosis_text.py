@@ -16,49 +16,30 @@ from typing import Any
 
 import numpy as np
 
-#: effect name -> words for the reader (SPEC section 7's catalogue; an unknown effect gets its name
-#: with spaces, so a new effect of the open catalogue still reads as words)
-EFFECT_WORDS = {
-    "rudder_offset": "rudder offset",
-    "nonlinear_yaw_damping": "nonlinear yaw damping",
-    "rudder_delay": "rudder dead time",
-    "rudder_lag": "steering-gear lag",
-    "speed_loss": "speed loss in turns",
-    "nonlinear_sway_damping": "nonlinear sway damping",
-    "sway_yaw_coupling": "sway-yaw cross terms",
-    "rudder_saturation": "rudder saturation (stall)",
-    "rudder_asymmetry": "rudder asymmetry (port/starboard)",
-    "heading_misalignment": "heading reference misalignment (a sensor effect)",
-}
-
-#: the signature an effect leaves in the residuals of a model without it: (column of the series
-#: table to put on the x axis, axis label).  "ddelta" is the rudder rate d(delta)/dt and "vr" the
-#: product v r, both derived in :func:`signature_x`.
-SIGNATURE = {
-    "rudder_offset": ("delta", "logged rudder delta (deg)"),
-    "nonlinear_yaw_damping": ("r", "measured yaw rate r (deg/s)"),
-    "rudder_delay": ("ddelta", "rudder rate d(delta)/dt (deg/s)"),
-    "rudder_lag": ("ddelta", "rudder rate d(delta)/dt (deg/s)"),
-    "speed_loss": ("u", "surge speed u (m/s)"),
-    "nonlinear_sway_damping": ("v", "measured sway speed v (m/s)"),
-    "sway_yaw_coupling": ("vr", "v r (m/s x deg/s)"),
-    "rudder_saturation": ("delta", "logged rudder delta (deg)"),
-    "rudder_asymmetry": ("delta", "logged rudder delta (deg)"),
-    "heading_misalignment": ("u", "surge speed u (m/s)"),
-}
-
-#: the residual an effect's signature is read in, where it is not the yaw rate's: (column of the series
-#: table, axis label, unit).  A sensor effect of the sway reading shows in the sway residual.
-SIGNATURE_RESIDUAL = {
-    "heading_misalignment": ("v", "v error (m/s)", "m/s"),
-}
+# Each effect's words, signature axis and residual are its own (pipeline.diagnose.effects.base.Effect:
+# label, signature_axis, signature_residual), read from the catalogue at call time.
 _R_RESIDUAL = ("r", "r error (deg/s)", "deg/s")
 
 
+def _effect(name: Any):
+    """The catalogue's effect of that name, or None (an effect this catalogue does not hold)."""
+    from pipeline.diagnose.effects import BY_NAME
+
+    return BY_NAME.get(str(name))
+
+
+def effect_words_table() -> dict[str, str]:
+    """{effect name: its words for a reader} over the catalogue (``Effect.label``)."""
+    from pipeline.diagnose.effects import CATALOGUE
+
+    return {e.name: e.reader_label() for e in CATALOGUE}
+
+
 def signature_residual(effect: str) -> tuple[str, str, str]:
-    """(series column, axis label, unit) of the held-out residual ``effect``'s signature is drawn in:
-    the yaw rate's unless :data:`SIGNATURE_RESIDUAL` says otherwise."""
-    return SIGNATURE_RESIDUAL.get(effect, _R_RESIDUAL)
+    """(series column, axis label, unit) of the held-out residual ``effect``'s signature is drawn in
+    (``Effect.signature_residual``): the yaw rate's for an effect the catalogue does not hold."""
+    e = _effect(effect)
+    return tuple(e.signature_residual) if e is not None else _R_RESIDUAL
 
 
 #: parameter-key unit suffixes of diagnosis.json -> unit text (the stage writes units only in the key
@@ -74,7 +55,8 @@ def effect_label(name: Any) -> str:
     """'nonlinear_yaw_damping' -> 'nonlinear yaw damping'; 'none' / empty -> 'none'."""
     if not name or name == "none":
         return "none"
-    return EFFECT_WORDS.get(str(name), str(name).replace("_", " "))
+    e = _effect(name)
+    return e.reader_label() if e is not None else str(name).replace("_", " ")
 
 
 def num(x: Any, digits: int = 3, unit: str = "") -> str:
@@ -272,8 +254,9 @@ def effect_words(text: Any) -> str:
     """A stage sentence with the catalogue's effect names as words: 'rudder_offset + sway_yaw_coupling'
     -> 'rudder offset + sway-yaw cross terms' (whole names only, longest first)."""
     out = str(text or "")
-    for name in sorted(EFFECT_WORDS, key=len, reverse=True):
-        out = re.sub(rf"(?<![\w]){re.escape(name)}(?![\w])", EFFECT_WORDS[name], out)
+    words = effect_words_table()
+    for name in sorted(words, key=len, reverse=True):
+        out = re.sub(rf"(?<![\w]){re.escape(name)}(?![\w])", words[name], out)
     return out
 
 
@@ -399,9 +382,11 @@ def _split_moves(name: str) -> list[str]:
 
 
 def signature_x(frame, effect: str):
-    """(x values, axis label) of ``effect``'s signature from the series table (columns time, delta,
-    r, v, u per SPEC units), or None when the columns are missing."""
-    col, lab = SIGNATURE.get(effect, ("time", "time (s)"))
+    """(x values, axis label) of ``effect``'s signature (``Effect.signature_axis``) from the series
+    table (columns time s, delta deg, r deg/s, v m/s, u m/s), or None when the columns are missing;
+    "ddelta" is the rudder rate d(delta)/dt (deg/s) and "vr" the product v r (m/s x deg/s)."""
+    e = _effect(effect)
+    col, lab = e.signature_axis if e is not None else ("time", "time (s)")
     if col == "ddelta":
         parts = [np.gradient(g["delta"].to_numpy(), g["time"].to_numpy())
                  for _, g in frame.groupby("run_id", sort=False)]
