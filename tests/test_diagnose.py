@@ -284,7 +284,7 @@ def test_two_effects_found_together_by_stepwise_selection():
     cfg = TruthConfig(seed=5, rudder_offset=2.0, n_rrr=n_rrr)
     legs = [(20, "starboard"), (10, "port"), (20, "port"), (10, "starboard")]
     runs = [zigzag_truth(a, a, s, 80.0, dc.replace(cfg, seed=cfg.seed + j)) for j, (a, s) in enumerate(legs)]
-    rep = diagnose(runs[:2], runs[2:], SELECTION_ONLY).report
+    rep = diagnose(runs[:2], runs[2:], cfg=SELECTION_ONLY).report
     assert set(rep["extended"]["effects"]) == {"rudder_offset", "nonlinear_yaw_damping"}, rep["ladder"]
     for e in ("rudder_offset", "nonlinear_yaw_damping"):
         f = next(x for x in rep["findings"] if x["effect"] == e)
@@ -353,8 +353,8 @@ def test_verdict_does_not_depend_on_the_scale_of_the_data():
 
         return dc.replace(run, frame=pd.DataFrame(g), meta={**run.meta, "dt": 0.08})
 
-    a = diagnose(runs[:2], runs[2:], SELECTION_ONLY).report
-    b = diagnose([stretch(r) for r in runs[:2]], [stretch(r) for r in runs[2:]], SELECTION_ONLY).report
+    a = diagnose(runs[:2], runs[2:], cfg=SELECTION_ONLY).report
+    b = diagnose([stretch(r) for r in runs[:2]], [stretch(r) for r in runs[2:]], cfg=SELECTION_ONLY).report
     assert a["cause"] == b["cause"] == "rudder_offset"
     assert b["settings"]["time_scale_s"] == pytest.approx(2.0 * a["settings"]["time_scale_s"], rel=0.05)
     for x, y in zip(

@@ -123,7 +123,7 @@ def test_hidden_effect_is_found(case):
     theta[4:] *= fb
     cfg, truth = _true_estimate(kind, mag, TruthConfig(theta=tuple(theta), seed=seed))
     train, val = _truth_runs(cfg)
-    rep = diagnose(train, val, SELECTION_ONLY).report
+    rep = diagnose(train, val, cfg=SELECTION_ONLY).report
     summary = {f["effect"]: (f["significant"], f["validation_gain"], f["z"]) for f in rep["findings"]}
     if kind == "none":
         assert rep["cause"] == "none", summary
@@ -192,7 +192,7 @@ def test_short_dead_time_is_found_where_the_design_shows_it():
         zigzag_truth(a, a, side, 80.0, dc.replace(cfg, seed=cfg.seed + j))
         for j, (a, side) in enumerate(CASE12_DESIGN["legs"])
     ]
-    rep = diagnose(runs[:2], runs[2:], SELECTION_ONLY).report
+    rep = diagnose(runs[:2], runs[2:], cfg=SELECTION_ONLY).report
     summary = {f["effect"]: (f["significant"], f["validation_gain_folds"]) for f in rep["findings"]}
     # the design is material: the truth's own structure at its true parameters clears both bars
     rel, cut = _oracle_gain(kind, cfg, runs[2:], rep["baseline"]["validation"]["mae_psi_deg"],

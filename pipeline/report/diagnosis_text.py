@@ -95,7 +95,7 @@ def gain_sentence(g: Any, iv: Any = None) -> str:
             + (f" (95 % interval of the cut {ivt})" if ivt else ""))
 
 
-def interval(iv: Any, percent: bool = True, digits: int = 3) -> str:
+def interval(iv: Any, *, percent: bool = True, digits: int = 3) -> str:
     """[a, b] as '[48 %, 70 %]' or '[3.9, 4.8]'; '' when there is none."""
     if not (isinstance(iv, (list, tuple)) and len(iv) == 2
             and all(isinstance(x, (int, float)) for x in iv)):
@@ -141,7 +141,7 @@ def rivals_text(f: dict) -> str:
                      for r in f.get("rivals") or [] if r.get("effect"))
 
 
-def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> tuple[str, ...]:
+def verdict(f: dict, settings: dict | None = None, *, all_tests: bool = False) -> tuple[str, ...]:
     """(verdict, reason in words) of one finding of diagnosis.json.
 
     The verdict is the first that applies, in this order: named (significant); not tried (the data
@@ -400,7 +400,7 @@ def signature_x(frame, effect: str):
     return frame[col].to_numpy(), lab
 
 
-def binned(x, y, bins: int = 15):
+def binned(x, y, *, bins: int = 15):
     """Bin centres and mean y per bin over the range of x (bins with fewer than 5 points dropped):
     the trend a residual cloud shows against a signature."""
     x, y = np.asarray(x, float), np.asarray(y, float)
@@ -478,6 +478,65 @@ def adequacy_text(dg: dict) -> str:
     return text
 
 
+#: the two modes of the honest gain (diagnosis.json ``test_runs`` given or not)
+TEST_MODE, NESTED_MODE = "test runs", "nested leave-one-run-out"
+
+
+def gain_mode(dg: dict) -> str | None:
+    """The mode the honest gain was measured in: :data:`TEST_MODE` when diagnosis.json lists test runs,
+    :data:`NESTED_MODE` otherwise; None when it holds no honest gain (``gain.mae_psi_relative_reduction``
+    absent)."""
+    g = dg.get("gain") or {}
+    if not isinstance(g.get("mae_psi_relative_reduction"), (int, float)) or isinstance(
+            g.get("mae_psi_relative_reduction"), bool):
+        return None
+    return TEST_MODE if dg.get("test_runs") else NESTED_MODE
+
+
+def honest_fits(dg: dict) -> tuple[str, str]:
+    """(the baseline, the model compared with it) of the honest gain, in words that say which fit each
+    is in the mode used: refitted on all selection runs (test runs), or fitted without the held-out run
+    (nested leave-one-run-out)."""
+    named = bool((dg.get("extended") or {}).get("effects"))
+    if gain_mode(dg) == TEST_MODE:
+        return ("the linear baseline refitted on all training and validation runs",
+                "the extended model refitted on them" if named else
+                "the model kept (that same linear baseline: no effect is named)")
+    return ("the linear baseline fitted without the held-out run",
+            "the model each selection chose without the held-out run")
+
+
+def honest_mae_text(dg: dict) -> str:
+    """'mean free-run MAE psi over the N runs no choice has seen (MODE): B deg for <baseline> -> E deg
+    for <model>', from ``gain.baseline_mae_psi_deg`` / ``gain.extended_mae_psi_deg`` (each the mean over
+    ``gain.measured_on`` of one run's MAE); "" without an honest gain."""
+    g = dg.get("gain") or {}
+    mode = gain_mode(dg)
+    if mode is None:
+        return ""
+    base, model = honest_fits(dg)
+    n = len(g.get("measured_on") or [])
+    return (f"mean free-run MAE psi over the {n} run{'s' if n != 1 else ''} no choice has seen ({mode}): "
+            f"{num(g.get('baseline_mae_psi_deg'), 4, 'deg')} for {base} -> "
+            f"{num(g.get('extended_mae_psi_deg'), 4, 'deg')} for {model}")
+
+
+def honest_gain_text(dg: dict) -> str:
+    """The honest gain in one sentence, in the mode used: who gains, by how much with its 95 % interval
+    (``gain.mae_psi_relative_reduction``, ``gain.interval_95``), and the two mean MAEs it is made of
+    (:func:`honest_mae_text`); "" without an honest gain."""
+    g = dg.get("gain") or {}
+    if gain_mode(dg) is None:
+        return ""
+    _, model = honest_fits(dg)
+    who = "the extended model" if gain_mode(dg) == TEST_MODE else "the model chosen without each run"
+    if not (dg.get("extended") or {}).get("effects") and gain_mode(dg) == TEST_MODE:
+        who = "the model kept"
+    return (f"On the runs no choice has seen, {who} "
+            f"{gain_sentence(g['mae_psi_relative_reduction'], g.get('interval_95'))} "
+            f"({honest_mae_text(dg)})")
+
+
 def headline(dg: dict) -> str:
     """The command line's one line: the cause and the honest gain with the MAEs (deg) it is computed
     from, the runs and the mode it is measured in, all from diagnosis.json's ``gain`` block (one set
@@ -485,15 +544,10 @@ def headline(dg: dict) -> str:
     over the folds (the ladder's first and last rungs), said to be chosen on those runs."""
     g = dg.get("gain") or {}
     head = f"diagnosis: cause {dg.get('cause', 'none')}"
-    if isinstance(g.get("mae_psi_relative_reduction"), (int, float)):
-        mode = "test runs" if dg.get("test_runs") else "nested leave-one-run-out"
+    if gain_mode(dg) is not None:
         ivt = interval(g.get("interval_95"))
         text = (f"{head}; honest gain {gain_text(g['mae_psi_relative_reduction'])}"
-                + (f" (95 % interval {ivt})" if ivt else "")
-                + f": mean MAE psi {num(g.get('baseline_mae_psi_deg'), 4, 'deg')} (linear baseline) -> "
-                f"{num(g.get('extended_mae_psi_deg'), 4, 'deg')} (the model "
-                + ("kept" if mode == "test runs" else "each selection chose without the run")
-                + f") on {len(g.get('measured_on') or [])} run(s) no choice has seen ({mode})")
+                + (f" (95 % interval {ivt})" if ivt else "") + f": {honest_mae_text(dg)}")
     else:
         lad = dg.get("ladder") or []
         first, last = (lad[0], lad[-1]) if lad else ({}, {})

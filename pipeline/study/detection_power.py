@@ -207,7 +207,7 @@ def run_case(params: dict, seed: int, cfg: DetectionPowerConfig) -> dict[str, An
     runs, truth_value, extra = _runs(params, seed, cfg)
     dcfg = dc.replace(DiagnoseConfig(), **cfg.diagnose)
     half = len(runs) // 2
-    rep = diagnose(runs[:half], runs[half:], dcfg).report
+    rep = diagnose(runs[:half], runs[half:], cfg=dcfg).report
     own = set(cfg.tank_own_effects) if params["plant"] == "tank" else set()
     effect = params["effect"]
     sig = sorted(f["effect"] for f in rep["findings"] if f["significant"])
