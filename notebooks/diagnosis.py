@@ -49,6 +49,7 @@ applied = particulars.particulars(data.index).get("files_scale_factor")
 scale_words = ("model scale" if applied in (None, 1, 1.0)
                else "model scale (full-scale files Froude-scaled at ingest)")
 has_gain = isinstance(gain, (int, float))
+mode = dt.gain_mode(dg)            # "test runs", "nested leave-one-run-out" or None (no honest gain)
 if cause != "none":
     head = (f"Cause: <b>{nb.esc(dt.effect_label(cause))}</b>"
             + (f" (extended model: {nb.esc(' + '.join(map(dt.effect_label, named)))})"
@@ -56,11 +57,7 @@ if cause != "none":
 else:
     head = "Cause: <b>none</b>: no effect of the catalogue brings a real, material held-out gain"
 if has_gain and (named or cause != "none"):
-    bm, em = gain_block.get("baseline_mae_psi_deg"), gain_block.get("extended_mae_psi_deg")
-    head += (f" &middot; on {len(measured_on)} run{'s' if len(measured_on) != 1 else ''} no choice has seen, "
-             f"the extended model <b>{nb.esc(dt.gain_sentence(gain, gain_block.get('interval_95')))}</b>"
-             + (f" ({nb.esc(dt.num(bm, 3))} deg to {nb.esc(dt.num(em, 3))} deg)"
-                if isinstance(bm, (int, float)) and isinstance(em, (int, float)) else ""))
+    head += f" &middot; <b>{nb.esc(dt.honest_gain_text(dg))}</b>"
 display(HTML(f"<div style='font-size:1.3em;margin:6px 0'>{head}</div>"))
 # the honest gain's own check (diagnosis.json gain.flag): said beside the number it qualifies
 if gain_block.get("flag"):
@@ -138,10 +135,12 @@ lrows = dt.ladder_rows(dg)
 if lrows:
     lad = pd.DataFrame(lrows).set_index("step")
     nb.table(lad, "The model ladder, in the order it was climbed (step 0 = the linear baseline): free-run "
-             "MAE of psi on the validation runs (which chose each step; mean over folds) and on the test "
-             "runs (which no choice has seen) with its 95 % bootstrap interval over blocks."
-             + ("" if any(r["test MAE psi (deg)"] is not None for r in lrows) else
-                " Without test runs the stage measures the honest gain by nested leave-one-run-out, "
+             "MAE of psi on the validation runs (which chose each step; each fold's fit on its own "
+             "validation runs, mean over the folds)"
+             + (" and on the test runs (which no choice has seen; each step refitted on all training and "
+                "validation runs, mean over the test runs) with the 95 % bootstrap interval over blocks of "
+                "its gain over the baseline." if any(r["test MAE psi (deg)"] is not None for r in lrows) else
+                ". Without test runs the stage measures the honest gain by nested leave-one-run-out, "
                 "which has no per-step test error; see the honest gain below."))
 lad_raw = dg.get("ladder") or []
 if len(lrows) > 1:
@@ -197,24 +196,26 @@ else:
 
 # %%
 method = str(gain_block.get("method") or "")
-nested_all_none = bool(gain_block.get("nested")) and not any(n.get("effects") for n in gain_block["nested"])
-if has_gain and not named and nested_all_none:
+nested_all_none = not any(n.get("effects") for n in gain_block.get("nested") or [])
+if mode == dt.TEST_MODE and not named:
+    nb.note(f"No effect is named, so on the test runs ({', '.join(measured_on)}) the model kept is the "
+            "linear baseline itself, refitted on all training and validation runs: "
+            + dt.honest_mae_text(dg) + "." + (f" How: {method}." if method else ""))
+elif mode == dt.NESTED_MODE and not named and nested_all_none:
     nb.note(f"No nested selection chose an effect, so on the runs held out ({', '.join(measured_on)}) the "
-            "model is the linear baseline and the held-out error is unchanged."
-            + (f" How: {method}." if method else ""))
-elif has_gain and not named:
+            "model is the linear baseline fitted without each run and the held-out error is unchanged: "
+            + dt.honest_mae_text(dg) + "." + (f" How: {method}." if method else ""))
+elif mode == dt.NESTED_MODE and not named:
     # none on all the runs, yet some nested selections chose effects: the gain is theirs (gain.flag)
     nb.note("No effect is named on all the runs, so the model kept is the linear baseline; but the "
             "selection repeated without each run chose effects in some of its rounds (table below), and "
             "on the runs those rounds did not see, the model each round chose "
             + dt.gain_sentence(gain, gain_block.get("interval_95"))
-            + f" (free-run MAE of psi; measured on {', '.join(measured_on)}). That is the worth of the "
+            + f" ({dt.honest_mae_text(dg)}; measured on {', '.join(measured_on)}). That is the worth of the "
             "nested choices, not of the model kept: the verdict depends on which runs make it."
             + (f" How: {method}." if method else ""))
 elif has_gain:
-    nb.note("On the runs no choice has seen, the extended model "
-            + dt.gain_sentence(gain, gain_block.get("interval_95"))
-            + f" (free-run MAE of psi); measured on {', '.join(measured_on)}."
+    nb.note(dt.honest_gain_text(dg) + f"; measured on {', '.join(measured_on)}."
             + (f" How: {method}." if method else ""))
 else:
     nb.note("No honest gain could be measured"
@@ -223,17 +224,20 @@ per_run = gain_block.get("per_run") or []
 if per_run:
     # with test runs the extended model is the one kept, refitted on all selection runs; with nested
     # leave-one-run-out each run is predicted by the structure chosen without it
-    nested_gain = bool(gain_block.get("nested"))
-    by = ("the model chosen without that run (nested leave-one-run-out, table below)"
-          if nested_gain else "the extended model (refitted on all selection runs)")
-    col = "chosen without it, MAE psi (deg)" if nested_gain else "extended MAE psi (deg)"
-    pr = pd.DataFrame([{"run": p.get("run_id"), "baseline MAE psi (deg)": p.get("baseline_mae_psi_deg"),
+    nested_gain = mode == dt.NESTED_MODE
+    base_by, by = dt.honest_fits(dg)
+    bcol = "baseline fitted without it, MAE psi (deg)" if nested_gain else \
+        "baseline refitted on all selection runs, MAE psi (deg)"
+    col = "chosen without it, MAE psi (deg)" if nested_gain else \
+        ("extended, refitted on them, MAE psi (deg)" if named else "model kept, MAE psi (deg)")
+    pr = pd.DataFrame([{"run": p.get("run_id"), bcol: p.get("baseline_mae_psi_deg"),
                         col: p.get("extended_mae_psi_deg"), "gain": dt.gain_text(p.get("gain"))}
                        for p in per_run])
     pr["_o"] = [data.sort_key(r) for r in pr["run"]]
     pr = pr.sort_values("_o").drop(columns="_o").set_index("run")
-    nb.table(pr, "The runs the honest gain is measured on, in rudder-angle order: free-run MAE of psi of "
-             f"the baseline and of {by}, and the relative gain on each.")
+    nb.table(pr, "The runs the honest gain is measured on, in rudder-angle order: free-run MAE of psi on "
+             f"each run alone of {base_by} and of {by}, and the relative gain on each; the means of the two "
+             "MAE columns are the honest gain's two MAEs.")
 nested = gain_block.get("nested") or []
 if nested:
     nr = pd.DataFrame([{"held-out run": (n.get("measured_on") or ["?"])[0],
@@ -406,10 +410,12 @@ for rid in runs_drawn:
     pb = next((p for p in base.get("per_run") or [] if p.get("run_id") == rid), {})
     pe = next((p for p in ext.get("per_run") or [] if p.get("run_id") == rid), {})
     nb.show(fig, f"Validation run {data.run_label(rid)}: heading, yaw rate and logged rudder; the "
-            f"measurement (dark), the linear baseline (blue dashed, MAE psi "
+            f"measurement (dark), the linear baseline (blue dashed, MAE psi on this run "
             f"{dt.num(pb.get('mae_psi_deg'), 3)} deg)"
-            + (f" and the extended model (red, MAE psi {dt.num(pe.get('mae_psi_deg'), 3)} deg)"
-               if named else "")
+            + (" and the extended model (red, MAE psi on this run "
+               f"{dt.num(pe.get('mae_psi_deg'), 3)} deg)" if named else "")
+            + ", both the first fold's fits on the training runs ("
+            + ", ".join(dg.get("training_runs") or []) + ")"
             + ", free-run from the initial state estimated on the run's quiet approach"
             + (f" (each model from its best start within {settings['x0_box_sigma']:g} standard deviations of "
                "that estimate)" if settings.get("x0_box_sigma") else "")
@@ -450,7 +456,8 @@ if causes:
                         "agrees": c.get("cause") == cause} for c in causes])
     nb.table(st.set_index("selection"),
              f"Stability of the verdict: the selection repeated {len(causes)} times "
-             "(each run held out in turn, or each fold alone), in the order the stage ran them; "
+             + ("(each run held out in turn)" if mode == dt.NESTED_MODE else "(on each fold alone)")
+             + ", in the order the stage ran them; "
              f"{stab.get('folds_agreeing')} of {stab.get('total')} name the same cause.")
 
 # %% [markdown]
@@ -473,9 +480,8 @@ if named and has_gain:
         + (f" (with {', '.join(dt.effect_label(e) for e in named if e != cause)})" if len(named) > 1 else "")
         + ": on validation it cut the heading error by "
         + f"{dt.pct(gain_block.get('validation_mae_psi_relative_reduction'))}; "
-        + f"on the runs no choice has seen, adding it {dt.gain_sentence(gain, gain_block.get('interval_95'))}"
-        + f", measured on {len(measured_on)} run{'s' if len(measured_on) != 1 else ''} no choice has seen ("
-        + ", ".join(data.short_label(r) for r in measured_on) + ")"
+        + dt.honest_gain_text(dg)[0].lower() + dt.honest_gain_text(dg)[1:]
+        + " (" + ", ".join(data.short_label(r) for r in measured_on) + ")"
         + (f". Flagged: {dt.effect_words(gain_block['flag'])}." if gain_block.get("flag") else "."))
     f0 = by_eff.get(cause, {})
     if f0.get("physical"):
@@ -492,8 +498,9 @@ elif named:
                   "so its gain is not measured honestly.")
 else:
     points.append("No effect of the catalogue brings a real, material held-out gain: the linear model is "
-                  "kept" + (f" (the nested selection's held-out change: {dt.gain_text(gain)})"
-                            if has_gain else "")
+                  "kept" + ((" (the nested selections' change on the runs each did not see: "
+                             if mode == dt.NESTED_MODE else " (its change on the test runs: ")
+                            + f"{dt.gain_text(gain)}, {dt.honest_mae_text(dg)})" if has_gain else "")
                   + (f". Flagged: {dt.effect_words(gain_block['flag'])}." if gain_block.get("flag") else "."))
 if dt.adequacy_text(dg):
     points.append(dt.adequacy_text(dg))

@@ -31,11 +31,11 @@ def main() -> None:
         d = DiagnoseConfig(nested_workers=w)
         if _nested_workers(d, 4) != w:
             raise SystemExit(f"not single-threaded: {threading.active_count()} threads")
-        out[w] = _dump(diagnose(runs[:2], runs[2:], d).report)
+        out[w] = _dump(diagnose(runs[:2], runs[2:], cfg=d).report)
     # the same case with the nested leave-one-run-out switched off (DiagnoseConfig.nested_gain): the
     # report's keys that differ from the full one
     on = json.loads(out[2])
-    off = json.loads(_dump(diagnose(runs[:2], runs[2:], DiagnoseConfig(nested_gain=False)).report))
+    off = json.loads(_dump(diagnose(runs[:2], runs[2:], cfg=DiagnoseConfig(nested_gain=False)).report))
     differ = sorted(k for k in set(on) | set(off) if _dump(on.get(k)) != _dump(off.get(k)))
     print(json.dumps({"same": out[1] == out[2], "nested": len(on["gain"]["nested"]), "off_differ": differ,
                       "off_gain": off["gain"]["mae_psi_relative_reduction"],

@@ -284,7 +284,7 @@ def test_two_effects_found_together_by_stepwise_selection():
     cfg = TruthConfig(seed=5, rudder_offset=2.0, n_rrr=n_rrr)
     legs = [(20, "starboard"), (10, "port"), (20, "port"), (10, "starboard")]
     runs = [zigzag_truth(a, a, s, 80.0, dc.replace(cfg, seed=cfg.seed + j)) for j, (a, s) in enumerate(legs)]
-    rep = diagnose(runs[:2], runs[2:], SELECTION_ONLY).report
+    rep = diagnose(runs[:2], runs[2:], cfg=SELECTION_ONLY).report
     assert set(rep["extended"]["effects"]) == {"rudder_offset", "nonlinear_yaw_damping"}, rep["ladder"]
     for e in ("rudder_offset", "nonlinear_yaw_damping"):
         f = next(x for x in rep["findings"] if x["effect"] == e)
@@ -354,8 +354,8 @@ def test_verdict_does_not_depend_on_the_scale_of_the_data():
 
         return dc.replace(run, frame=pd.DataFrame(g), meta={**run.meta, "dt": 0.08})
 
-    a = diagnose(runs[:2], runs[2:], SELECTION_ONLY).report
-    b = diagnose([stretch(r) for r in runs[:2]], [stretch(r) for r in runs[2:]], SELECTION_ONLY).report
+    a = diagnose(runs[:2], runs[2:], cfg=SELECTION_ONLY).report
+    b = diagnose([stretch(r) for r in runs[:2]], [stretch(r) for r in runs[2:]], cfg=SELECTION_ONLY).report
     assert a["cause"] == b["cause"] == "rudder_offset"
     assert b["settings"]["time_scale_s"] == pytest.approx(2.0 * a["settings"]["time_scale_s"], rel=0.05)
     for x, y in zip(
@@ -990,15 +990,14 @@ def test_harm_from_the_common_start_carries_the_start_uncertainty(monkeypatch):
     the test is the block t-test alone (previous test)."""
     import pipeline.diagnose.select as sel
     from pipeline.diagnose.effects import BY_NAME, Context
-    from pipeline.diagnose.fit import Series
+    from pipeline.diagnose.fit import Series, Start
 
     t = np.arange(0.0, 200.0, 0.1)
     r_true, sd_r0, drift = 0.05, 0.05, 0.1  # deg/s, deg/s, deg per (deg/s) per s
-    runs = [Series(n, t, 5 * np.sign(np.sin(t / 10)), a * np.sin(t / 10), 0.1 * np.cos(t / 10))
-            for n, a in (("big", 20.0), ("small", 1.0))]
-    for s in runs:  # the start, one sample (no quiet approach): r0 = 0, one sd below the truth
-        s.__dict__["_x0_est"], s.__dict__["_x0_std"] = np.zeros(3), np.array([0.0, sd_r0, 0.0])
-        s.__dict__["_x0_one_sample"] = True
+    # the start, one sample (no quiet approach): r0 = 0, one sd below the truth
+    one_sample = Start(np.zeros(3), np.array([0.0, sd_r0, 0.0]), one_sample=True)
+    runs = [Series(n, t, 5 * np.sign(np.sin(t / 10)), a * np.sin(t / 10), 0.1 * np.cos(t / 10),
+                   start=one_sample) for n, a in (("big", 20.0), ("small", 1.0))]
     ctx = Context(t_ship=10.0, h=0.1, d_max=20.0, r_max=2.0, v_max=0.1)
     noise = {s.name: np.random.default_rng(j).normal(0, 1, t.size) for j, s in enumerate(runs)}
 
@@ -1056,11 +1055,11 @@ def test_harm_from_the_common_start_carries_the_start_uncertainty(monkeypatch):
     st = drifting.step([0], (), after, "nonlinear_yaw_damping", 0.01)
     assert not any("significantly worse" in w for w in st.why), st.why
     # the same start fitted over a quiet approach: its (box's) sd is not carried, the harm stays
-    runs[1].__dict__["_x0_one_sample"] = False
+    runs[1].start = dc.replace(one_sample, one_sample=False)
     assert drifting._start_sd(0, runs[1], (), after) == 0.0
     st = drifting.step([0], (), after, "nonlinear_yaw_damping", 0.01)
     assert any("significantly worse" in w and "small" in w for w in st.why), st.why
-    runs[1].__dict__["_x0_one_sample"] = True
+    runs[1].start = one_sample
     # worse by 0.5 deg whatever the start: the harm stays
     constant = Fake(before, FakeFit({"big": 1.0, "small": 3.5}, scatter=0.3))
     assert constant._start_sd(0, runs[1], (), after) == 0.0
@@ -1072,13 +1071,13 @@ def test_quiet_approach_samples_end_where_the_rudder_first_moves():
     """fit.quiet_approach_samples, known answers: the samples of the window before the rudder's
     first movement above the excitation floor; 0 for a run executed at its first sample (the virtual
     tank's), the whole window for a rudder that stays put; rudder noise below the floor is no movement.
-    set_initial_states records whether the start is that one sample."""
+    with_initial_states records whether the start is that one sample."""
     from pipeline.diagnose.fit import (
         MIN_APPROACH_SAMPLES,
         MIN_RUDDER_EXCITATION_DEG,
         Series,
         quiet_approach_samples,
-        set_initial_states,
+        with_initial_states,
     )
 
     t = np.arange(0.0, 60.0, 0.1)
@@ -1092,6 +1091,6 @@ def test_quiet_approach_samples_end_where_the_rudder_first_moves():
     assert quiet_approach_samples(s_now, 10.0) == 0 < MIN_APPROACH_SAMPLES
     s_still = Series("still", t, wiggle, np.zeros_like(t), np.zeros_like(t))
     assert quiet_approach_samples(s_still, 10.0) == 101          # 10 s at 0.1 s, both ends
-    set_initial_states([s_late, s_now], 10.0)
-    assert s_late.__dict__["_x0_one_sample"] is False and s_now.__dict__["_x0_one_sample"] is True
+    s_late, s_now = with_initial_states([s_late, s_now], 10.0)
+    assert s_late.start.one_sample is False and s_now.start.one_sample is True
     assert np.array_equal(s_now.x0, s_now.first_state())

@@ -9,7 +9,7 @@ from pipeline import tank
 from pipeline.config import DiagnoseConfig, TankConfig
 from pipeline.diagnose.core import _adequacy, _context, residual_structure
 from pipeline.diagnose.effects import Context
-from pipeline.diagnose.fit import evaluate, series_from_run, set_initial_states
+from pipeline.diagnose.fit import evaluate, series_from_run, with_initial_states
 from pipeline.diagnose.select import Fold, Search, heading_noise_deg
 
 
@@ -17,8 +17,8 @@ def _search(train, validate, **cfg_kw) -> Search:
     tr = [series_from_run(tank.simulate(m, TankConfig())) for m in train]
     va = [series_from_run(tank.simulate(m, TankConfig())) for m in validate]
     ctx, cfg = _context(tr + va), DiagnoseConfig(**cfg_kw)
-    set_initial_states(tr + va, cfg.x0_window_T * ctx.t_ship, cfg.x0_model_window_T * ctx.t_ship,
-                       cfg.x0_box_sigma)
+    tr, va = (with_initial_states(x, cfg.x0_window_T * ctx.t_ship, cfg.x0_model_window_T * ctx.t_ship,
+                                  cfg.x0_box_sigma) for x in (tr, va))
     return Search([Fold(tr, va), Fold(va, tr)], ctx, cfg)
 
 

@@ -84,7 +84,7 @@ def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float, t_ship: floa
     baseline 0.074 deg, the truth model itself 0.087 deg.
     """
     from pipeline.diagnose.effects import Terms
-    from pipeline.diagnose.fit import evaluate, series_from_run, set_initial_states
+    from pipeline.diagnose.fit import evaluate, series_from_run, with_initial_states
 
     terms, ratio = Terms(), False
     if kind == "rudder_offset":
@@ -97,7 +97,8 @@ def _oracle_gain(kind, cfg: TruthConfig, val_runs, base_mae: float, t_ship: floa
         terms.speed_exponent, ratio = 1.0, True
     d = DiagnoseConfig()
     series = [series_from_run(r) for r in val_runs]
-    set_initial_states(series, d.x0_window_T * t_ship if d.x0_window_T > 0 else None, None, d.x0_box_sigma)
+    series = with_initial_states(series, d.x0_window_T * t_ship if d.x0_window_T > 0 else None, None,
+                                 d.x0_box_sigma)
     oracle = SimpleNamespace(theta=np.array(cfg.theta), terms=terms, u_ref=cfg.u0 if ratio else None)
     mae = evaluate(oracle, series)[0]["mae_psi_deg"]
     return (base_mae - mae) / base_mae, base_mae - mae
@@ -122,7 +123,7 @@ def test_hidden_effect_is_found(case):
     theta[4:] *= fb
     cfg, truth = _true_estimate(kind, mag, TruthConfig(theta=tuple(theta), seed=seed))
     train, val = _truth_runs(cfg)
-    rep = diagnose(train, val, SELECTION_ONLY).report
+    rep = diagnose(train, val, cfg=SELECTION_ONLY).report
     summary = {f["effect"]: (f["significant"], f["validation_gain"], f["z"]) for f in rep["findings"]}
     if kind == "none":
         assert rep["cause"] == "none", summary
@@ -191,7 +192,7 @@ def test_short_dead_time_is_found_where_the_design_shows_it():
         zigzag_truth(a, a, side, 80.0, dc.replace(cfg, seed=cfg.seed + j))
         for j, (a, side) in enumerate(CASE12_DESIGN["legs"])
     ]
-    rep = diagnose(runs[:2], runs[2:], SELECTION_ONLY).report
+    rep = diagnose(runs[:2], runs[2:], cfg=SELECTION_ONLY).report
     summary = {f["effect"]: (f["significant"], f["validation_gain_folds"]) for f in rep["findings"]}
     # the design is material: the truth's own structure at its true parameters clears both bars
     rel, cut = _oracle_gain(kind, cfg, runs[2:], rep["baseline"]["validation"]["mae_psi_deg"],

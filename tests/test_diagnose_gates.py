@@ -26,7 +26,7 @@ def _report(offset_deg: float) -> dict:
         legs = [(20, "starboard"), (10, "port"), (20, "port"), (10, "starboard")]
         runs = [zigzag_truth(a, a, side, 80.0, dc.replace(cfg, seed=cfg.seed + j))
                 for j, (a, side) in enumerate(legs)]
-        _CACHE[offset_deg] = diagnose(runs[:2], runs[2:], SELECTION_ONLY).report
+        _CACHE[offset_deg] = diagnose(runs[:2], runs[2:], cfg=SELECTION_ONLY).report
     return _CACHE[offset_deg]
 
 

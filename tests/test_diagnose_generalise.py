@@ -932,14 +932,14 @@ def test_tanker_linear_baseline_recovers_the_course_unstable_truth(tk_root):
     (pipeline.diagnose.fit._fit_from): a11 -0.26, a22 -0.20 (training MAE psi 1.72 deg against the
     truth's 0.07), and the diagnosis named two damping terms on this linear hull."""
     from pipeline.diagnose.core import _context
-    from pipeline.diagnose.fit import fit_structure, is_stable, series_from_run, set_initial_states
+    from pipeline.diagnose.fit import fit_structure, is_stable, series_from_run, with_initial_states
 
     files = write_tanker(tk_root / "recover2000", "linear", 2000)
     runs = [load(files[(a, "starboard")], scale=TK_SCALE) for a in (20, 10)]
     series = [series_from_run(r) for r in runs]
     ctx = _context(series)
     cfg = DiagnoseConfig()
-    set_initial_states(series, cfg.x0_window_T * ctx.t_ship, None, cfg.x0_box_sigma)
+    series = with_initial_states(series, cfg.x0_window_T * ctx.t_ship, None, cfg.x0_box_sigma)
     fit = fit_structure(series, (), ctx)
     J, b, _ = tk._linear(tk.Tanker(form="linear"))
     q, rad = math.sqrt(TK_SCALE), math.pi / 180.0
@@ -1162,7 +1162,7 @@ def test_a_step_that_hinges_on_one_training_run_is_found(tk_root):
     from threadpoolctl import threadpool_limits
 
     from pipeline.diagnose import core
-    from pipeline.diagnose.fit import series_from_run, set_initial_states, structure_of
+    from pipeline.diagnose.fit import series_from_run, structure_of, with_initial_states
     from pipeline.diagnose.select import Fold, Search, heading_noise_deg
 
     folder = tk_root / "hinge"
@@ -1176,9 +1176,9 @@ def test_a_step_that_hinges_on_one_training_run_is_found(tk_root):
         p = write_marin(f, folder / f"z{a}_{h}_{side[0].upper()}.dat", marin_test_name("Tanker", a, h))
         series.append(series_from_run(load(p, scale=TK_SCALE)))
     cfg = DiagnoseConfig()
-    train, val = series[:3], series[3:]
     ctx = core._context(series)
-    set_initial_states(series, cfg.x0_window_T * ctx.t_ship, None, cfg.x0_box_sigma)
+    series = with_initial_states(series, cfg.x0_window_T * ctx.t_ship, None, cfg.x0_box_sigma)
+    train, val = series[:3], series[3:]
     cubic = structure_of(("nonlinear_yaw_damping", "cubic"))
     sway = structure_of(("nonlinear_sway_damping", "abs"))
     with threadpool_limits(limits=1, user_api="blas"):
@@ -1460,15 +1460,15 @@ def test_kcs_oracle_is_the_known_answer():
         evaluate,
         fit_structure,
         series_from_run,
-        set_initial_states,
         structure_of,
+        with_initial_states,
     )
     from pipeline.tank.manoeuvres import default_set
 
     runs = [series_from_run(tank.simulate(m, TankConfig())) for m in default_set()]
     ctx, cfg = _context(runs), DiagnoseConfig()
-    set_initial_states(runs, cfg.x0_window_T * ctx.t_ship, cfg.x0_model_window_T * ctx.t_ship,
-                       cfg.x0_box_sigma)
+    runs = with_initial_states(runs, cfg.x0_window_T * ctx.t_ship, cfg.x0_model_window_T * ctx.t_ship,
+                               cfg.x0_box_sigma)
     lin, ora = [], []
     for held in runs:
         tr = [s for s in runs if s is not held]

@@ -66,7 +66,7 @@ def test_an_absorbed_servo_lag_presses_the_coupling_bound_and_is_found():
     theta[:4] *= 2.0  # the fast ship of tests/test_diagnose_cases.py
     theta[4:] *= 2.0
     cfg = TruthConfig(theta=tuple(theta), seed=7, rudder_lag=0.93)
-    rep = diagnose(_runs(cfg)[:2], _runs(cfg)[2:], DiagnoseConfig(nested_gain=False)).report
+    rep = diagnose(_runs(cfg)[:2], _runs(cfg)[2:], cfg=DiagnoseConfig(nested_gain=False)).report
     assert "a21" in rep["baseline"]["at_sign_bound"], rep["baseline"]["parameters"]
     assert rep["cause"] == "rudder_lag", rep["summary"]
     est = rep["extended"]["effect_estimates"]["rudder_lag"]["estimate"]["lag_s"]

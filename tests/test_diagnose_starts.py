@@ -17,7 +17,7 @@ import test_diagnose_generalise as tg
 
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose import core
-from pipeline.diagnose.fit import series_from_run, set_initial_states, structure_of
+from pipeline.diagnose.fit import series_from_run, structure_of, with_initial_states
 from pipeline.diagnose.select import Fold, Search
 
 CASE = next(c for c in tg.CASES if c.cid == "25")
@@ -32,7 +32,7 @@ def folds(tmp_path_factory):
     va = [series_from_run(tg.load(p)) for p in paths["validate"]]
     ctx = core._context(tr + va)
     cfg = DiagnoseConfig()
-    set_initial_states(tr + va, cfg.x0_window_T * ctx.t_ship, None)
+    tr, va = (with_initial_states(x, cfg.x0_window_T * ctx.t_ship, None) for x in (tr, va))
     return [Fold(tr, va), Fold(va, tr)], ctx
 
 
@@ -91,7 +91,7 @@ def _train_series(cid, tmp):
     tr = [series_from_run(tg.load(p)) for p in paths["train"]]
     va = [series_from_run(tg.load(p)) for p in paths["validate"]]
     ctx = core._context(tr + va)
-    set_initial_states(tr + va, DiagnoseConfig().x0_window_T * ctx.t_ship, None)
+    tr, va = (with_initial_states(x, DiagnoseConfig().x0_window_T * ctx.t_ship, None) for x in (tr, va))
     return case, tr, ctx
 
 

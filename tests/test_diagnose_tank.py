@@ -252,7 +252,7 @@ def _diagnosis(**kw):
     if key not in _CACHE:
         coeffs = _symmetric()
         cfg = dc.replace(TankConfig(), **{"hold_speed": True, **kw})
-        _FULL[key] = diagnose(*_runs(cfg, coeffs), SELECTION_ONLY)
+        _FULL[key] = diagnose(*_runs(cfg, coeffs), cfg=SELECTION_ONLY)
         _CACHE[key] = _FULL[key].report
     return _CACHE[key]
 
@@ -345,7 +345,7 @@ def test_default_kcs_claims_no_dead_time_or_speed():
     +27 %, and worsens it on the other, -7 %, and offset + cubic damping worsen both, so the diagnosis
     names none; on 20/20 zigzags alone an offset of -0.99 deg passes.)"""
     cfg = dc.replace(TankConfig(), hold_speed=True)
-    rep = diagnose(*_runs(cfg, None), SELECTION_ONLY).report
+    rep = diagnose(*_runs(cfg, None), cfg=SELECTION_ONLY).report
     sig = {f["effect"] for f in rep["findings"] if f["significant"]}
     assert not sig & {"rudder_delay", "speed_loss"}, _summary(rep)
     assert set(rep["extended"]["effects"]) <= {"rudder_offset", "rudder_asymmetry", *HULL_NL}, _summary(rep)
@@ -421,7 +421,7 @@ def _design_diagnosis(name: str, **kw):
     """The diagnosis (selection only) of design ``name`` (a module constant) with the tank's ``kw``."""
     key = (name, tuple(sorted(kw.items())))
     if key not in _DESIGN_CACHE:
-        _DESIGN_CACHE[key] = diagnose(*_design_runs(globals()[name], **kw), SELECTION_ONLY).report
+        _DESIGN_CACHE[key] = diagnose(*_design_runs(globals()[name], **kw), cfg=SELECTION_ONLY).report
     return _DESIGN_CACHE[key]
 
 
@@ -462,7 +462,7 @@ def test_tank_dead_time_oracle_is_below_the_bar(design):
                    "16 % / 50 % held-out with a 50 deg/s rudder; no exchangeable zigzag design tried clears "
                    "30 % in both folds (module docstring's table)")
 def test_tank_dead_time_is_found_with_a_fast_rudder():
-    rep = diagnose(*_design_runs(FAST, rudder_delay=0.6), SELECTION_ONLY).report
+    rep = diagnose(*_design_runs(FAST, rudder_delay=0.6), cfg=SELECTION_ONLY).report
     finding = next(f for f in rep["findings"] if f["effect"] == "rudder_delay")
     assert "rudder_delay" in rep["extended"]["effects"], _summary(rep)
     assert finding["significant"], finding["evidence"]

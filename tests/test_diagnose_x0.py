@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from truths import swayyaw as sy
 
-from pipeline.diagnose.fit import Series, initial_state, set_initial_states
+from pipeline.diagnose.fit import Series, initial_state, with_initial_states
 
 
 def _series(frame, name="run") -> Series:
@@ -107,15 +107,56 @@ def test_model_initial_state_mid_manoeuvre():
 
 
 def test_set_and_unset_initial_states():
+    """The start is a value carried by the series (fit.Start): with_initial_states returns copies that
+    carry it and leaves its inputs as they were; a copy of a series keeps its start; the start's arrays
+    cannot be written in place."""
+    import copy
+    import dataclasses
+
     truth = sy.Truth(ship=sy.FAST)
-    s = _series(sy.simulate(truth, sy.Zigzag(10, 10, duration=20.0), seed=3))
-    first = np.array([s.v[0], s.r[0], s.psi[0]])
-    assert np.array_equal(s.x0, first)
-    set_initial_states([s], 2.0)
+    raw = _series(sy.simulate(truth, sy.Zigzag(10, 10, duration=20.0), seed=3))
+    first = np.array([raw.v[0], raw.r[0], raw.psi[0]])
+    assert np.array_equal(raw.x0, first)
+    [s] = with_initial_states([raw], 2.0, 5.0, 1.5)
+    assert np.array_equal(raw.x0, first) and raw.start.est is None     # the input is left as it was
     assert not np.array_equal(s.x0, first)
     assert np.array_equal(s.x0, initial_state(s, 2.0))
-    set_initial_states([s], None)
+    assert (s.start.model_window_s, s.start.box_sigma) == (5.0, 1.5)
+    for twin in (dataclasses.replace(s), copy.copy(s), dataclasses.replace(s, name="other")):
+        assert twin.start is s.start and np.array_equal(twin.x0, s.x0)
+    with pytest.raises(ValueError):
+        s.start.est[1] = 0.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.start.box_sigma = 0.0
+    [s] = with_initial_states([s], None)
     assert np.array_equal(s.x0, first)
+
+
+def test_fit_memo_is_keyed_on_content():
+    """Within one diagnosis (fit.memoised) a fit of runs equal in content is made once, whichever
+    objects carry them; a run differing in one sample, or in its start, is fitted anew."""
+    import dataclasses
+
+    from pipeline.diagnose.core import _context
+    from pipeline.diagnose.fit import fit_structure, memoised
+
+    truth = sy.Truth(ship=sy.FAST, sensors=sy.Sensors(noise_psi=0.1, noise_r=0.05, noise_v=0.005))
+    runs = [_series(sy.simulate(truth, sy.Zigzag(a, a, side, duration=30.0), seed=11 + i), f"z{i}")
+            for i, (a, side) in enumerate(((20, "starboard"), (10, "port")))]
+    ctx = _context(runs)
+
+    @memoised
+    def fits():
+        a = fit_structure(runs, (), ctx, max_nfev=5)
+        b = fit_structure([dataclasses.replace(s) for s in runs], (), ctx, max_nfev=5)
+        psi = runs[1].psi.copy()
+        psi[-1] += 1e-3
+        c = fit_structure([runs[0], dataclasses.replace(runs[1], psi=psi)], (), ctx, max_nfev=5)
+        d = fit_structure(with_initial_states(runs, 2.0), (), ctx, max_nfev=5)
+        return a, b, c, d
+
+    a, b, c, d = fits()
+    assert b is a and c is not a and d is not a
 
 
 @pytest.mark.parametrize("phi, cover_lo", [(0.0, 0.80), (0.95, 0.80)])
@@ -148,7 +189,7 @@ def test_boxed_start_stays_in_its_box():
     ctx = _context(train)
     fit = fit_structure(train, (), ctx)
     s, _ = _approach("slow", 0.95, 3, 1.0)
-    set_initial_states([s], 0.25 * ctx.t_ship)
+    [s] = with_initial_states([s], 0.25 * ctx.t_ship)
     hw = np.array([0.004, 0.05, 0.0])
     x = boxed_initial_state(fit, s, hw)
     assert x[2] == s.x0[2]

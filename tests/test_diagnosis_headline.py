@@ -25,14 +25,21 @@ def _dg(test_runs: list, gain: float | None, flag_inadequate: bool = False) -> d
 
 def test_headline_says_the_mode_and_the_honest_numbers():
     """Nested mode: the gain, its own interval and the two mean MAEs it is made of (not fold 0's
-    validation MAEs), 'nested leave-one-run-out'; test-run mode says 'test runs'; without an honest gain
-    the pooled validation MAEs of the ladder, said to be chosen on those runs."""
+    validation MAEs), each saying which runs and which fit it is over, 'nested leave-one-run-out';
+    test-run mode says 'test runs' and the refitted models (the model kept is the baseline when no effect
+    is named); without an honest gain the pooled validation MAEs of the ladder, said to be chosen on
+    those runs."""
     nested = dt.headline(_dg([], 0.58))
     assert "honest gain +58 % (95 % interval [55 %, 68 %])" in nested
-    assert "12.46 deg (linear baseline) -> 5.2 deg" in nested and "nested leave-one-run-out" in nested
-    assert "12.8" not in nested and "on 3 run(s)" in nested
+    assert ("mean free-run MAE psi over the 3 runs no choice has seen (nested leave-one-run-out): 12.46 deg "
+            "for the linear baseline fitted without the held-out run -> 5.2 deg for the model each selection "
+            "chose without the held-out run") in nested
+    assert "12.8" not in nested
     test = dt.headline(_dg(["x"], 0.58))
-    assert "(test runs)" in test and "the model kept" in test
+    assert "(test runs): 12.46 deg for the linear baseline refitted on all training and validation runs -> " \
+           "5.2 deg for the extended model refitted on them" in test
+    kept = {**_dg(["x"], 0.0), "extended": {"effects": []}}
+    assert "for the model kept (that same linear baseline: no effect is named)" in dt.headline(kept)
     none = dt.headline({**_dg([], None), "gain": {"mae_psi_relative_reduction": None}})
     assert "validation MAE psi 4.9 deg -> 2.1 deg (mean over the folds; chosen on these runs" in none
     assert "inadequate" in dt.headline(_dg([], 0.58, flag_inadequate=True))

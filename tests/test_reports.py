@@ -365,7 +365,7 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
                                   "extended_mae_psi_deg": 10.0 * (1 - n["gain"]), "gain": n["gain"]}
                                  for n in nested])
     none["gain"]["flag"] = _gain_flag(none["gain"], [])
-    none.update(cause="none", ladder=none["ladder"][:1])
+    none.update(cause="none", ladder=none["ladder"][:1], test_runs=[])   # nested mode: no test runs
     none["extended"].update(effects=[], effect_estimates={})
     for f in none["findings"]:
         f["significant"] = False

@@ -71,7 +71,7 @@ def run(quick: bool = False) -> list[dict]:
         },
     ]
     t0 = time.perf_counter()
-    alone = diagnose(runs[:2], runs[2:], DiagnoseConfig(nested_workers=1)).report
+    alone = diagnose(runs[:2], runs[2:], cfg=DiagnoseConfig(nested_workers=1)).report
     sec1 = time.perf_counter() - t0
     out += [
         {

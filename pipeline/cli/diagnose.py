@@ -376,7 +376,7 @@ def run(args: argparse.Namespace) -> int:
     from pipeline.diagnose import diagnose
     from pipeline.diagnose.output import write_outputs
 
-    diag = diagnose(train, val, cfg, progress=True, test=test)
+    diag = diagnose(train, val, cfg=cfg, progress=True, test=test)
     diag.report["runs_not_used"] = not_used
     path = write_outputs(diag, out, plots=not args.no_plots)
     rep = diag.report

@@ -56,10 +56,10 @@ from pipeline.diagnose.fit import (
     profile_time_params,
     reference_speed,
     series_from_run,
-    set_initial_states,
     ship_time_scale,
     sign_bound_text,
     structure_of,
+    with_initial_states,
 )
 from pipeline.diagnose.select import Fold, Search, Selection, _gain, heading_noise_deg, select
 from pipeline.errors import InputError, ModelError
@@ -67,6 +67,31 @@ from pipeline.io import Run
 from pipeline.lifeline import die_with_parent
 from pipeline.model import PARAM_NAMES
 from pipeline.progress import bar as progress_bar
+
+
+@dataclass(frozen=True)
+class _Design:
+    """What one diagnosis selects and reports on, carried together: the folds (training and validation
+    series; the first is the reported one), the test series (none: the honest gain by nested
+    leave-one-run-out), the ship's context, the settings, and the heading noise floor ``noise`` (deg)."""
+
+    folds: list[Fold]
+    te: list[Series]
+    ctx: Context
+    cfg: DiagnoseConfig
+    noise: float
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """What the selection decided, for the report: the search (every fit made), the selection on all
+    folds, the selection of each fold alone (with test runs and two folds; else empty) and the honest
+    gain (:func:`_honest_gain`)."""
+
+    search: Search
+    sel: Selection
+    per_fold: list[Selection]
+    honest: dict
 
 
 @dataclass
@@ -208,19 +233,26 @@ def residual_structure(fit: FitResult, series: list[Series], per: list[dict], ct
 # ---------------------------------------------------------------- honest gain
 
 
-def _block_maes(series: list[Series], per: list[dict], block_s: float) -> list[float]:
+def _block_maes(series: list[Series], per: list[dict], block_s: float) -> list[tuple[float, int]]:
+    """(share of its run's MAE psi (deg), samples) per time block of ``block_s`` seconds of every run:
+    the block's absolute heading error summed and divided by its run's sample count, so that a run's
+    blocks add up to its MAE and all blocks to the sum of the runs' MAEs (every run weighs alike, as in
+    the point gain of :func:`_pair_gain`)."""
     out = []
     for s, p in zip(series, per, strict=True):
         e = np.abs(p["sim"][:, 2] - s.psi)
         blk = np.floor((s.t - s.t[0]) / block_s).astype(int)
         for b in np.unique(blk):
             m = blk == b
-            out.append((float(e[m].sum()), int(m.sum())))
+            out.append((float(e[m].sum()) / s.t.size, int(m.sum())))
     return out
 
 
 def _interval(base_blocks, ext_blocks, cfg: DiagnoseConfig) -> list[float] | None:
-    """95 % percentile interval of the relative MAE reduction, bootstrap over blocks (seeded)."""
+    """95 % percentile interval of the relative MAE reduction, bootstrap over blocks (seeded).  The
+    statistic resampled is the point gain's own, 1 - sum(extended) / sum(baseline) over the blocks of
+    :func:`_block_maes` (on all blocks: 1 - mean extended MAE / mean baseline MAE), so the interval is
+    that of the reported point value (docs/diagnosis.md, "diagnosis.json")."""
     if len(base_blocks) < 3:
         return None
     b = np.array([x[0] for x in base_blocks])
@@ -266,6 +298,7 @@ def _per_run(series, pb, pe) -> list[dict]:
 def diagnose(
     train: list[Run],
     validate: list[Run],
+    *,
     cfg: DiagnoseConfig | None = None,
     progress: bool = False,
     test: list[Run] | None = None,
@@ -303,22 +336,23 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     rates = rate_bias(tr + va + te)
     tr, va, te = (correct_rate_bias(x, rates) for x in (tr, va, te))
 
-    folds = [Fold(tr, va)]
-    if cfg.two_fold and len(tr) >= 2 and len(va) >= 2 and _exchangeable(tr, va):
-        folds.append(Fold(va, tr))
     ctx = _context(tr + va)
-    set_initial_states(
-        tr + va + te,
+    tr, va, te = (with_initial_states(
+        x,
         cfg.x0_window_T * ctx.t_ship if cfg.x0_window_T > 0 else None,
         cfg.x0_model_window_T * ctx.t_ship if cfg.x0_model_window_T > 0 else None,
         cfg.x0_box_sigma,
-    )
+    ) for x in (tr, va, te))
+    folds = [Fold(tr, va)]
+    if cfg.two_fold and len(tr) >= 2 and len(va) >= 2 and _exchangeable(tr, va):
+        folds.append(Fold(va, tr))
     noise = heading_noise_deg(va, ctx.t_ship)
     # the nested leave-one-run-out's selections do not depend on the main one: with workers, they run
     # in worker processes while this one makes the main selection (same results, any worker count)
     workers = 1 if te or not cfg.nested_gain else _nested_workers(cfg, len(tr) + len(va))
+    design = _Design(folds, te, ctx, cfg, noise)
     with _nested_in_workers(folds, ctx, cfg, noise, workers) as futures:
-        return _select_and_report(train, validate, test, cfg, progress, folds, te, ctx, noise, futures, rates)
+        return _select_and_report(design, train + validate + test, rates, progress=progress, futures=futures)
 
 
 @contextlib.contextmanager
@@ -340,9 +374,12 @@ def _nested_in_workers(folds, ctx, cfg, noise, workers: int):
                 f.cancel()
 
 
-def _select_and_report(
-    train, validate, test, cfg, progress, folds, te, ctx, noise, futures, rates
-) -> Diagnosis:
+def _select_and_report(design: _Design, runs: list[Run], rates: dict, *, progress: bool,
+                       futures) -> Diagnosis:
+    """The selection on ``design``, the honest gain (from the nested ``futures`` when the workers made
+    them) and the report; ``runs``: every run given (Run objects, for provenance), ``rates``: the rate
+    gyro check (pipeline.diagnose.datacheck)."""
+    folds, te, ctx, cfg, noise = design.folds, design.te, design.ctx, design.cfg, design.noise
     # one bar over the whole stage (on a terminal only: pipeline.progress.bar): the main selection's
     # fits, then each held-out run of the nested leave-one-run-out as it finishes
     bar = progress_bar(desc="diagnose: fits", leave=False, progress=progress)
@@ -356,13 +393,11 @@ def _select_and_report(
         for _ in concurrent.futures.as_completed(futures):
             bar.update(1)
         nested = [f.result() for f in futures]
-    honest = _honest_gain(search, sel, folds, te, ctx, cfg, noise, nested, tick=lambda: bar.update(1))
+    honest = _honest_gain(design, search, sel, nested_results=nested, tick=lambda: bar.update(1))
     # stability: each fold alone (with --test runs; otherwise the leave-one-run-out selections are the folds)
     per_fold = [select(search, [k], noise) for k in ks] if te and len(folds) > 1 else []
     bar.close()
-    report, base, ext, series = _report(
-        search, sel, per_fold, honest, folds, te, ctx, cfg, noise, train + validate + test, rates
-    )
+    report, base, ext, series = _report(design, _Outcome(search, sel, per_fold, honest), runs, rates)
     return Diagnosis(
         report=report,
         series=series,
@@ -501,11 +536,11 @@ def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
     return max(1, min(w, n_runs))
 
 
-def _honest_gain(search: Search, sel: Selection, folds, te, ctx, cfg, noise, nested_results=None,
-                 tick=None) -> dict:
+def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_results=None, tick=None) -> dict:
     """The gain on runs no choice has seen, with its 95 % interval; and each rung of the ladder there.
     ``nested_results``: :func:`_nested_one` of every training and validation run, when already made
     (in worker processes); otherwise they are made here."""
+    folds, te, ctx, cfg, noise = design.folds, design.te, design.ctx, design.cfg, design.noise
     block_s = cfg.block_T * ctx.t_ship
     rungs = [st for st, _ in sel.ladder]
     if te:
@@ -773,7 +808,10 @@ def _adequacy(base_mae: float, noise: float, cfg: DiagnoseConfig, residuals: dic
             "signatures": [{"effect": e, "correlation": c} for e, c in sig]}
 
 
-def _report(search: Search, sel: Selection, per_fold, honest, folds, te, ctx, cfg, noise, runs, rates):
+def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
+    """(diagnosis.json, baseline fit, extended fit, series table) of ``outcome`` on ``design``."""
+    folds, te, ctx, cfg, noise = design.folds, design.te, design.ctx, design.cfg, design.noise
+    search, sel, per_fold, honest = outcome.search, outcome.sel, outcome.per_fold, outcome.honest
     st = sel.structure
     # the reported baseline is the linear fit of lower pooled held-out error (Search.choose_baseline);
     # with no effect named, the extended model is that baseline

@@ -11,8 +11,8 @@ course instability free):
    the optimisation cannot diverge.
 3. Output-error polishing: free run over the whole run (psi, r and, when measured, v; each channel
    divided by its measured spread; every run weighs alike), each run's start r0 (JOINT_STATES)
-   fitted jointly within the box of its estimated initial state (:func:`initial_state_with_std`, set by
-   :func:`set_initial_states`), the box the held-out evaluation gives every model
+   fitted jointly within the box of its estimated initial state (:func:`initial_state_with_std`, carried
+   by :attr:`Series.start`, :func:`with_initial_states`), the box the held-out evaluation gives every model
    (:func:`boxed_initial_state`); without a box, from the estimate (the first sample until set).
 Warm starts (a previous fit of a nested structure) go to step 3 directly; a dead time or servo lag
 new to the structure is first profiled over a grid of T_ship fractions (the cost is not convex in a
@@ -29,12 +29,14 @@ the divergence.  Dimensionless under Froude scaling, so a run at full scale give
 Speed, the same numbers bit for bit (tests/test_diagnose_speed.py, tests/test_model_definition.py):
 the forward-difference Jacobian's columns are evaluated in one numba call (:func:`oe_batch` handed to
 least_squares as its ``workers`` map; SciPy still forms steps and differences), and within one
-diagnosis a fit of the same runs, structure and start is made once (:func:`memoised`).
+diagnosis a fit of the same runs (by content), structure and start is made once (:func:`memoised`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import hashlib
 import inspect
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -53,9 +55,49 @@ from pipeline.model import PARAM_NAMES
 _U_REF_SPAN = 2.0  # s: approach speed = mean u over the first 2 s (ingest's own convention)
 
 
+@dataclass(frozen=True, eq=False)
+class Start:
+    """Where a run's free runs start, a value carried by its :class:`Series` (:func:`with_initial_states`).
+
+    Attributes
+    ----------
+    est : ndarray or None
+        Estimated initial state (v0 m/s, r0 deg/s, psi0 deg) (:func:`initial_state_with_std`); None: the
+        first sample.
+    std : ndarray or None
+        Its standard deviation (m/s, deg/s, deg).
+    one_sample : bool
+        The estimate is the first sample itself (fewer than MIN_APPROACH_SAMPLES quiet samples).
+    model_window_s : float or None
+        s: a held-out evaluation starts from :func:`model_initial_state` over this window.
+    box_sigma : float
+        Else, with a positive value, from :func:`boxed_initial_state` within this many standard
+        deviations of the estimate (dimensionless).
+    """
+
+    est: np.ndarray | None = None
+    std: np.ndarray | None = None
+    one_sample: bool = False
+    model_window_s: float | None = None
+    box_sigma: float = 0.0
+
+    def __post_init__(self):
+        for k in ("est", "std"):
+            a = getattr(self, k)
+            if a is not None:
+                a = np.array(a, dtype=float)
+                a.setflags(write=False)
+                object.__setattr__(self, k, a)
+
+
+#: the start of a series no estimate was made for: its first sample, no box
+FIRST_SAMPLE = Start()
+
+
 @dataclass
 class Series:
-    """One run prepared for fitting: uniform time (s), rudder (deg), psi (deg), r (deg/s), v, u (m/s)."""
+    """One run prepared for fitting: uniform time (s), rudder (deg), psi (deg), r (deg/s), v, u (m/s);
+    ``start``: where its free runs start (:class:`Start`)."""
 
     name: str
     t: np.ndarray
@@ -65,6 +107,9 @@ class Series:
     v: np.ndarray | None = None
     u: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
+    start: Start = FIRST_SAMPLE
+    #: cache of :meth:`u_smooth`, keyed on the content of ``u``: (digest, smoothed u m/s)
+    _u_smooth: tuple | None = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def h(self) -> float:
@@ -73,11 +118,20 @@ class Series:
     @property
     def x0(self) -> np.ndarray:
         """Initial state (v m/s, r deg/s, psi deg) every free run starts from: the estimate of
-        :func:`initial_state` once :func:`set_initial_states` has run, else the first sample."""
-        est = self.__dict__.get("_x0_est")
-        if est is not None:
-            return est
+        ``start`` (:func:`with_initial_states`) when it has one, else the first sample."""
+        if self.start.est is not None:
+            return self.start.est
         return self.first_state()
+
+    def content_key(self) -> bytes:
+        """Digest of everything a fit reads from this run (name, arrays, start): equal keys, equal fits.
+        ``meta`` is not read by a fit and is left out."""
+        h = hashlib.blake2b(self.name.encode(), digest_size=20)
+        for a in (self.t, self.delta, self.psi, self.r, self.v, self.u, self.start.est, self.start.std):
+            h.update(b"-" if a is None else np.ascontiguousarray(a, dtype=float).tobytes() + b"|")
+        st = self.start
+        h.update(repr((st.one_sample, st.model_window_s, st.box_sigma)).encode())
+        return h.digest()
 
     def first_state(self) -> np.ndarray:
         """The first sample's state (v m/s, r deg/s, psi deg); v = 0 where sway is not measured."""
@@ -90,12 +144,11 @@ class Series:
     def u_smooth(self) -> np.ndarray | None:
         if self.u is None:
             return None
-        cached = self.__dict__.get("_u_smooth")
-        if cached is None or cached.size != self.u.size:
+        key = hashlib.blake2b(np.ascontiguousarray(self.u, dtype=float).tobytes(), digest_size=16).digest()
+        if self._u_smooth is None or self._u_smooth[0] != key:
             win = _odd(int(round(1.0 / self.h)), self.u.size)
-            cached = savgol_filter(self.u, win, 2) if win >= 5 else self.u.copy()
-            self.__dict__["_u_smooth"] = cached
-        return cached
+            self._u_smooth = (key, savgol_filter(self.u, win, 2) if win >= 5 else self.u.copy())
+        return self._u_smooth[1]
 
     def approach_speed(self) -> float | None:
         if self.u is None:
@@ -225,23 +278,23 @@ def _sandwich_ls(a: np.ndarray, omega: np.ndarray) -> np.ndarray:
     return b @ a.T @ omega @ a @ b
 
 
-def set_initial_states(
+def with_initial_states(
     series: list[Series], window_s: float | None, model_window_s: float | None = None, box_sigma: float = 0.0
-) -> None:
-    """Make every free run of ``series`` start from :func:`initial_state` over ``window_s`` seconds
-    (``None``: from the first sample again); and, when ``model_window_s`` is given, every held-out
-    evaluation (:func:`evaluate`) from :func:`model_initial_state` over that many seconds; else, when
-    ``box_sigma`` > 0, from :func:`boxed_initial_state` within ``box_sigma`` standard deviations of
-    the estimate."""
+) -> list[Series]:
+    """Copies of ``series`` (the inputs are left as they are) whose :class:`Start` makes every free run
+    start from :func:`initial_state` over ``window_s`` seconds (``None``: from the first sample); and,
+    when ``model_window_s`` (s) is given, every held-out evaluation (:func:`evaluate`) from
+    :func:`model_initial_state` over that many seconds; else, when ``box_sigma`` > 0, from
+    :func:`boxed_initial_state` within ``box_sigma`` standard deviations of the estimate."""
+    out = []
     for s in series:
         if window_s is None:
-            s.__dict__["_x0_est"], s.__dict__["_x0_std"] = None, None
-            s.__dict__["_x0_one_sample"] = False
+            est, std, one = None, None, False
         else:
-            s.__dict__["_x0_est"], s.__dict__["_x0_std"] = initial_state_with_std(s, window_s)
-            s.__dict__["_x0_one_sample"] = quiet_approach_samples(s, window_s) < MIN_APPROACH_SAMPLES
-        s.__dict__["_x0_model_window"] = model_window_s
-        s.__dict__["_x0_box_sigma"] = box_sigma
+            est, std = initial_state_with_std(s, window_s)
+            one = quiet_approach_samples(s, window_s) < MIN_APPROACH_SAMPLES
+        out.append(dataclasses.replace(s, start=Start(est, std, one, model_window_s, box_sigma)))
+    return out
 
 
 def _odd(n: int, limit: int) -> int:
@@ -780,7 +833,7 @@ _TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-8}
 _TIME_GRID = (0.0, 0.03, 0.07, 0.12, 0.2)
 
 
-#: fits already made in the current :func:`memoised` call: {key: (series kept alive, result or error)}
+#: fits already made in the current :func:`memoised` call: {key: result or error}
 _MEMO: ContextVar[dict | None] = ContextVar("diagnose_fit_memo", default=None)
 
 
@@ -806,7 +859,8 @@ def plain_active() -> bool:
 
 def memoised(func):
     """Decorator: within one call of ``func`` (one diagnosis), :func:`fit_structure` of the same runs
-    (the same objects), structure, context, start (its exact parameter vector) and settings returns
+    (the same content, :meth:`Series.content_key`), structure, context, start (its exact parameter vector)
+    and settings returns
     the fit already made instead of refitting.  The fit is a deterministic function of these, so the
     result is the same bits; the nested cross-validation repeats many of the main selection's fits
     (an inner fold that trains on the same runs)."""
@@ -839,7 +893,7 @@ def fit_structure(
     if memo is None or _PLAIN.get():
         return _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds)
     key = (
-        tuple(id(s) for s in series),
+        tuple(s.content_key() for s in series),
         structure_of(*structure),
         ctx,
         None if start is None else (start.structure, tuple(start.names), start.p.tobytes()),
@@ -850,14 +904,13 @@ def fit_structure(
     hit = memo.get(key)
     if hit is None:
         try:
-            hit = (list(series),
-                   _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds))
+            hit = _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds)
         except ModelError as err:
-            hit = (list(series), err)
+            hit = err
         memo[key] = hit
-    if isinstance(hit[1], ModelError):
-        raise hit[1]
-    return hit[1]
+    if isinstance(hit, ModelError):
+        raise hit
+    return hit
 
 
 def _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds=True) -> FitResult:
@@ -1011,7 +1064,7 @@ JOINT_STATES = (1,)
 
 class _JointStarts:
     """Output-error residuals of (model parameters, each training run's start): the start of run k is
-    its estimate plus z_k times the half-width of its box (``_x0_box_sigma`` standard deviations of
+    its estimate plus z_k times the half-width of its box (``Start.box_sigma`` standard deviations of
     the estimate, :func:`boxed_initial_state`'s box), z_k in [-1, 1], for the states JOINT_STATES
     names (r0); psi0 kept, as in the held-out evaluation.  A callable for least_squares with the numba
     batch for its finite-difference columns (``workers``)."""
@@ -1021,7 +1074,7 @@ class _JointStarts:
         self.sc, self.u_ref, self.batch = sc, u_ref, batch
         self.free = []      # (run, state index, half-width)
         for k, s in enumerate(series):
-            box, sd = s.__dict__.get("_x0_box_sigma") or 0.0, s.__dict__.get("_x0_std")
+            box, sd = s.start.box_sigma or 0.0, s.start.std
             if box > 0 and sd is not None:
                 for i in JOINT_STATES:
                     if box * sd[i] > 1e-9:
@@ -1067,13 +1120,13 @@ def is_stable(theta) -> bool:
 
 def evaluate(fit: FitResult, series: list[Series]) -> tuple[dict, list[dict]]:
     """Free-run metrics on ``series``: mean over runs of MAE psi (deg), MSE r ((deg/s)^2), MSE v ((m/s)^2);
-    and per run (with the simulated arrays under ``"sim"``).  A run given a window by
-    :func:`set_initial_states` starts from :func:`model_initial_state` over it, else from ``s.x0``."""
+    and per run (with the simulated arrays under ``"sim"``).  A run whose :class:`Start` has a model
+    window starts from :func:`model_initial_state` over it, else from ``s.x0`` (within its box)."""
     per = []
     for s in series:
-        win = s.__dict__.get("_x0_model_window")
-        k = s.__dict__.get("_x0_box_sigma") or 0.0
-        sd = s.__dict__.get("_x0_std")
+        win = s.start.model_window_s
+        k = s.start.box_sigma or 0.0
+        sd = s.start.std
         if win:
             x0 = model_initial_state(fit, s, win)
         elif k > 0 and sd is not None:

@@ -537,8 +537,8 @@ class Search:
         into this test it excused the real harm of cross terms on a disturbed course-unstable ship (the
         linear Mariner with a process disturbance, seed 3000: 3.16 -> 5.11 deg, block t = -4.6, made
         -2.2 by a start sd of 0.84 deg; tests/test_diagnose_generalise.py, named falsely in both folds)."""
-        sd = s.__dict__.get("_x0_std")
-        if not s.__dict__.get("_x0_one_sample") or sd is None or not np.any(np.asarray(sd) > 0):
+        sd = s.start.std
+        if not s.start.one_sample or sd is None or not np.any(np.asarray(sd) > 0):
             return 0.0
         fb, fa = self.fit(k, before), self.fit(k, after)
         h = np.sqrt(3.0)

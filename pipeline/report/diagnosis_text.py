@@ -16,49 +16,30 @@ from typing import Any
 
 import numpy as np
 
-#: effect name -> words for the reader (SPEC section 7's catalogue; an unknown effect gets its name
-#: with spaces, so a new effect of the open catalogue still reads as words)
-EFFECT_WORDS = {
-    "rudder_offset": "rudder offset",
-    "nonlinear_yaw_damping": "nonlinear yaw damping",
-    "rudder_delay": "rudder dead time",
-    "rudder_lag": "steering-gear lag",
-    "speed_loss": "speed loss in turns",
-    "nonlinear_sway_damping": "nonlinear sway damping",
-    "sway_yaw_coupling": "sway-yaw cross terms",
-    "rudder_saturation": "rudder saturation (stall)",
-    "rudder_asymmetry": "rudder asymmetry (port/starboard)",
-    "heading_misalignment": "heading reference misalignment (a sensor effect)",
-}
-
-#: the signature an effect leaves in the residuals of a model without it: (column of the series
-#: table to put on the x axis, axis label).  "ddelta" is the rudder rate d(delta)/dt and "vr" the
-#: product v r, both derived in :func:`signature_x`.
-SIGNATURE = {
-    "rudder_offset": ("delta", "logged rudder delta (deg)"),
-    "nonlinear_yaw_damping": ("r", "measured yaw rate r (deg/s)"),
-    "rudder_delay": ("ddelta", "rudder rate d(delta)/dt (deg/s)"),
-    "rudder_lag": ("ddelta", "rudder rate d(delta)/dt (deg/s)"),
-    "speed_loss": ("u", "surge speed u (m/s)"),
-    "nonlinear_sway_damping": ("v", "measured sway speed v (m/s)"),
-    "sway_yaw_coupling": ("vr", "v r (m/s x deg/s)"),
-    "rudder_saturation": ("delta", "logged rudder delta (deg)"),
-    "rudder_asymmetry": ("delta", "logged rudder delta (deg)"),
-    "heading_misalignment": ("u", "surge speed u (m/s)"),
-}
-
-#: the residual an effect's signature is read in, where it is not the yaw rate's: (column of the series
-#: table, axis label, unit).  A sensor effect of the sway reading shows in the sway residual.
-SIGNATURE_RESIDUAL = {
-    "heading_misalignment": ("v", "v error (m/s)", "m/s"),
-}
+# Each effect's words, signature axis and residual are its own (pipeline.diagnose.effects.base.Effect:
+# label, signature_axis, signature_residual), read from the catalogue at call time.
 _R_RESIDUAL = ("r", "r error (deg/s)", "deg/s")
 
 
+def _effect(name: Any):
+    """The catalogue's effect of that name, or None (an effect this catalogue does not hold)."""
+    from pipeline.diagnose.effects import BY_NAME
+
+    return BY_NAME.get(str(name))
+
+
+def effect_words_table() -> dict[str, str]:
+    """{effect name: its words for a reader} over the catalogue (``Effect.label``)."""
+    from pipeline.diagnose.effects import CATALOGUE
+
+    return {e.name: e.reader_label() for e in CATALOGUE}
+
+
 def signature_residual(effect: str) -> tuple[str, str, str]:
-    """(series column, axis label, unit) of the held-out residual ``effect``'s signature is drawn in:
-    the yaw rate's unless :data:`SIGNATURE_RESIDUAL` says otherwise."""
-    return SIGNATURE_RESIDUAL.get(effect, _R_RESIDUAL)
+    """(series column, axis label, unit) of the held-out residual ``effect``'s signature is drawn in
+    (``Effect.signature_residual``): the yaw rate's for an effect the catalogue does not hold."""
+    e = _effect(effect)
+    return tuple(e.signature_residual) if e is not None else _R_RESIDUAL
 
 
 #: parameter-key unit suffixes of diagnosis.json -> unit text (the stage writes units only in the key
@@ -74,7 +55,8 @@ def effect_label(name: Any) -> str:
     """'nonlinear_yaw_damping' -> 'nonlinear yaw damping'; 'none' / empty -> 'none'."""
     if not name or name == "none":
         return "none"
-    return EFFECT_WORDS.get(str(name), str(name).replace("_", " "))
+    e = _effect(name)
+    return e.reader_label() if e is not None else str(name).replace("_", " ")
 
 
 def num(x: Any, digits: int = 3, unit: str = "") -> str:
@@ -113,7 +95,7 @@ def gain_sentence(g: Any, iv: Any = None) -> str:
             + (f" (95 % interval of the cut {ivt})" if ivt else ""))
 
 
-def interval(iv: Any, percent: bool = True, digits: int = 3) -> str:
+def interval(iv: Any, *, percent: bool = True, digits: int = 3) -> str:
     """[a, b] as '[48 %, 70 %]' or '[3.9, 4.8]'; '' when there is none."""
     if not (isinstance(iv, (list, tuple)) and len(iv) == 2
             and all(isinstance(x, (int, float)) for x in iv)):
@@ -159,7 +141,7 @@ def rivals_text(f: dict) -> str:
                      for r in f.get("rivals") or [] if r.get("effect"))
 
 
-def verdict(f: dict, settings: dict | None = None, all_tests: bool = False) -> tuple[str, ...]:
+def verdict(f: dict, settings: dict | None = None, *, all_tests: bool = False) -> tuple[str, ...]:
     """(verdict, reason in words) of one finding of diagnosis.json.
 
     The verdict is the first that applies, in this order: named (significant); not tried (the data
@@ -272,8 +254,9 @@ def effect_words(text: Any) -> str:
     """A stage sentence with the catalogue's effect names as words: 'rudder_offset + sway_yaw_coupling'
     -> 'rudder offset + sway-yaw cross terms' (whole names only, longest first)."""
     out = str(text or "")
-    for name in sorted(EFFECT_WORDS, key=len, reverse=True):
-        out = re.sub(rf"(?<![\w]){re.escape(name)}(?![\w])", EFFECT_WORDS[name], out)
+    words = effect_words_table()
+    for name in sorted(words, key=len, reverse=True):
+        out = re.sub(rf"(?<![\w]){re.escape(name)}(?![\w])", words[name], out)
     return out
 
 
@@ -399,9 +382,11 @@ def _split_moves(name: str) -> list[str]:
 
 
 def signature_x(frame, effect: str):
-    """(x values, axis label) of ``effect``'s signature from the series table (columns time, delta,
-    r, v, u per SPEC units), or None when the columns are missing."""
-    col, lab = SIGNATURE.get(effect, ("time", "time (s)"))
+    """(x values, axis label) of ``effect``'s signature (``Effect.signature_axis``) from the series
+    table (columns time s, delta deg, r deg/s, v m/s, u m/s), or None when the columns are missing;
+    "ddelta" is the rudder rate d(delta)/dt (deg/s) and "vr" the product v r (m/s x deg/s)."""
+    e = _effect(effect)
+    col, lab = e.signature_axis if e is not None else ("time", "time (s)")
     if col == "ddelta":
         parts = [np.gradient(g["delta"].to_numpy(), g["time"].to_numpy())
                  for _, g in frame.groupby("run_id", sort=False)]
@@ -415,7 +400,7 @@ def signature_x(frame, effect: str):
     return frame[col].to_numpy(), lab
 
 
-def binned(x, y, bins: int = 15):
+def binned(x, y, *, bins: int = 15):
     """Bin centres and mean y per bin over the range of x (bins with fewer than 5 points dropped):
     the trend a residual cloud shows against a signature."""
     x, y = np.asarray(x, float), np.asarray(y, float)
@@ -493,6 +478,65 @@ def adequacy_text(dg: dict) -> str:
     return text
 
 
+#: the two modes of the honest gain (diagnosis.json ``test_runs`` given or not)
+TEST_MODE, NESTED_MODE = "test runs", "nested leave-one-run-out"
+
+
+def gain_mode(dg: dict) -> str | None:
+    """The mode the honest gain was measured in: :data:`TEST_MODE` when diagnosis.json lists test runs,
+    :data:`NESTED_MODE` otherwise; None when it holds no honest gain (``gain.mae_psi_relative_reduction``
+    absent)."""
+    g = dg.get("gain") or {}
+    if not isinstance(g.get("mae_psi_relative_reduction"), (int, float)) or isinstance(
+            g.get("mae_psi_relative_reduction"), bool):
+        return None
+    return TEST_MODE if dg.get("test_runs") else NESTED_MODE
+
+
+def honest_fits(dg: dict) -> tuple[str, str]:
+    """(the baseline, the model compared with it) of the honest gain, in words that say which fit each
+    is in the mode used: refitted on all selection runs (test runs), or fitted without the held-out run
+    (nested leave-one-run-out)."""
+    named = bool((dg.get("extended") or {}).get("effects"))
+    if gain_mode(dg) == TEST_MODE:
+        return ("the linear baseline refitted on all training and validation runs",
+                "the extended model refitted on them" if named else
+                "the model kept (that same linear baseline: no effect is named)")
+    return ("the linear baseline fitted without the held-out run",
+            "the model each selection chose without the held-out run")
+
+
+def honest_mae_text(dg: dict) -> str:
+    """'mean free-run MAE psi over the N runs no choice has seen (MODE): B deg for <baseline> -> E deg
+    for <model>', from ``gain.baseline_mae_psi_deg`` / ``gain.extended_mae_psi_deg`` (each the mean over
+    ``gain.measured_on`` of one run's MAE); "" without an honest gain."""
+    g = dg.get("gain") or {}
+    mode = gain_mode(dg)
+    if mode is None:
+        return ""
+    base, model = honest_fits(dg)
+    n = len(g.get("measured_on") or [])
+    return (f"mean free-run MAE psi over the {n} run{'s' if n != 1 else ''} no choice has seen ({mode}): "
+            f"{num(g.get('baseline_mae_psi_deg'), 4, 'deg')} for {base} -> "
+            f"{num(g.get('extended_mae_psi_deg'), 4, 'deg')} for {model}")
+
+
+def honest_gain_text(dg: dict) -> str:
+    """The honest gain in one sentence, in the mode used: who gains, by how much with its 95 % interval
+    (``gain.mae_psi_relative_reduction``, ``gain.interval_95``), and the two mean MAEs it is made of
+    (:func:`honest_mae_text`); "" without an honest gain."""
+    g = dg.get("gain") or {}
+    if gain_mode(dg) is None:
+        return ""
+    _, model = honest_fits(dg)
+    who = "the extended model" if gain_mode(dg) == TEST_MODE else "the model chosen without each run"
+    if not (dg.get("extended") or {}).get("effects") and gain_mode(dg) == TEST_MODE:
+        who = "the model kept"
+    return (f"On the runs no choice has seen, {who} "
+            f"{gain_sentence(g['mae_psi_relative_reduction'], g.get('interval_95'))} "
+            f"({honest_mae_text(dg)})")
+
+
 def headline(dg: dict) -> str:
     """The command line's one line: the cause and the honest gain with the MAEs (deg) it is computed
     from, the runs and the mode it is measured in, all from diagnosis.json's ``gain`` block (one set
@@ -500,15 +544,10 @@ def headline(dg: dict) -> str:
     over the folds (the ladder's first and last rungs), said to be chosen on those runs."""
     g = dg.get("gain") or {}
     head = f"diagnosis: cause {dg.get('cause', 'none')}"
-    if isinstance(g.get("mae_psi_relative_reduction"), (int, float)):
-        mode = "test runs" if dg.get("test_runs") else "nested leave-one-run-out"
+    if gain_mode(dg) is not None:
         ivt = interval(g.get("interval_95"))
         text = (f"{head}; honest gain {gain_text(g['mae_psi_relative_reduction'])}"
-                + (f" (95 % interval {ivt})" if ivt else "")
-                + f": mean MAE psi {num(g.get('baseline_mae_psi_deg'), 4, 'deg')} (linear baseline) -> "
-                f"{num(g.get('extended_mae_psi_deg'), 4, 'deg')} (the model "
-                + ("kept" if mode == "test runs" else "each selection chose without the run")
-                + f") on {len(g.get('measured_on') or [])} run(s) no choice has seen ({mode})")
+                + (f" (95 % interval {ivt})" if ivt else "") + f": {honest_mae_text(dg)}")
     else:
         lad = dg.get("ladder") or []
         first, last = (lad[0], lad[-1]) if lad else ({}, {})

@@ -36,7 +36,6 @@ cases with its Clopper-Pearson interval; the estimate's bias and spread per magn
 from __future__ import annotations
 
 import dataclasses as dc
-import functools
 import html
 import math
 from pathlib import Path
@@ -46,26 +45,10 @@ import numpy as np
 import pandas as pd
 
 from pipeline.config import DetectionPowerConfig, DiagnoseConfig, TankConfig
+from pipeline.diagnose.effects.base import PLANTS
 from pipeline.errors import InputError
 from pipeline.study.kind import StudyKind
 from pipeline.study.stats import clopper_pearson, logistic_level, rng_for
-
-PLANTS = ("truth", "tank")
-#: The estimate key holding each effect's size in the same terms as the injected truth value.
-ESTIMATE_KEY = {"rudder_offset": "offset_deg", "rudder_delay": "delay_s",
-                "nonlinear_yaw_damping": "n_rrr_s_per_deg2", "speed_loss": "coefficient_loss",
-                "rudder_lag": "lag_s", "rudder_asymmetry": "asymmetry",
-                "nonlinear_sway_damping": "y_vv_per_m", "sway_yaw_coupling": "n_vvr_s_per_m2",
-                "rudder_saturation": "force_change_at_max_rudder", "heading_misalignment": "misalignment_deg"}
-MAGNITUDE_UNIT = {"rudder_offset": "deg", "rudder_delay": "s",
-                  "nonlinear_yaw_damping": "cut of the 20/20 yaw-rate amplitude",
-                  "speed_loss": "fraction of approach speed lost",
-                  "rudder_lag": "s (servo time constant)",
-                  "rudder_asymmetry": "a: rudder force x (1 + a sign(delta))",
-                  "nonlinear_sway_damping": "cut of the 20/20 sway-velocity amplitude (v|v| drag, sway only)",
-                  "sway_yaw_coupling": "cut of the 20/20 yaw-rate amplitude (v^2 r in the yaw equation)",
-                  "rudder_saturation": "rudder force lost at 20 deg (stall tanh(delta/stall) law)",
-                  "heading_misalignment": "deg the logged heading reads more than the centreline (a sensor)"}
 
 
 def catalogue_effects() -> tuple[str, ...]:
@@ -77,75 +60,25 @@ def catalogue_effects() -> tuple[str, ...]:
 
 
 # ---------------------------------------------------------------- injection
-
-#: effects whose magnitude is a setting of the same name and meaning in both plants (TruthConfig and
-#: TankConfig): the injected value is the magnitude itself, in the estimate's own terms
-DIRECT = ("rudder_offset", "rudder_delay", "rudder_lag", "rudder_asymmetry", "heading_misalignment")
+# What a plant may inject and how, the estimate key and the magnitude's unit are the effect's own
+# (pipeline.diagnose.effects.base.Effect: injection, inject, estimate_key, magnitude_unit).
 
 
-#: truth effects set through a coefficient solved from the magnitude (pipeline.diagnose.truth):
-#: effect -> (solver, TruthConfig field, True when the estimate is that coefficient, False when it is
-#: the magnitude itself)
-SOLVED = {
-    "nonlinear_yaw_damping": ("damping_for_cut", "n_rrr", True),
-    "speed_loss": ("speed_loss_for", "speed_loss_k", False),
-    "nonlinear_sway_damping": ("sway_drag_for_cut", "y_vv", True),
-    "sway_yaw_coupling": ("cross_term_for_change", "n_vvr", True),
-}
+def _effect(name: str):
+    from pipeline.diagnose.effects import BY_NAME
+
+    return BY_NAME[name]
 
 
 def _truth_inject(effect: str, mag: float, cfg):
-    """(truth config with the effect, true value in the estimate's terms)."""
-    from pipeline.diagnose.truth import stall_for_loss
-
-    if effect in DIRECT:
-        return dc.replace(cfg, **{effect: mag}), mag
-    if effect in SOLVED:
-        solver, field, is_coefficient = SOLVED[effect]
-        c = _cached_impl(solver, float(mag), tuple(sorted(dc.asdict(cfg).items())))
-        return dc.replace(cfg, **{field: c}), (c if is_coefficient else mag)
-    if effect == "rudder_saturation":
-        # the magnitude is the force lost at 20 deg (the rudder of the 20/20 design that defines every
-        # truth magnitude); the estimate is the cubic's force change at the largest logged rudder,
-        # the same quantity in other terms when the study's rudder_deg is 20
-        return dc.replace(cfg, rudder_stall_deg=stall_for_loss(mag, 20.0)), -mag
-    raise KeyError(effect)
+    """(truth config with the effect at magnitude ``mag``, true value in the estimate's terms)."""
+    return _effect(effect).inject("truth", mag, cfg)
 
 
 def _tank_inject(effect: str, mag: float, cfg: TankConfig, rudder_deg: float):
     """(tank config with the effect, true value in the estimate's terms); ``rudder_deg``: the
     largest rudder of the tank's zigzags (where the stall's estimate is read)."""
-    from pipeline.diagnose.truth import stall_for_loss, stall_loss
-
-    if effect in DIRECT:
-        return dc.replace(cfg, **{effect: mag}), mag
-    if effect == "rudder_saturation":
-        # the magnitude is the loss at 20 deg (as on the truth model); the tank's zigzags reach only
-        # rudder_deg, where the cubic's estimate is read: the loss there is the true value
-        stall = stall_for_loss(mag, 20.0)
-        return dc.replace(cfg, rudder_stall_deg=stall), -stall_loss(stall, rudder_deg)
-    raise KeyError(effect)
-
-
-#: what each plant can inject, and why not the rest
-INJECTABLE = {
-    "truth": ("rudder_offset", "rudder_delay", "nonlinear_yaw_damping", "speed_loss", "rudder_lag",
-              "rudder_asymmetry", "nonlinear_sway_damping", "sway_yaw_coupling", "rudder_saturation",
-              "heading_misalignment"),
-    "tank": ("rudder_offset", "rudder_delay", "rudder_lag", "rudder_asymmetry", "rudder_saturation",
-             "heading_misalignment"),
-}
-WHY_NOT = {
-    ("tank", "speed_loss"): "the tank's speed loss is its own (speed free or held), not a set magnitude",
-}
-
-
-@functools.lru_cache(maxsize=256)
-def _cached_impl(fn_name: str, mag: float, cfg_items: tuple) -> float:
-    from pipeline.diagnose import truth
-
-    cfg = truth.TruthConfig(**dict(cfg_items))
-    return getattr(truth, fn_name)(mag, cfg)
+    return _effect(effect).inject("tank", mag, cfg, rudder_deg)
 
 
 # ---------------------------------------------------------------- cases
@@ -204,8 +137,8 @@ def not_studied(cfg: DetectionPowerConfig) -> dict[str, dict[str, str]]:
                 why = "no magnitudes given in the spec"
             elif plant == "tank" and e in cfg.tank_own_effects:
                 why = "the KCS has this effect itself (it is part of the clean ship)"
-            elif e not in INJECTABLE[plant]:
-                why = WHY_NOT.get((plant, e), f"no injection of {e} into the {plant} plant yet")
+            elif plant not in _effect(e).injection.plants:
+                why = _effect(e).injection.reason_not(plant, e)
             else:
                 continue
             out.setdefault(plant, {})[e] = why
@@ -274,7 +207,7 @@ def run_case(params: dict, seed: int, cfg: DetectionPowerConfig) -> dict[str, An
     runs, truth_value, extra = _runs(params, seed, cfg)
     dcfg = dc.replace(DiagnoseConfig(), **cfg.diagnose)
     half = len(runs) // 2
-    rep = diagnose(runs[:half], runs[half:], dcfg).report
+    rep = diagnose(runs[:half], runs[half:], cfg=dcfg).report
     own = set(cfg.tank_own_effects) if params["plant"] == "tank" else set()
     effect = params["effect"]
     sig = sorted(f["effect"] for f in rep["findings"] if f["significant"])
@@ -288,7 +221,7 @@ def run_case(params: dict, seed: int, cfg: DetectionPowerConfig) -> dict[str, An
     }
     if effect != "none":
         f = next((f for f in rep["findings"] if f["effect"] == effect), None)
-        key = ESTIMATE_KEY.get(effect)
+        key = _effect(effect).estimate_key
         est = None
         if f is not None and f.get("estimate"):
             est = f["estimate"].get(key) if key in f["estimate"] else next(iter(f["estimate"].values()))
@@ -323,7 +256,7 @@ def summarise(frame: pd.DataFrame, cfg: DetectionPowerConfig, study_seed: int) -
     effects: dict[str, Any] = {}
     skipped = not_studied(cfg)
     for effect in _effects(cfg):
-        entry: dict[str, Any] = {"magnitude_unit": MAGNITUDE_UNIT.get(effect, "effect's own unit"),
+        entry: dict[str, Any] = {"magnitude_unit": _effect(effect).magnitude_unit,
                                  "min_detectable_90": {}, "detection": {}, "estimate": {}}
         for plant in cfg.plants:
             sub = ok[(ok["plant"] == plant) & (ok["effect"] == effect)]

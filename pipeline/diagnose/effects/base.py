@@ -18,13 +18,22 @@ An effect is a small object (one module per effect, registered in
 - ``signature``: what it leaves in the residuals of a model without it (words, and
   :meth:`Effect.signature_series` for the residual-structure table);
 - its materiality floor (:meth:`Effect.material`) with the physical reason (``floor_reason``);
-- :meth:`Effect.physical`: one sentence a naval architect would accept.
+- :meth:`Effect.physical`: one sentence a naval architect would accept;
+- how it reads and draws in the report: ``label`` (its name in words), ``signature_axis`` (the series
+  column its residual signature is drawn against) and ``signature_residual`` (the residual it shows in);
+- what the detection-power study may inject and how (``injection``, :meth:`Effect.inject`), the
+  estimate key holding its size in the injected terms (``estimate_key``) and that size's unit
+  (``magnitude_unit``).
+
+Everything about one effect lives on its object (docs/diagnosis.md, "Adding an effect").
 
 Units: v m/s, r deg/s, psi deg, delta deg, time s, u m/s (SPEC section 2).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -141,6 +150,58 @@ class Context:
     approach_drift_deg: float | None = None
 
 
+#: the plants of the detection-power study (pipeline.study.detection_power): the linear truth model
+#: (pipeline.diagnose.truth.TruthConfig) and the virtual KCS tank (pipeline.config.TankConfig)
+PLANTS = ("truth", "tank")
+
+
+@dataclass(frozen=True)
+class Injection:
+    """How the detection-power study injects an effect at a magnitude (:meth:`Effect.inject`).
+
+    Attributes
+    ----------
+    plants : tuple of str
+        The plants of :data:`PLANTS` that can take the effect.
+    direct : bool
+        The magnitude is the setting of the effect's own name in TruthConfig and TankConfig, in the
+        estimate's own terms (``Effect.estimate_key``).
+    solver : str
+        Else, on the truth plant: the function of :mod:`pipeline.diagnose.truth` that gives the
+        coefficient from the magnitude, ``solver(magnitude, cfg)``.
+    field : str
+        The TruthConfig field the solved coefficient sets.
+    estimate_is_coefficient : bool
+        The estimate is the solved coefficient itself (else the magnitude).
+    why_not : tuple of (str, str)
+        (plant, reason) for a plant that cannot take the effect.
+    """
+
+    plants: tuple[str, ...] = ()
+    direct: bool = False
+    solver: str = ""
+    field: str = ""
+    estimate_is_coefficient: bool = True
+    why_not: tuple[tuple[str, str], ...] = ()
+
+    def reason_not(self, plant: str, effect: str) -> str:
+        """Why ``plant`` cannot take the effect (its stated reason, else a plain one)."""
+        return dict(self.why_not).get(plant, f"no injection of {effect} into the {plant} plant yet")
+
+
+@functools.lru_cache(maxsize=256)
+def _solved(solver: str, magnitude: float, cfg_items: tuple) -> float:
+    from pipeline.diagnose import truth
+
+    return getattr(truth, solver)(magnitude, truth.TruthConfig(**dict(cfg_items)))
+
+
+def solved_coefficient(solver: str, magnitude: float, cfg) -> float:
+    """``pipeline.diagnose.truth.<solver>(magnitude, cfg)``, cached on the content of ``cfg`` (a solver
+    simulates the truth to meet the magnitude; a study asks the same one many times)."""
+    return _solved(solver, float(magnitude), tuple(sorted(dataclasses.asdict(cfg).items())))
+
+
 class Effect:
     """Base class; a concrete effect sets the class attributes and overrides what it needs."""
 
@@ -152,6 +213,40 @@ class Effect:
     floor_reason: str = ""  # the physical reason of the materiality floor
     needs_u: bool = False
     needs_v: bool = False  # a term in the sway velocity v: tried only where v is measured
+    #: its name in words for a reader ("" : the name with spaces)
+    label: str = ""
+    #: (series column, axis label) its residual signature is drawn against in the report: a column of
+    #: diagnosis's series table (time s, delta deg, r deg/s, v m/s, u m/s), or "ddelta" (the rudder rate
+    #: d(delta)/dt, deg/s) or "vr" (v r, m/s x deg/s), both derived by the report
+    signature_axis: tuple[str, str] = ("time", "time (s)")
+    #: (series column, axis label, unit) of the held-out residual its signature shows in
+    signature_residual: tuple[str, str, str] = ("r", "r error (deg/s)", "deg/s")
+    #: the key of its estimate holding its size in the terms the studies inject it in ("": the first)
+    estimate_key: str = ""
+    #: the unit (in words) of the magnitude the detection-power study injects
+    magnitude_unit: str = "effect's own unit"
+    #: what the detection-power study may inject, and how
+    injection: Injection = Injection()
+
+    def reader_label(self) -> str:
+        """Its name in words for a reader: ``label``, else the name with spaces."""
+        return self.label or self.name.replace("_", " ")
+
+    def inject(self, plant: str, magnitude: float, cfg, rudder_deg: float = 20.0):
+        """(``cfg`` with the effect injected at ``magnitude`` (``magnitude_unit``), its true value in the
+        terms of ``estimate_key``).  ``plant``: one of :data:`PLANTS`, ``cfg`` its config (TruthConfig or
+        TankConfig); ``rudder_deg`` (deg): the largest rudder of the plant's zigzags.  KeyError for a
+        plant that cannot take it (:attr:`Injection.plants`)."""
+        inj = self.injection
+        if plant not in inj.plants:
+            raise KeyError(f"{self.name}: {inj.reason_not(plant, self.name)}")
+        if inj.direct:
+            return dataclasses.replace(cfg, **{self.name: magnitude}), magnitude
+        if plant == "truth" and inj.solver:
+            c = solved_coefficient(inj.solver, magnitude, cfg)
+            true_value = c if inj.estimate_is_coefficient else magnitude
+            return dataclasses.replace(cfg, **{inj.field: c}), true_value
+        raise KeyError(f"{self.name}: no injection into the {plant} plant")
 
     def form(self, name: str | None = None) -> Form:
         if name is None:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 
-from pipeline.diagnose.effects.base import Context, Effect, Form, Param, Terms
+from pipeline.diagnose.effects.base import Context, Effect, Form, Injection, Param, Terms
 
 #: deg: floor of a named misalignment.  Twice the 0.1 deg to which a tank's optical tracking system
 #: or a gyro resolves heading: below it a heading reference cannot be set, nor checked, any better.
@@ -51,6 +51,12 @@ def misalignment_deg(v_bias_m_s: float, u_ref: float | None) -> float:
 
 class HeadingMisalignment(Effect):
     name = "heading_misalignment"
+    label = "heading reference misalignment (a sensor effect)"
+    signature_axis = ("u", "surge speed u (m/s)")
+    signature_residual = ("v", "v error (m/s)", "m/s")
+    estimate_key = "misalignment_deg"
+    magnitude_unit = "deg the logged heading reads more than the centreline (a sensor)"
+    injection = Injection(plants=("truth", "tank"), direct=True)
     forms = (
         Form(
             "track",

@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
-from pipeline.diagnose.effects.base import R_EQ, V_EQ, Effect, Form, Param, response_floor_text
+from pipeline.diagnose.effects.base import R_EQ, V_EQ, Effect, Form, Injection, Param, response_floor_text
 
 MIN_RESPONSE = 0.05  # as nonlinear_yaw_damping: 5 % of the largest manoeuvre's peak yaw rate
 
 
 class NonlinearSwayDamping(Effect):
     name = "nonlinear_sway_damping"
+    label = "nonlinear sway damping"
+    signature_axis = ("v", "measured sway speed v (m/s)")
+    estimate_key = "y_vv_per_m"
+    magnitude_unit = "cut of the 20/20 sway-velocity amplitude (v|v| drag, sway only)"
+    injection = Injection(plants=("truth",), solver="sway_drag_for_cut", field="y_vv")
     forms = (
         Form(
             "abs",

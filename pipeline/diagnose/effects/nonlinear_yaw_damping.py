@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pipeline.diagnose.effects.base import R_EQ, Context, Effect, Form, Param, response_floor_text
+from pipeline.diagnose.effects.base import R_EQ, Context, Effect, Form, Injection, Param, response_floor_text
 
 #: least relative change of the largest manoeuvre's peak yaw rate for the damping to be named: a
 #: turning or zigzag prediction within 5 % is what model tests are trusted to (ITTC repeatability)
@@ -11,6 +11,11 @@ MIN_RESPONSE = 0.05
 
 class NonlinearYawDamping(Effect):
     name = "nonlinear_yaw_damping"
+    label = "nonlinear yaw damping"
+    signature_axis = ("r", "measured yaw rate r (deg/s)")
+    estimate_key = "n_rrr_s_per_deg2"
+    magnitude_unit = "cut of the 20/20 yaw-rate amplitude"
+    injection = Injection(plants=("truth",), solver="damping_for_cut", field="n_rrr")
     forms = (
         Form("cubic", (Param("n_rrr_s_per_deg2", 0.0, -1.0, 1.0, 0.0, "s/deg^2", feature=(0, R_EQ)),)),
         Form("abs", (Param("n_rr_per_deg", 0.0, -2.0, 2.0, 0.0, "1/deg", feature=(1, R_EQ)),)),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.effects.base import Effect, Form, Param, Terms
+from pipeline.diagnose.effects.base import Effect, Form, Injection, Param, Terms
 
 #: floor: the two sides' effectiveness differs by >= 6 % (asymmetry >= 3 %), twice the 3 % a well-
 #: trimmed single-screw model shows between port and starboard zigzag overshoots in repeat tests
@@ -13,6 +13,11 @@ MIN_ASYMMETRY = 0.03
 
 class RudderAsymmetry(Effect):
     name = "rudder_asymmetry"
+    label = "rudder asymmetry (port/starboard)"
+    signature_axis = ("delta", "logged rudder delta (deg)")
+    estimate_key = "asymmetry"
+    magnitude_unit = "a: rudder force x (1 + a sign(delta))"
+    injection = Injection(plants=("truth", "tank"), direct=True)
     forms = (Form("two_sided", (Param("asymmetry", 0.0, -0.5, 0.5, 0.0, "1"),)),)
     words = "a rudder more effective to one side"
     term = "rudder force ~ delta_eff (1 + a sign(delta_eff)); a > 0: more effective to starboard"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pipeline.diagnose.effects.base import Effect, Form, Param, Terms
+from pipeline.diagnose.effects.base import Effect, Form, Injection, Param, Terms
 
 #: floor, as a share of the ship's time scale: a dead time below 3 % of T shifts the yaw response by
 #: less than 3 % of its own time scale, the timing precision of a zigzag's time to check yaw
@@ -17,6 +17,11 @@ def time_floor(ctx) -> float:
 
 class RudderDelay(Effect):
     name = "rudder_delay"
+    label = "rudder dead time"
+    signature_axis = ("ddelta", "rudder rate d(delta)/dt (deg/s)")
+    estimate_key = "delay_s"
+    magnitude_unit = "s"
+    injection = Injection(plants=("truth", "tank"), direct=True)
     forms = (Form("dead_time", (Param("delay_s", 0.0, -0.02, 0.4, 0.0, "s", time_scaled=True),)),)
     words = "a rudder dead time"
     term = "delta_eff(t) = delta(t - delay_s) (logged rudder interpolated)"

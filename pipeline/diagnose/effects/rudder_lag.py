@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
-from pipeline.diagnose.effects.base import Effect, Form, Param, Terms
+from pipeline.diagnose.effects.base import Effect, Form, Injection, Param, Terms
 from pipeline.diagnose.effects.rudder_delay import MIN_SHARE_OF_T, MIN_STEPS, time_floor
 
 
 class RudderLag(Effect):
     name = "rudder_lag"
+    label = "steering-gear lag"
+    signature_axis = ("ddelta", "rudder rate d(delta)/dt (deg/s)")
+    estimate_key = "lag_s"
+    magnitude_unit = "s (servo time constant)"
+    injection = Injection(plants=("truth", "tank"), direct=True)
     forms = (Form("first_order", (Param("lag_s", 0.0, 0.0, 0.4, 0.0, "s", time_scaled=True),)),)
     words = "a first-order rudder servo lag"
     term = "lag_s d(delta_eff)/dt = delta - delta_eff (steering-gear time constant)"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.effects.base import Context, Effect, Form, Param, Terms
+from pipeline.diagnose.effects.base import Context, Effect, Form, Injection, Param, Terms
 
 #: deg: floor of a named offset.  A tank's rudder encoder resolves ~0.1 deg and the neutral rudder is
 #: set to ~0.1-0.2 deg; an offset below 0.3 deg (3 resolutions) is not distinguishable from the zero
@@ -14,6 +14,11 @@ MIN_OFFSET_DEG = 0.3
 
 class RudderOffset(Effect):
     name = "rudder_offset"
+    label = "rudder offset"
+    signature_axis = ("delta", "logged rudder delta (deg)")
+    estimate_key = "offset_deg"
+    magnitude_unit = "deg"
+    injection = Injection(plants=("truth", "tank"), direct=True)
     forms = (Form("constant", (Param("offset_deg", 0.0, -10.0, 10.0, 0.0, "deg"),)),)
     words = "a constant rudder offset"
     term = "delta_eff = delta + offset_deg (in every rudder term)"

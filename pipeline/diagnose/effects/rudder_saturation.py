@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pipeline.diagnose.effects.base import Effect, Form, Param, Terms
+from pipeline.diagnose.effects.base import Effect, Form, Injection, Param, Terms
 
 #: floor: the force at the largest rudder angle differs from the linear one by >= 5 % (the precision
 #: a rudder force is measured to in captive tests)
@@ -11,6 +11,11 @@ MIN_FORCE_CHANGE = 0.05
 
 class RudderSaturation(Effect):
     name = "rudder_saturation"
+    label = "rudder saturation (stall)"
+    signature_axis = ("delta", "logged rudder delta (deg)")
+    estimate_key = "force_change_at_max_rudder"
+    magnitude_unit = "rudder force lost at 20 deg (stall tanh(delta/stall) law)"
+    injection = Injection(plants=("truth", "tank"))
     forms = (Form("cubic", (Param("rudder_cubic_per_deg2", 0.0, -5e-3, 5e-3, 0.0, "1/deg^2"),)),)
     words = "a saturating rudder force"
     term = "rudder force ~ delta_eff + c delta_eff^3 (c < 0: saturation/stall)"
@@ -47,6 +52,22 @@ class RudderSaturation(Effect):
 
     def signature_series(self, v, r, delta, ddelta, u_ratio):
         return delta**3
+
+    def inject(self, plant, magnitude, cfg, rudder_deg=20.0):
+        """The magnitude is the rudder force lost at 20 deg (the rudder of the 20/20 design that defines
+        every truth magnitude), set as a tanh stall (``rudder_stall_deg``); the true value is the
+        estimate's force change at the largest logged rudder ``rudder_deg`` (deg): on the truth -magnitude
+        (the same quantity when the study's rudder is 20 deg), on the tank the loss at ``rudder_deg``,
+        the largest its zigzags reach."""
+        import dataclasses
+
+        from pipeline.diagnose.truth import stall_for_loss, stall_loss
+
+        if plant not in self.injection.plants:
+            return super().inject(plant, magnitude, cfg, rudder_deg)
+        stall = stall_for_loss(magnitude, 20.0)
+        true_value = -magnitude if plant == "truth" else -stall_loss(stall, rudder_deg)
+        return dataclasses.replace(cfg, rudder_stall_deg=stall), true_value
 
 
 EFFECT = RudderSaturation()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.effects.base import Context, Effect, Form, Param, Terms
+from pipeline.diagnose.effects.base import Context, Effect, Form, Injection, Param, Terms
 
 #: floor: the coefficients at the lowest speed differ by >= 5 % from the approach-speed ones
 MIN_COEFF_CHANGE = 0.05
@@ -14,6 +14,13 @@ MIN_SPEED_LOSS = 0.03
 
 class SpeedLoss(Effect):
     name = "speed_loss"
+    label = "speed loss in turns"
+    signature_axis = ("u", "surge speed u (m/s)")
+    estimate_key = "coefficient_loss"
+    magnitude_unit = "fraction of approach speed lost"
+    injection = Injection(
+        plants=("truth",), solver="speed_loss_for", field="speed_loss_k", estimate_is_coefficient=False,
+        why_not=(("tank", "the tank's speed loss is its own (speed free or held), not a set magnitude"),))
     forms = (Form("power", (Param("speed_exponent", 0.0, -2.0, 5.0, 0.0, "1"),)),)
     words = "speed-dependent coefficients"
     term = "hull terms a_ij scale with s = (u/U)^n, rudder terms with s^2 (n = 1: dimensional physics)"

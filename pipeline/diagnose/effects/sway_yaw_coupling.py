@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
-from pipeline.diagnose.effects.base import R_EQ, V_EQ, Effect, Form, Param, response_floor_text
+from pipeline.diagnose.effects.base import R_EQ, V_EQ, Effect, Form, Injection, Param, response_floor_text
 
 MIN_RESPONSE = 0.05  # as nonlinear_yaw_damping
 
 
 class SwayYawCoupling(Effect):
     name = "sway_yaw_coupling"
+    label = "sway-yaw cross terms"
+    signature_axis = ("vr", "v r (m/s x deg/s)")
+    estimate_key = "n_vvr_s_per_m2"
+    magnitude_unit = "cut of the 20/20 yaw-rate amplitude (v^2 r in the yaw equation)"
+    injection = Injection(plants=("truth",), solver="cross_term_for_change", field="n_vvr")
     forms = (
         Form(
             "abkowitz",
