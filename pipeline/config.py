@@ -103,6 +103,18 @@ class FilterConfig:
     # noise std measured from the identification window by the robust second-difference estimator,
     # pipeline.identify.core.measured_noise_std): a logger's noise is the data's, not the paper's.
     measurement_noise: str = "paper"
+    # Where Q of the motion states comes from: 'paper' (q_std above) or 'data': q of each measured
+    # state = c x its measurement noise (unit-consistent: the paper's (0.02, 0.02, 0.01) puts m/s and
+    # deg/s on one footing), the scale c found by matching the mean NIS of the identification window to
+    # its expectation m (pipeline.identify.core.estimate_process_noise; docs/identification.md).
+    process_noise: str = "paper"
+    # Bracket of the scale c (dimensionless): 0.01 x the logger's noise a step is below any model error
+    # a linear model of a hull leaves at 0.08 s; 10 x is a model error ten times the logger's noise,
+    # where the filter stops learning the parameters (it follows the measurements).
+    process_scale_bracket: tuple[float, float] = (0.01, 10.0)
+    # Stop when the mean NIS is within this share of m: 2 %, a tenth of the half-width of the NIS band
+    # over the few hundred effectively independent steps of a 585-sample window (about +-10 %).
+    process_nis_tolerance: float = 0.02
     alpha: float = 1.0                   # unscented transform spread
     beta: float = 2.0
     kappa: float = 0.0
