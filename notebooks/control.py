@@ -48,8 +48,7 @@ if refused:
     nb.note("The autopilot is NOT designed for this dataset: " + str(cm.get("reason")))
 elif dmodel.get("rule") and (dmodel.get("identified") or dmodel.get("graphical")):
     nb.note(f"Designed from: {dmodel.get('source')} ({dmodel.get('reason')}; the held-out comparison is "
-            "below). The indices stage's own choice, by the filter's consistency flags alone, was: "
-            + str(basis.get("basis") or basis.get("source") or "not stated"))
+            "below). The indices stage makes this one decision; the indices page shows the same.")
 else:
     nb.note("Designed from: " + str(basis.get("basis") or basis.get("source") or "not stated"))
 for n_ in cm.get("notes") or []:

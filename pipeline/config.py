@@ -257,7 +257,7 @@ class ControlConfig:
     # deg/s: a quarter of the yaw rate the ship reaches at full rudder (K rudder_max, from the design
     # model), so a course change never asks for more than a moderate steady turn
     ref_rate_share: float = 0.25
-    # The design-model rule (pipeline/control/design_model.py): the identified model is designed from
+    # The design-model rule (pipeline.indices.design_model.py): the identified model is designed from
     # unless its pooled held-out free-run heading error exceeds the graphical model's by both this
     # share (the smallest improvement a naval architect would change a model for, as DiagnoseConfig
     # .min_gain) and this many degrees (a tank's heading repeatability, as DiagnoseConfig.min_abs_gain_deg)

@@ -250,8 +250,9 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
     cfg : control settings.  source : file name used in error messages.
     plants : which plants to run (default: 'nomoto', plus 'kcs' for virtual data when available).
     progress : show a tqdm bar over the runs.
-    design_choice : the ``design_model`` block of :func:`pipeline.control.design_model.choose_design_model`
-        (which model to design from, decided on held-out runs); None: the indices' control_model.
+    design_choice : a ``design_model`` block of :func:`pipeline.indices.design_model.choose_design_model`
+        to design by instead of the indices' own (``control_model.design_model``, decided by the indices
+        stage on held-out runs; without either, the indices' control_model as it is).
     robustness : extra inputs of the robustness block (:func:`pipeline.control.robustness.robustness`):
         "parameters" and "covariance" of the identified model, "linearised" K, T1, T2, T3 of the ship
         straight ahead; None: margins on the design model only.
@@ -271,6 +272,8 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
     graphical_model = (_model(indices, "graphical_model", ("K", "T"), source)
                        if indices.get("graphical_model") is not None else None)
     provenance = indices.get("provenance", "unknown")
+    if design_choice is None:       # the one decision, made by the indices stage on held-out runs
+        design_choice = (indices.get("control_model") or {}).get("design_model")
     if design_choice is not None:
         chosen = design_choice.get("chosen")
         if chosen == "identified" and design_choice.get("identified"):

@@ -539,7 +539,7 @@ def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfi
     doc["noise_estimate"] = {      # docs/identification.md#noise-settings-from-the-data
         "R": {"method": ident.consistency.get("r_std_source"), "std": ident.consistency.get("r_std")},
         "Q": {"method": ident.consistency.get("q_std_source"), "std": ident.consistency.get("q_std"),
-              **(ident.consistency.get("noise_estimate") or {})},
+              **{k: v for k, v in (ident.consistency.get("noise_estimate") or {}).items() if k != "q_std"}},
     }
     if ident.window:
         doc["window"] = ident.window

@@ -1,5 +1,9 @@
 """Which model the autopilot is designed from: the identified one unless it loses on held-out runs.
 
+The one place this is decided: the indices stage (``control_model.design_model`` of indices.json),
+which the control stage and both reports read (docs/control.md, "Which model the autopilot is
+designed from").
+
 The filter's consistency (NIS, whiteness, parameter covariance) says whether its *uncertainty* is
 right; whether its *model* is fit to design from is a question of prediction.  Both candidates are
 scored the same way on the same held-out runs (the zigzags the validate stage holds out):
