@@ -294,6 +294,14 @@ class ControlConfig:
     adaptive_min_rudder_std: float = 1.0  # deg
     adaptive_max_nis_ratio: float = 3.0
     adaptive_max_gain_change: float = 0.2
+    # Rudder offset removed from what the in-loop identifier is fed (pipeline/control/adaptive.py): a
+    # constant disturbance (wind) is held by a constant rudder that is not a state of the sway-yaw
+    # model; fed as it is, it teaches the filter that rudder turns nothing (K -> 0).  The offset is the
+    # mean rudder over the last adaptive_bias_cycles course-change cycles (0, +step, 0, -step: the
+    # schedule's own rudder cancels over a whole cycle), or over the course held before the first
+    # change until that many cycles are complete.
+    adaptive_remove_rudder_offset: bool = True
+    adaptive_bias_cycles: float = 1.0
 
 
 @dataclass(frozen=True)

@@ -67,6 +67,9 @@ def dataset_inputs(cat, indices: dict, cfg: ControlConfig):
         try:
             theta = [float(est["parameters"][n]) for n in PARAM_NAMES]
             extra = {"parameters": theta, "covariance": est["covariance"]}
+            q = (est.get("settings") or {}).get("q_std")
+            if isinstance(q, list) and len(q) >= 3:     # the identify stage's Q, for the in-loop filter
+                extra["q_std"] = [float(x) for x in q[:3]]
         except (KeyError, TypeError, ValueError):
             raise InputError("parameters or covariance missing or not numbers", file=est_path) from None
     if indices.get("builtin_tank"):

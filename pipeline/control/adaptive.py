@@ -14,6 +14,13 @@ over the last ``adaptive_window`` s at least ``adaptive_min_rudder_std`` deg), a
 over-confident (window mean NIS below ``adaptive_max_nis_ratio`` x 3) and each gain moving at most
 ``adaptive_max_gain_change`` of its value per re-design.  The same seeds run with the fixed gains.
 
+The rudder the identifier is fed is the servo angle less its offset (``adaptive_remove_rudder_offset``):
+the mean rudder over the last ``adaptive_bias_cycles`` whole course-change cycles (before that many
+are complete, over the course held before the first change).  A constant disturbance held by a
+constant rudder is not in the sway-yaw model; unremoved, it reads as "rudder without yaw" and drives
+b21, hence K, toward zero.  Over a whole cycle of the symmetric schedule the course-changing rudder
+cancels and the mean is the offset (docs/control.md, "Identification in the loop").
+
 Metrics after the speed change (t >= adaptive_change_s): heading MAE about the set course (deg),
 rudder RMS (deg) and travel (sum |delta change|, deg), and the overshoot of each course change beyond
 its new set course (deg; the largest and the mean).
@@ -54,9 +61,63 @@ def limited(new: float, old: float, share: float) -> float:
     return float(np.clip(new, old - share * abs(old), old + share * abs(old)))
 
 
+class SwayYawShip:
+    """The linear sway-yaw model of the identifier (pipeline.model.step, parameters a11 ... b21 in the
+    units of docs/contract.md) as a plant with the stepping interface of :class:`NomotoShip`: the servo
+    moves toward the command within ``rudder_max`` deg and ``rudder_rate`` deg/s, the hull sees the
+    servo angle plus the disturbance (deg of equivalent rudder).  ``slow_down(share)`` scales the
+    parameters as a change of speed U -> share U does (a_ij by share, b_i by share^2: K by share, the
+    time constants by 1/share), so its Nomoto K after the change is known exactly."""
+
+    def __init__(self, theta, *, rudder_max: float = 35.0, rudder_rate: float = 14.28):
+        from pipeline.model import as_theta
+
+        self.theta = as_theta(theta).astype(float)
+        self.rudder_max, self.rudder_rate = float(rudder_max), float(rudder_rate)
+        self.reset()
+
+    def reset(self) -> dict:
+        self.x = np.zeros(3)
+        self.delta = 0.0
+        self.time = 0.0
+        return self._out()
+
+    def _out(self) -> dict:
+        return {"time": self.time, "v": float(self.x[0]), "r": float(self.x[1]), "psi": float(self.x[2]),
+                "delta": self.delta}
+
+    def step(self, delta_cmd_deg: float, dt: float, disturbance_deg: float = 0.0) -> dict:
+        from pipeline.model import step
+
+        cmd = float(np.clip(delta_cmd_deg, -self.rudder_max, self.rudder_max))
+        self.delta += float(np.clip(cmd - self.delta, -self.rudder_rate * dt, self.rudder_rate * dt))
+        self.x = step(self.x, self.delta + float(disturbance_deg), self.theta, dt)
+        self.time += dt
+        return self._out()
+
+    def slow_down(self, share: float) -> None:
+        self.theta = self.theta * np.array([share, share, share, share, share ** 2, share ** 2])
+
+
+def rudder_offset(delta: np.ndarray, k: int, window: int, first: int) -> float:
+    """Rudder offset (deg) before sample k: the mean over the last ``window`` samples (whole
+    course-change cycles) once there are that many; before that, the mean over the first ``first``
+    samples (the course held before the first change) or as many of them as there are."""
+    if k >= window:
+        return float(np.mean(delta[k - window:k]))
+    m = min(k, first)
+    return float(np.mean(delta[:m])) if m > 0 else 0.0
+
+
 def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
-             adapt: bool) -> dict[str, Any]:
-    """One run (module docstring); fixed gains, and no identifier, when ``adapt`` is False."""
+             adapt: bool, *, ship=None, q_std=None) -> dict[str, Any]:
+    """One run (module docstring); fixed gains, and no identifier, when ``adapt`` is False.
+
+    ``ship``: the plant (default the nonlinear KCS, slowed by its propeller cut); any object with
+    ``reset()``, ``step(cmd, dt, disturbance_deg)`` giving v (m/s), r (deg/s), psi (deg), delta (deg)
+    and ``slow_down(share)``.  ``q_std``: process noise of v (m/s), r (deg/s), psi (deg) per step for
+    the identifier (the identify stage's, estimated from the data); None: the paper's.
+    """
     dt, n = cfg.dt, int(round(cfg.adaptive_duration / cfg.dt)) + 1
     t = np.arange(n) * dt
     ref = course_schedule(t, cfg)
@@ -65,9 +126,16 @@ def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
     tank = TankConfig()
     noise_sd = np.array([tank.noise_v, tank.noise_r, tank.noise_psi])
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, seed, 5]))
-    ship = make_kcs_ship(cfg.rudder_max, cfg.rudder_rate, cfg.dead_time, cfg.servo_time_constant)
+    if ship is None:
+        ship = make_kcs_ship(cfg.rudder_max, cfg.rudder_rate, cfg.dead_time, cfg.servo_time_constant)
+        slow = _slow_down
+    else:
+        def slow(s, share):
+            s.slow_down(share)
     st = ship.reset()
     fcfg = replace(FilterConfig(), r_std=tuple(noise_sd))
+    if q_std is not None:
+        fcfg = replace(fcfg, q_std=(*(float(q) for q in q_std), *fcfg.q_std[3:]))
     x0 = np.concatenate([[st["v"], st["r"], st["psi"]], np.asarray(theta0, float)])
     P0 = np.zeros((9, 9))
     P0[:3, :3] = np.diag(noise_sd ** 2)
@@ -84,20 +152,28 @@ def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
     id_secs = 0.0
     prev_delta = 0.0
     slowed = False
+    bias_win = max(1, int(round(cfg.adaptive_bias_cycles * 4 * cfg.adaptive_step_every / dt)))
+    first_hold = max(1, int(round(cfg.adaptive_step_every / dt)))
+    offset = np.zeros(n)
+    k_est = np.full(n, np.nan)
     for k in range(n):
         if not slowed and t[k] >= cfg.adaptive_change_s:
-            _slow_down(ship, cfg.adaptive_speed_share)
+            slow(ship, cfg.adaptive_speed_share)
             slowed = True
         meas = np.array([st["v"], st["r"], st["psi"]]) + rng.normal(0.0, noise_sd)
         if adapt and k > 0:
             t0 = _time.perf_counter()
-            nis[k] = ident.update({"delta": prev_delta, "v": meas[0], "r": meas[1], "psi": meas[2]})["nis"]
+            if cfg.adaptive_remove_rudder_offset:
+                offset[k] = rudder_offset(delta, k, bias_win, first_hold)
+            nis[k] = ident.update({"delta": prev_delta - offset[k], "v": meas[0], "r": meas[1],
+                                   "psi": meas[2]})["nis"]
             id_secs += _time.perf_counter() - t0
         if adapt and k > 0 and k % every == 0 and k >= win:
             why = None
             rud_sd = float(np.std(delta[k - win:k]))
             nis_w = float(np.nanmean(nis[k - win:k]))
             idx = ident.estimate()["indices"]
+            k_est[k] = idx["K"] if idx is not None else np.nan
             if rud_sd < cfg.adaptive_min_rudder_std:
                 why = f"excitation: rudder sd {rud_sd:.2f} deg"
             elif not nis_w < cfg.adaptive_max_nis_ratio * 3:
@@ -116,7 +192,7 @@ def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
         delta[k] = st["delta"]
         prev_delta = st["delta"]
     return {"t": t, "ref": ref, "psi": psi, "delta": delta, "gains": gains, "id_seconds": id_secs,
-            "final": ident.estimate()}
+            "final": ident.estimate(), "rudder_offset": offset, "K_estimate": k_est}
 
 
 def after_change_metrics(t, ref, psi, delta, cfg: ControlConfig) -> dict[str, float]:
@@ -137,21 +213,34 @@ def after_change_metrics(t, ref, psi, delta, cfg: ControlConfig) -> dict[str, fl
             "overshoot_mean_deg": float(np.mean(over)) if over else float("nan")}
 
 
+def k_tracking(t: np.ndarray, k_est: np.ndarray, cfg: ControlConfig) -> dict[str, float]:
+    """Mean identified K (1/s) over the last ``adaptive_step_every`` s before the speed change and over
+    the last 2 x ``adaptive_step_every`` s of the run, and their ratio (a Nomoto K in 1/s scales with
+    the speed at a constant K' = K L/U, so the ratio should follow ``adaptive_speed_share``)."""
+    before = np.isfinite(k_est) & (t < cfg.adaptive_change_s) & (t >= cfg.adaptive_change_s
+                                                                  - cfg.adaptive_step_every)
+    end = np.isfinite(k_est) & (t >= t[-1] - 2 * cfg.adaptive_step_every)
+    kb = float(np.mean(k_est[before])) if before.any() else float("nan")
+    ke = float(np.mean(k_est[end])) if end.any() else float("nan")
+    return {"K_before_change": kb, "K_end": ke, "ratio": ke / kb if kb else float("nan")}
+
+
 def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int],
-                   cfg: ControlConfig) -> tuple[dict[str, Any], float]:
+                   cfg: ControlConfig, q_std=None) -> tuple[dict[str, Any], float]:
     """The ``adaptive`` block of control/metrics.json (adaptive against fixed gains on the same seeds)
     and the seconds spent in the streaming identifier's updates of the adaptive runs (for the terminal
     and the benchmark, never in the document: same inputs, same bytes)."""
     rows = {"adaptive": [], "fixed": []}
-    gains, finals, id_secs = [], [], 0.0
+    gains, finals, id_secs, tracking = [], [], 0.0, []
     for seed in seeds:
         for name in ("fixed", "adaptive"):
-            r = run_once(theta0, cov0, K0, T0, seed, cfg, adapt=name == "adaptive")
+            r = run_once(theta0, cov0, K0, T0, seed, cfg, adapt=name == "adaptive", q_std=q_std)
             m = after_change_metrics(r["t"], r["ref"], r["psi"], r["delta"], cfg)
             rows[name].append({"seed": seed, **m})
             if name == "adaptive":
                 gains.append([{"t_s": g[0], "Kp": g[1], "Kd": g[2], "event": g[3]} for g in r["gains"]])
                 finals.append(r["final"]["indices"])
+                tracking.append({"seed": seed, **k_tracking(r["t"], r["K_estimate"], cfg)})
                 id_secs += r["id_seconds"]
     keys = [k for k in rows["fixed"][0] if k != "seed"]
     summary = {}
@@ -174,4 +263,13 @@ def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int],
         "seeds": seeds, "per_seed": rows, "stats": summary,
         "difference": {"what": "adaptive minus fixed, mean over the paired seeds", "metrics": diff},
         "gains_first_seed": gains[0] if gains else [], "final_indices": finals,
+        "rudder_offset": {"removed": cfg.adaptive_remove_rudder_offset,
+                          "method": f"mean rudder over the last {cfg.adaptive_bias_cycles:g} course-change "
+                                    "cycle(s) (before that, over the course held before the first change), "
+                                    "subtracted from the rudder the identifier is fed"},
+        "identifier_q_std": None if q_std is None else [float(q) for q in q_std],
+        "K_tracking": {"what": "mean identified K (1/s) before the speed change and at the end, and their "
+                               "ratio; a Nomoto K in 1/s scales with speed, so the ratio should follow "
+                               "the speed share", "speed_share": cfg.adaptive_speed_share,
+                       "per_seed": tracking},
     }, id_secs
