@@ -263,6 +263,10 @@ class ControlConfig:
     # .min_gain) and this many degrees (a tank's heading repeatability, as DiagnoseConfig.min_abs_gain_deg)
     design_rule_rel: float = 0.10
     design_rule_abs_deg: float = 0.10
+    # Where the project's autopilot (PID) is designed (pipeline/control/operating_point.py): at the
+    # course-keeping operating point, 'small_amplitude' (the smallest zigzags' K, T, when usable and
+    # keeping the phase-margin floor on the design model), or 'design_model' (the held-out rule's model)
+    operating_point: str = "small_amplitude"
     # Robustness (pipeline/control/robustness.py): draws of the identified parameters from the filter's
     # covariance for the stable fraction and worst margins (200: the stable fraction to +-3.5 % at
     # 95 %), seeded from ``seed``; the reduced speeds of the nonlinear KCS, as shares of the approach

@@ -25,6 +25,7 @@ from dataclasses import asdict
 
 import numpy as np
 import pandas as pd
+from threadpoolctl import threadpool_limits
 
 from pipeline.config import ControlConfig
 from pipeline.control.autopilot import PIDDesign, design_pid
@@ -40,6 +41,7 @@ from pipeline.control.design import (
 )
 from pipeline.control.disturbance import wave_sequence, wave_variance_theory, wind_from_config
 from pipeline.control.metrics import WORST, course_metrics, seed_statistics
+from pipeline.control.operating_point import operating_point
 from pipeline.control.robustness import nyquist_for
 from pipeline.control.robustness import robustness as robustness_block
 from pipeline.control.settings import KEYS as SETTING_KEYS
@@ -243,6 +245,11 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                 robustness: dict | None = None) -> tuple[dict, pd.DataFrame]:
     """Designs, simulations over seeds and statistics for one dataset.
 
+    BLAS runs on one thread here (threadpoolctl): every matrix of the stage is at most about ten by
+    ten (plant discretisations, loop responses), where a second OpenBLAS thread only spins against a
+    busy core; scipy's matrix exponential of a 4 x 4 took 20 ms with two threads on the loaded 2-core
+    machine and 0.03 ms with one (docs/control.md, "Speed").
+
     Parameters
     ----------
     indices : the parsed indices document (needs "control_model" K, T1, T2, T3, T; "graphical_model"
@@ -262,6 +269,14 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
     (metrics document, time series frame with plant, design, seed, time, psi_ref, psi, r, delta_cmd,
     delta, wave, wind).
     """
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _run_control(indices, cfg, source=source, plants=plants, progress=progress,
+                            design_choice=design_choice, robustness=robustness)
+
+
+def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plants: tuple[str, ...] | None,
+                 progress: bool, design_choice: dict | None,
+                 robustness: dict | None) -> tuple[dict, pd.DataFrame]:
     cfg = ControlConfig() if cfg is None else cfg
     if not isinstance(indices, dict):
         raise InputError("indices document is not a JSON object", file=source)
@@ -282,10 +297,16 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
             control_model = _graphical_control_model(graphical_model)
     designs = build_designs(control_model, graphical_model, cfg)
     base = designs["graphical" if primary_name(control_model) == "graphical" else "identified"]
-    designs["autopilot"] = design_pid(base.K, base.T, cfg.tw, rudder_max=cfg.rudder_max, zeta=cfg.pid_zeta,
-                                      ki_ratio=cfg.pid_ki_ratio, ref_wn_ratio=cfg.ref_wn_ratio,
-                                      ref_zeta=cfg.ref_zeta, ref_rate_share=cfg.ref_rate_share)
-    notes = []
+    lin = (robustness or {}).get("linearised") or {}
+    straight = next((m for share, m in lin.items() if float(share) == 1.0), None)
+    op = operating_point(control_model, indices, cfg, straight)
+    op_model = op["models"][op["used"]]
+    designs["autopilot"] = design_pid(op_model["K"], op_model["T"], cfg.tw, rudder_max=cfg.rudder_max,
+                                      zeta=cfg.pid_zeta, ki_ratio=cfg.pid_ki_ratio,
+                                      ref_wn_ratio=cfg.ref_wn_ratio, ref_zeta=cfg.ref_zeta,
+                                      ref_rate_share=cfg.ref_rate_share)
+    notes = [f"autopilot (PID) designed from the {op['used'].replace('_', '-')} model "
+             f"(K {op_model['K']:.4g} 1/s, T {op_model['T']:.4g} s): {op['why']}"]
     flagged = _flagged_identified(indices)
     if primary_name(control_model) == "graphical" and flagged is not None:
         # shown beside the autopilot for comparison (the paper's identified-vs-graphical figures),
@@ -430,6 +451,7 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                        if paper_plant else None),
         "design_model": _design_model_block(design_choice, control_model),
         "settings": {k: getattr(cfg, f) for k, (f, _, _) in SETTING_KEYS.items()},
+        "operating_point": op,
     }
     rob = robustness_block(designs, control_model, cfg, robustness or {})
     for name, row in rob.pop("designs").items():     # SPEC section 10: the margins belong to each design
