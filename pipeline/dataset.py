@@ -121,6 +121,16 @@ format = "hsva"
 [identify]
 half_periods = 3.4        # the paper case's 585 samples are 3.4 half-periods of its 20/20 zigzag;
                           # the same share of this ship's zigzag (585 samples would be only 2.4 here)
+
+[control]                 # the KVLCC2 model's steering gear and autopilot settings (docs/control.md)
+tw_s = 5.9                # s; assumed: the paper's Tw = 3 s is one ship length of travel for the KCS model
+                          # (Lpp 6.07 m at 2.0 m/s); the same Tw U/Lpp = 1 here is 7.0 m / 1.178 m/s
+rudder_max_deg = 35.0     # deg; measured: the 35/5 zigzag reaches 35 deg (SIMMAN 2008 KVLCC2: 35 deg)
+rudder_rate_deg_s = 15.6  # deg/s at model scale; measured: median rudder rate while moving in the 15/x to
+                          # 35/5 files (2.3 deg/s at full scale; SIMMAN 2008 gives 2.34 deg/s)
+servo_time_constant_s = 0.0   # s; assumed: no lag of the tank's steering gear is stated (the rate limit is)
+dead_time_s = 0.0         # s; assumed: no command-to-rudder dead time is stated for the tank
+setpoint_deg = 60.0       # deg; assumed: the paper's course change
 ''',
 }
 

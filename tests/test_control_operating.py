@@ -58,3 +58,17 @@ def test_flagged_small_amplitude_indices_leave_the_design_model():
     op = doc["operating_point"]
     assert op["used"] == "design_model" and "T too long" in op["why"]
     assert doc["designs"]["autopilot"]["K"] == pytest.approx(PAPER_TABLE7["K"])
+
+
+def test_hsva_dataset_gives_the_kvlcc2_its_own_steering_gear():
+    """data/raw/hsva/dataset.toml carries a full [control] table: the KVLCC2 runs on its own rudder
+    rate (measured from the files) and Tw, with no notice that the KCS's were assumed."""
+    from pathlib import Path
+
+    from pipeline.control.settings import KEYS, apply, read_dataset_control
+
+    toml = Path(__file__).resolve().parents[1] / "data" / "raw" / "hsva" / "dataset.toml"
+    values = read_dataset_control(toml)
+    assert set(values) == set(KEYS)
+    cfg, notice = apply(ControlConfig(), values, "KVLCC2")
+    assert notice is None and cfg.rudder_rate == 15.6 and cfg.tw == 5.9 and cfg.rudder_max == 35.0
