@@ -146,6 +146,38 @@ if ap:
              + ("Kd clipped at 0 (the ship is faster than the loop)." if ap.get("kd_clipped") else ""))
 
 # %% [markdown]
+# ## Operating point: where the autopilot is designed
+# Course keeping holds the rudder near its offset, where the ship answers as in its smallest zigzag, not
+# the 20/20 one. The CGSA and the PID are designed from both bases and each sampled loop is scored on every
+# plant; the rule picks the basis of the project's autopilot (the CGSA stays on the design model: the
+# paper's chain).
+
+# %%
+op = cm.get("operating_point") or {}
+if op:
+    mrows = []
+    for name, mdl in (op.get("models") or {}).items():
+        mrows.append({"model": name.replace("_", " "), "K (1/s)": mdl.get("K"), "T (s)": mdl.get("T"),
+                      "source": mdl.get("source")})
+    nb.table(pd.DataFrame(mrows).set_index("model"), "The models of the operating-point comparison.")
+    orows = []
+    for bname, kinds in (op.get("margins") or {}).items():
+        for kind, blk in kinds.items():
+            for plant, mm in (blk.get("plants") or {}).items():
+                gm_ = mm.get("gain_margin_db")
+                orows.append({"designed from": bname.replace("_", " "), "controller": kind.upper(),
+                              "loop on": plant.replace("_", " "),
+                              "PM (deg)": mm.get("phase_margin_deg"),
+                              "GM (dB)": np.inf if gm_ is None else gm_,
+                              "delay margin (s)": mm.get("delay_margin_s"),
+                              "Ms (-)": mm.get("sensitivity_peak"),
+                              "stable": mm.get("stable")})
+    if orows:
+        nb.table(pd.DataFrame(orows).set_index(["designed from", "controller", "loop on"]),
+                 f"Sampled-loop margins of both bases. Used for the autopilot: "
+                 f"{str(op.get('used')).replace('_', ' ')} ({op.get('why')}). Rule: {op.get('rule')}.")
+
+# %% [markdown]
 # ## Robustness of the sampled loop
 # Margins of the loop as it runs: sampled at the logging step with zero-order hold, the steering gear's
 # lag and dead time, broken at the rudder command. On the design model; over draws of the identified
@@ -351,6 +383,13 @@ if ad:
         nb.show(fig, "Adaptive gains on the first seed; the dashed line is the propeller cut. Flat "
                 "stretches are re-designs refused by the rule (too little excitation, filter "
                 "over-confident, no positive K, T).")
+    kt = ad.get("K_tracking") or {}
+    if kt.get("per_seed"):
+        ro = ad.get("rudder_offset") or {}
+        nb.table(pd.DataFrame(kt["per_seed"]).set_index("seed"),
+                 "Identified K (1/s) in the loop: mean over the 50 s before the speed change and over the "
+                 f"last 100 s, and their ratio (speed share {kt.get('speed_share')}). Rudder offset "
+                 + ("removed: " + str(ro.get("method")) if ro.get("removed") else "not removed") + ".")
 
 # %% [markdown]
 # ## Conclusion
@@ -362,6 +401,9 @@ if refused:
 else:
     points.append("Designed from: " + str(dmodel.get("source") or basis.get("source") or "not stated")
                   + (f" ({dmodel.get('reason')})." if dmodel.get("reason") else "."))
+    if op:
+        points.append(f"The autopilot (PID) is designed from the {str(op.get('used')).replace('_', ' ')} "
+                      f"model: {op.get('why')}.")
     for res in results:
         st = res.get("stats") or {}
         rt, md = (st.get("rise_time") or {}).get("mean"), (st.get("max_deviation") or {}).get("mean")
