@@ -114,6 +114,14 @@ nb.full_scale_rows(pd.DataFrame({n: {f"{k} ({u})": d[k] for k, u in (("K", "1/s"
 dflags = [(f"design {n}", d.get("flags")) for n, d in designs.items() if d.get("flags")]
 if dflags:
     n_flags += nb.flags_table(dflags, "Designs whose loop fails a robustness check, with the reason.")
+def plain_log_ticks(ax):
+    """Decade ticks as plain numbers (the pages take text literally, so no mathtext 10^n labels)."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+
+
 bode = {n: d["bode_nomoto_plant"] for n, d in designs.items()
         if isinstance(d.get("bode_nomoto_plant"), dict)}
 if bode:
@@ -127,6 +135,7 @@ if bode:
     axes[0].set_ylabel("|L| (dB)")
     axes[1].set_ylabel("phase of L (deg)")
     axes[1].set_xlabel("frequency (rad/s)")
+    plain_log_ticks(axes[1])
     nb.legend_outside(axes[0])
     nb.show(fig, "Open-loop Bode diagram of each design on the Nomoto plant. The phase margin is the "
             "distance of the phase from -180 deg where the gain crosses 0 dB.")
@@ -243,6 +252,7 @@ if nyq:
     axes[1].axhline(20 * np.log10(2), color="0.5", ls=":", lw=0.8)
     axes[1].set_xlabel("frequency (rad/s)")
     axes[1].set_ylabel("|S| (dB)")
+    plain_log_ticks(axes[1])
     nb.legend_outside(axes[1])
     nb.show(fig, "Left: Nyquist plot of each design's sampled loop on the design model (|L| < 5 shown), "
             "the critical point -1 and the circle of radius 0.5 (Ms = 2). Right: sensitivity |S| = "
