@@ -69,16 +69,9 @@ n_flags = nb.flags_table(groups, "Trust flags of the indices the design uses (sh
 
 # %%
 if dmodel.get("identified") or dmodel.get("graphical"):
-    rows = []
-    for name in ("identified", "graphical"):
-        blk = dmodel.get(name) or {}
-        ho = blk.get("heldout") or {}
-        rows.append({"model": name, "K (1/s)": blk.get("K"), "T (s)": blk.get("T"),
-                     "held-out MAE psi (deg)": ho.get("mae_psi_deg"), "samples": ho.get("samples"),
-                     "chosen": "yes" if dmodel.get("chosen") == name else ""})
-    nb.table(pd.DataFrame(rows).set_index("model"),
-             f"Rule: {dmodel.get('rule')}. {dmodel.get('reason', '')}. Held-out runs: "
-             f"{', '.join(dmodel.get('heldout_runs') or [])}.")
+    from pipeline.indices.design_model import decision_table
+    rows, cap = decision_table(dmodel)
+    nb.table(pd.DataFrame(rows).set_index("model"), cap)
 elif dmodel:
     nb.note(f"Design model: {dmodel.get('source')} ({dmodel.get('rule')})")
 

@@ -119,17 +119,11 @@ n_flags = nb.flags_table(groups, "Every trust check that failed, with its reason
 nb.note("Autopilot designed from: " + str(cm.get("basis") or cm.get("source") or "not stated"))
 dm = cm.get("design_model") or {}
 if dm.get("identified") or dm.get("graphical"):
-    rows_dm = []
-    for name in ("identified", "graphical"):
-        blk = dm.get(name) or {}
-        ho = blk.get("heldout") or {}
-        rows_dm.append({"model": name, "K (1/s)": blk.get("K"), "T (s)": blk.get("T"),
-                        "held-out MAE psi (deg)": ho.get("mae_psi_deg"), "samples": ho.get("samples"),
-                        "chosen": "yes" if dm.get("chosen") == name else ""})
+    from pipeline.indices.design_model import decision_table
+    rows_dm, cap = decision_table(dm)
     nb.table(pd.DataFrame(rows_dm).set_index("model"),
-             f"The one design-model decision (the control page reads it): {dm.get('rule')}. "
-             f"{dm.get('reason', '')}. Held-out runs: {', '.join(dm.get('heldout_runs') or [])}. The "
-             "filter's consistency flags above judge its stated uncertainty, not whether its model predicts.")
+             cap + " The filter's consistency flags above judge its stated uncertainty, not whether its "
+             "model predicts.")
 
 # %% [markdown]
 # ## Zigzag and turning metrics with the IMO check

@@ -391,3 +391,8 @@ def test_one_design_model_decision_takes_the_identified_model_that_predicts(tmp_
     assert doc["design_model"]["chosen"] == "identified"
     assert doc["design_model"]["identified"]["heldout"] == cm["design_model"]["identified"]["heldout"]
     assert doc["designs"]["identified"]["K"] == pytest.approx(0.5, rel=1e-9)
+    # both reports show the decision from the same rows
+    from pipeline.indices.design_model import decision_table
+    rows, cap = decision_table(cm["design_model"])
+    assert [r["chosen"] for r in rows] == ["yes", ""] and "z20p, z10s" in cap
+    assert rows[0]["held-out MAE psi (deg)"] == cm["design_model"]["identified"]["heldout"]["mae_psi_deg"]
