@@ -135,9 +135,10 @@ if bode:
 
 # %% [markdown]
 # ## The project's autopilot
-# PID by pole placement on the first-order design model (double pole at wn = 1/Tw, the integrator a
-# decade lower), conditional integration against wind-up, and Fossen's third-order reference model with
-# a yaw-rate limit; the reference's motion is fed forward through the inverse Nomoto model.
+# PID by pole placement on the first-order model of the operating point (next section; double pole at
+# wn = 1/Tw, the integrator a decade lower), conditional integration against wind-up, and Fossen's
+# third-order reference model with a yaw-rate limit; the reference's motion is fed forward through the
+# inverse Nomoto model.
 
 # %%
 ap = designs.get("autopilot")
