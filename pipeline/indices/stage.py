@@ -11,9 +11,11 @@ Documented choices:
   draws with no real positive time constants and the 16/50/84 % percentiles of each index.  When
   that fraction is not small the Gaussian bounds are local only (the indices are ratios of
   parameters and become heavy-tailed), and the percentiles are the honest spread;
-* ``control_model`` is the SR-UKF-FFM identified model; if its parameters have no real positive time
-  constants (ModelError) it falls back to FFM-UKF, then to the first-order graphical model
-  (T1 = T, T2 = T3 = 0); ``source`` always says which.
+* ``control_model`` is the one design-model decision (``design_model`` in it): the identified model
+  (SR-UKF-FFM, else FFM-UKF when SR-UKF-FFM has no real positive time constants) unless it loses to the
+  first-order graphical model (T1 = T, T2 = T3 = 0) on the held-out runs
+  (pipeline/indices/design_model.py); without held-out runs the trust flags decide; ``source`` always
+  says which.
 """
 
 from __future__ import annotations
