@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.config import ControlConfig, FilterConfig, TankConfig
-from pipeline.control.autopilot import CGSAController
+from pipeline.control.autopilot import CGSAController, PIDController, design_pid
 from pipeline.control.design import design_first_order
 from pipeline.control.disturbance import wave_sequence, wind_from_config
 from pipeline.control.simulate import make_kcs_ship
@@ -99,6 +99,12 @@ class SwayYawShip:
         self.theta = self.theta * np.array([share, share, share, share, share ** 2, share ** 2])
 
 
+def pid_design(K: float, T: float, cfg: ControlConfig):
+    """The project's PID autopilot for the first-order model K (1/s), T (s) (control/autopilot.py)."""
+    return design_pid(K, T, cfg.tw, rudder_max=cfg.rudder_max, zeta=cfg.pid_zeta, ki_ratio=cfg.pid_ki_ratio,
+                      ref_wn_ratio=cfg.ref_wn_ratio, ref_zeta=cfg.ref_zeta, ref_rate_share=cfg.ref_rate_share)
+
+
 def rudder_offset(delta: np.ndarray, k: int, window: int, first: int) -> float:
     """Rudder offset (deg) before sample k: the mean over the last ``window`` samples (whole
     course-change cycles) once there are that many; before that, the mean over the first ``first``
@@ -110,7 +116,7 @@ def rudder_offset(delta: np.ndarray, k: int, window: int, first: int) -> float:
 
 
 def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
-             adapt: bool, *, ship=None, q_std=None) -> dict[str, Any]:
+             adapt: bool, *, ship=None, q_std=None, controller: str = "cgsa") -> dict[str, Any]:
     """One run (module docstring); fixed gains, and no identifier, when ``adapt`` is False.
 
     ``ship``: the plant (default the nonlinear KCS, slowed by its propeller cut); any object with
@@ -141,8 +147,13 @@ def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
     P0[:3, :3] = np.diag(noise_sd ** 2)
     P0[3:, 3:] = np.asarray(cov0, float)
     ident = StreamingIdentifier(x0, P0, dt, fcfg)
-    design = design_first_order(K0, T0, cfg.tw, name="adaptive")
-    ctl = CGSAController(design, dt, cfg.rudder_max)
+    if controller == "pid":
+        design = pid_design(K0, T0, cfg)
+        ctl = PIDController(design, dt, cfg.rudder_max)
+        k_cur, t_cur = float(K0), float(T0)
+    else:
+        design = design_first_order(K0, T0, cfg.tw, name="adaptive")
+        ctl = CGSAController(design, dt, cfg.rudder_max)
     kp, kd = design.Kp, design.Kd
     every, win = int(round(cfg.adaptive_period / dt)), int(round(cfg.adaptive_window / dt))
     psi = np.empty(n)
@@ -180,7 +191,17 @@ def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
                 why = f"filter over-confident: window mean NIS {nis_w:.3g}"
             elif idx is None or not (idx["K"] > 0 and idx["T"] > 0):
                 why = "no positive K, T in the estimate"
-            if why is None:
+            if why is None and controller == "pid":
+                # the PID's model K, T each move by at most the gain-change share; the integral term
+                # Ki z is carried over unchanged (bumpless): z scaled by Ki_old / Ki_new
+                k_cur = limited(idx["K"], k_cur, cfg.adaptive_max_gain_change)
+                t_cur = limited(idx["T"], t_cur, cfg.adaptive_max_gain_change)
+                new = pid_design(k_cur, t_cur, cfg)
+                ctl.z *= ctl.design.Ki / new.Ki if new.Ki > 0 else 1.0
+                ctl.design = new
+                ctl.ref.r_max = new.r_max
+                kp, kd = new.Kp, new.Kd
+            elif why is None:
                 kp = limited(1.0 / (idx["K"] * cfg.tw), kp, cfg.adaptive_max_gain_change)
                 kd = limited(idx["T"] / (idx["K"] * cfg.tw), kd, cfg.adaptive_max_gain_change)
                 ctl.design = design_first_order(1.0 / (kp * cfg.tw), kd / kp, cfg.tw, name="adaptive")
@@ -225,16 +246,15 @@ def k_tracking(t: np.ndarray, k_est: np.ndarray, cfg: ControlConfig) -> dict[str
     return {"K_before_change": kb, "K_end": ke, "ratio": ke / kb if kb else float("nan")}
 
 
-def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int],
-                   cfg: ControlConfig, q_std=None) -> tuple[dict[str, Any], float]:
-    """The ``adaptive`` block of control/metrics.json (adaptive against fixed gains on the same seeds)
-    and the seconds spent in the streaming identifier's updates of the adaptive runs (for the terminal
-    and the benchmark, never in the document: same inputs, same bytes)."""
+def _paired(theta0, cov0, K0: float, T0: float, seeds: list[int], cfg: ControlConfig, q_std,
+            controller: str) -> tuple[dict[str, Any], float]:
+    """Fixed and adaptive runs of one controller on the same seeds: rows, statistics, differences."""
     rows = {"adaptive": [], "fixed": []}
     gains, finals, id_secs, tracking = [], [], 0.0, []
     for seed in seeds:
         for name in ("fixed", "adaptive"):
-            r = run_once(theta0, cov0, K0, T0, seed, cfg, adapt=name == "adaptive", q_std=q_std)
+            r = run_once(theta0, cov0, K0, T0, seed, cfg, adapt=name == "adaptive", q_std=q_std,
+                         controller=controller)
             m = after_change_metrics(r["t"], r["ref"], r["psi"], r["delta"], cfg)
             rows[name].append({"seed": seed, **m})
             if name == "adaptive":
@@ -250,6 +270,33 @@ def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int],
                          for k in keys}
     pairs = list(zip(rows["adaptive"], rows["fixed"], strict=True))
     diff = {k: float(np.nanmean([a[k] - b[k] for a, b in pairs])) for k in keys}
+    return {"start": {"K": K0, "T": T0}, "seeds": seeds, "per_seed": rows, "stats": summary,
+            "difference": {"what": "adaptive minus fixed, mean over the paired seeds", "metrics": diff},
+            "gains_first_seed": gains[0] if gains else [], "final_indices": finals,
+            "K_tracking": tracking}, id_secs
+
+
+def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int], cfg: ControlConfig, q_std=None,
+                   pid_start: tuple[float, float] | None = None) -> tuple[dict[str, Any], float]:
+    """The ``adaptive`` block of control/metrics.json (adaptive against fixed gains on the same seeds)
+    and the seconds spent in the streaming identifier's updates of the adaptive CGSA runs (for the
+    terminal and the benchmark, never in the document: same inputs, same bytes).
+
+    The CGSA (the paper's adaptive design) starts from K0 (1/s), T0 (s); with ``pid_start`` (K, T of
+    the operating-point model) the project's PID runs the same scenario as ``pid`` (its model's K, T
+    move at most ``adaptive_max_gain_change`` per re-design, its integral term carried over)."""
+    cg, id_secs = _paired(theta0, cov0, K0, T0, seeds, cfg, q_std, "cgsa")
+    out = _cgsa_document(cg, cfg, K0, T0, seeds, q_std)
+    if pid_start is not None:
+        pid, _ = _paired(theta0, cov0, pid_start[0], pid_start[1], seeds, cfg, q_std, "pid")
+        out["pid"] = {k: v for k, v in pid.items() if k != "seeds"}
+        out["pid"]["design"] = f"PID autopilot, Tw = {cfg.tw:g} s, re-designed from the moving K, T"
+    return out, id_secs
+
+
+def _cgsa_document(cg: dict[str, Any], cfg: ControlConfig, K0: float, T0: float, seeds: list[int],
+                   q_std) -> dict[str, Any]:
+    """The CGSA part of the block, with the scenario, the rule and the identifier's settings."""
     return {
         "scenario": {"duration_s": cfg.adaptive_duration, "speed_change_s": cfg.adaptive_change_s,
                      "speed_share": cfg.adaptive_speed_share, "course_step_deg": cfg.adaptive_step_deg,
@@ -260,9 +307,8 @@ def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int],
                  "max_nis_ratio": cfg.adaptive_max_nis_ratio,
                  "max_gain_change": cfg.adaptive_max_gain_change},
         "start": {"K": K0, "T": T0},
-        "seeds": seeds, "per_seed": rows, "stats": summary,
-        "difference": {"what": "adaptive minus fixed, mean over the paired seeds", "metrics": diff},
-        "gains_first_seed": gains[0] if gains else [], "final_indices": finals,
+        "seeds": seeds, "per_seed": cg["per_seed"], "stats": cg["stats"], "difference": cg["difference"],
+        "gains_first_seed": cg["gains_first_seed"], "final_indices": cg["final_indices"],
         "rudder_offset": {"removed": cfg.adaptive_remove_rudder_offset,
                           "method": f"mean rudder over the last {cfg.adaptive_bias_cycles:g} course-change "
                                     "cycle(s) (before that, over the course held before the first change), "
@@ -271,5 +317,5 @@ def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int],
         "K_tracking": {"what": "mean identified K (1/s) before the speed change and at the end, and their "
                                "ratio; a Nomoto K in 1/s scales with speed, so the ratio should follow "
                                "the speed share", "speed_share": cfg.adaptive_speed_share,
-                       "per_seed": tracking},
-    }, id_secs
+                       "per_seed": cg["K_tracking"]},
+    }

@@ -463,7 +463,8 @@ def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plant
         from pipeline.control.adaptive import adaptive_block
 
         doc["adaptive"], secs = adaptive_block(extra["parameters"], extra["covariance"], base.K, base.T,
-                                               seeds[:cfg.adaptive_seeds], cfg, q_std=extra.get("q_std"))
+                                               seeds[:cfg.adaptive_seeds], cfg, q_std=extra.get("q_std"),
+                                               pid_start=(op_model["K"], op_model["T"]))
         print(f"control: adaptive in-loop run, {len(seeds[:cfg.adaptive_seeds])} seeds x 2; streaming "
               f"identification {secs:.2f} s", file=sys.stderr)
     doc["robustness"]["nyquist"] = nyquist_for(designs, control_model, cfg, n=cfg.bode_points)
