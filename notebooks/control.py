@@ -387,6 +387,18 @@ if ad:
         nb.show(fig, "Adaptive gains on the first seed; the dashed line is the propeller cut. Flat "
                 "stretches are re-designs refused by the rule (too little excitation, filter "
                 "over-confident, no positive K, T).")
+    pid_ad = ad.get("pid") or {}
+    if pid_ad.get("stats"):
+        prow = []
+        for name in ("fixed", "adaptive"):
+            st = pid_ad["stats"].get(name) or {}
+            prow.append({"PID gains": name, **{k.replace("_", " "): f"{nb.num(v.get('mean'), 3)} +- "
+                                               f"{nb.num(v.get('std'), 2)}" for k, v in st.items()}})
+        nb.table(pd.DataFrame(prow).set_index("PID gains"),
+                 f"The same scenario and seeds with the project's PID ({pid_ad.get('design')}), starting "
+                 f"from K {nb.num((pid_ad.get('start') or {}).get('K'), 3)} 1/s, T "
+                 f"{nb.num((pid_ad.get('start') or {}).get('T'), 3)} s (the operating-point model): its "
+                 "integrator holds the wind, so a re-design from a larger K costs no steady offset.")
     kt = ad.get("K_tracking") or {}
     if kt.get("per_seed"):
         ro = ad.get("rudder_offset") or {}
@@ -425,6 +437,12 @@ else:
                       f"{nb.num(dif.get('overshoot_max_deg'), 3, 'deg')}, rudder RMS "
                       f"{nb.num(dif.get('rudder_rms_deg'), 3, 'deg')}, heading MAE "
                       f"{nb.num(dif.get('heading_mae_deg'), 3, 'deg')} (mean over the paired seeds).")
+        pdif = ((ad.get("pid") or {}).get("difference") or {}).get("metrics") or {}
+        if pdif:
+            points.append("The PID re-designed in the loop, adaptive minus fixed: largest overshoot "
+                          f"{nb.num(pdif.get('overshoot_max_deg'), 3, 'deg')}, heading MAE "
+                          f"{nb.num(pdif.get('heading_mae_deg'), 3, 'deg')}, rudder RMS "
+                          f"{nb.num(pdif.get('rudder_rms_deg'), 3, 'deg')}.")
     if pc:
         points.append("The paper's case gives a steady MAE of "
                       f"{nb.num(pc.get('steady_mae_mean'), 3, 'deg')} (paper 0.86 deg): a PD holds a "
