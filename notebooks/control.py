@@ -403,8 +403,9 @@ if ad:
     if kt.get("per_seed"):
         ro = ad.get("rudder_offset") or {}
         nb.table(pd.DataFrame(kt["per_seed"]).set_index("seed"),
-                 "Identified K (1/s) in the loop: mean over the 50 s before the speed change and over the "
-                 f"last 100 s, and their ratio (speed share {kt.get('speed_share')}). Rudder offset "
+                 "Identified K (1/s) in the adaptive CGSA loop: mean over the 50 s before the speed change "
+                 f"and over the last 100 s, and their ratio (speed share {kt.get('speed_share')}). "
+                 "Rudder offset "
                  + ("removed: " + str(ro.get("method")) if ro.get("removed") else "not removed") + ".")
 
 # %% [markdown]
