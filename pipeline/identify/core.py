@@ -536,7 +536,7 @@ def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfi
     if ident.indices_error:
         doc["indices_error"] = ident.indices_error
     doc["flags"] = ident.flags
-    doc["noise_estimate"] = {      # docs/identification.md#noise-settings-from-the-data
+    doc["noise_estimate"] = {      # docs/identification.md#process-noise-from-the-data
         "R": {"method": ident.consistency.get("r_std_source"), "std": ident.consistency.get("r_std")},
         "Q": {"method": ident.consistency.get("q_std_source"), "std": ident.consistency.get("q_std"),
               **{k: v for k, v in (ident.consistency.get("noise_estimate") or {}).items() if k != "q_std"}},
