@@ -48,8 +48,7 @@ if refused:
     nb.note("The autopilot is NOT designed for this dataset: " + str(cm.get("reason")))
 elif dmodel.get("rule") and (dmodel.get("identified") or dmodel.get("graphical")):
     nb.note(f"Designed from: {dmodel.get('source')} ({dmodel.get('reason')}; the held-out comparison is "
-            "below). The indices stage's own choice, by the filter's consistency flags alone, was: "
-            + str(basis.get("basis") or basis.get("source") or "not stated"))
+            "below). The indices stage makes this one decision; the indices page shows the same.")
 else:
     nb.note("Designed from: " + str(basis.get("basis") or basis.get("source") or "not stated"))
 for n_ in cm.get("notes") or []:
@@ -70,16 +69,9 @@ n_flags = nb.flags_table(groups, "Trust flags of the indices the design uses (sh
 
 # %%
 if dmodel.get("identified") or dmodel.get("graphical"):
-    rows = []
-    for name in ("identified", "graphical"):
-        blk = dmodel.get(name) or {}
-        ho = blk.get("heldout") or {}
-        rows.append({"model": name, "K (1/s)": blk.get("K"), "T (s)": blk.get("T"),
-                     "held-out MAE psi (deg)": ho.get("mae_psi_deg"), "samples": ho.get("samples"),
-                     "chosen": "yes" if dmodel.get("chosen") == name else ""})
-    nb.table(pd.DataFrame(rows).set_index("model"),
-             f"Rule: {dmodel.get('rule')}. {dmodel.get('reason', '')}. Held-out runs: "
-             f"{', '.join(dmodel.get('heldout_runs') or [])}.")
+    from pipeline.indices.design_model import decision_table
+    rows, cap = decision_table(dmodel)
+    nb.table(pd.DataFrame(rows).set_index("model"), cap)
 elif dmodel:
     nb.note(f"Design model: {dmodel.get('source')} ({dmodel.get('rule')})")
 
@@ -115,6 +107,14 @@ nb.full_scale_rows(pd.DataFrame({n: {f"{k} ({u})": d[k] for k, u in (("K", "1/s"
 dflags = [(f"design {n}", d.get("flags")) for n, d in designs.items() if d.get("flags")]
 if dflags:
     n_flags += nb.flags_table(dflags, "Designs whose loop fails a robustness check, with the reason.")
+def plain_log_ticks(ax):
+    """Decade ticks as plain numbers (the pages take text literally, so no mathtext 10^n labels)."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+
+
 bode = {n: d["bode_nomoto_plant"] for n, d in designs.items()
         if isinstance(d.get("bode_nomoto_plant"), dict)}
 if bode:
@@ -128,15 +128,17 @@ if bode:
     axes[0].set_ylabel("|L| (dB)")
     axes[1].set_ylabel("phase of L (deg)")
     axes[1].set_xlabel("frequency (rad/s)")
+    plain_log_ticks(axes[1])
     nb.legend_outside(axes[0])
     nb.show(fig, "Open-loop Bode diagram of each design on the Nomoto plant. The phase margin is the "
             "distance of the phase from -180 deg where the gain crosses 0 dB.")
 
 # %% [markdown]
 # ## The project's autopilot
-# PID by pole placement on the first-order design model (double pole at wn = 1/Tw, the integrator a
-# decade lower), conditional integration against wind-up, and Fossen's third-order reference model with
-# a yaw-rate limit; the reference's motion is fed forward through the inverse Nomoto model.
+# PID by pole placement on the first-order model of the operating point (next section; double pole at
+# wn = 1/Tw, the integrator a decade lower), conditional integration against wind-up, and Fossen's
+# third-order reference model with a yaw-rate limit; the reference's motion is fed forward through the
+# inverse Nomoto model.
 
 # %%
 ap = designs.get("autopilot")
@@ -145,6 +147,38 @@ if ap:
     nb.table(pd.DataFrame([{k: ap.get(k) for k in keys_}], index=["autopilot"]),
              "Autopilot gains: Kp deg/deg, Kd deg/(deg/s), Ki deg/(deg s); wn, wr rad/s; r_max deg/s. "
              + ("Kd clipped at 0 (the ship is faster than the loop)." if ap.get("kd_clipped") else ""))
+
+# %% [markdown]
+# ## Operating point: where the autopilot is designed
+# Course keeping holds the rudder near its offset, where the ship answers as in its smallest zigzag, not
+# the 20/20 one. The CGSA and the PID are designed from both bases and each sampled loop is scored on every
+# plant; the rule picks the basis of the project's autopilot (the CGSA stays on the design model: the
+# paper's chain).
+
+# %%
+op = cm.get("operating_point") or {}
+if op:
+    mrows = []
+    for name, mdl in (op.get("models") or {}).items():
+        mrows.append({"model": name.replace("_", " "), "K (1/s)": mdl.get("K"), "T (s)": mdl.get("T"),
+                      "source": mdl.get("source")})
+    nb.table(pd.DataFrame(mrows).set_index("model"), "The models of the operating-point comparison.")
+    orows = []
+    for bname, kinds in (op.get("margins") or {}).items():
+        for kind, blk in kinds.items():
+            for plant, mm in (blk.get("plants") or {}).items():
+                gm_ = mm.get("gain_margin_db")
+                orows.append({"designed from": bname.replace("_", " "), "controller": kind.upper(),
+                              "loop on": plant.replace("_", " "),
+                              "PM (deg)": mm.get("phase_margin_deg"),
+                              "GM (dB)": np.inf if gm_ is None else gm_,
+                              "delay margin (s)": mm.get("delay_margin_s"),
+                              "Ms (-)": mm.get("sensitivity_peak"),
+                              "stable": mm.get("stable")})
+    if orows:
+        nb.table(pd.DataFrame(orows).set_index(["designed from", "controller", "loop on"]),
+                 f"Sampled-loop margins of both bases. Used for the autopilot: "
+                 f"{str(op.get('used')).replace('_', ' ')} ({op.get('why')}). Rule: {op.get('rule')}.")
 
 # %% [markdown]
 # ## Robustness of the sampled loop
@@ -212,6 +246,7 @@ if nyq:
     axes[1].axhline(20 * np.log10(2), color="0.5", ls=":", lw=0.8)
     axes[1].set_xlabel("frequency (rad/s)")
     axes[1].set_ylabel("|S| (dB)")
+    plain_log_ticks(axes[1])
     nb.legend_outside(axes[1])
     nb.show(fig, "Left: Nyquist plot of each design's sampled loop on the design model (|L| < 5 shown), "
             "the critical point -1 and the circle of radius 0.5 (Ms = 2). Right: sensitivity |S| = "
@@ -352,6 +387,26 @@ if ad:
         nb.show(fig, "Adaptive gains on the first seed; the dashed line is the propeller cut. Flat "
                 "stretches are re-designs refused by the rule (too little excitation, filter "
                 "over-confident, no positive K, T).")
+    pid_ad = ad.get("pid") or {}
+    if pid_ad.get("stats"):
+        prow = []
+        for name in ("fixed", "adaptive"):
+            st = pid_ad["stats"].get(name) or {}
+            prow.append({"PID gains": name, **{k.replace("_", " "): f"{nb.num(v.get('mean'), 3)} +- "
+                                               f"{nb.num(v.get('std'), 2)}" for k, v in st.items()}})
+        nb.table(pd.DataFrame(prow).set_index("PID gains"),
+                 f"The same scenario and seeds with the project's PID ({pid_ad.get('design')}), starting "
+                 f"from K {nb.num((pid_ad.get('start') or {}).get('K'), 3)} 1/s, T "
+                 f"{nb.num((pid_ad.get('start') or {}).get('T'), 3)} s (the operating-point model): its "
+                 "integrator holds the wind, so a re-design from a larger K costs no steady offset.")
+    kt = ad.get("K_tracking") or {}
+    if kt.get("per_seed"):
+        ro = ad.get("rudder_offset") or {}
+        nb.table(pd.DataFrame(kt["per_seed"]).set_index("seed"),
+                 "Identified K (1/s) in the adaptive CGSA loop: mean over the 50 s before the speed change "
+                 f"and over the last 100 s, and their ratio (speed share {kt.get('speed_share')}). "
+                 "Rudder offset "
+                 + ("removed: " + str(ro.get("method")) if ro.get("removed") else "not removed") + ".")
 
 # %% [markdown]
 # ## Conclusion
@@ -363,6 +418,9 @@ if refused:
 else:
     points.append("Designed from: " + str(dmodel.get("source") or basis.get("source") or "not stated")
                   + (f" ({dmodel.get('reason')})." if dmodel.get("reason") else "."))
+    if op:
+        points.append(f"The autopilot (PID) is designed from the {str(op.get('used')).replace('_', ' ')} "
+                      f"model: {op.get('why')}.")
     for res in results:
         st = res.get("stats") or {}
         rt, md = (st.get("rise_time") or {}).get("mean"), (st.get("max_deviation") or {}).get("mean")
@@ -380,6 +438,12 @@ else:
                       f"{nb.num(dif.get('overshoot_max_deg'), 3, 'deg')}, rudder RMS "
                       f"{nb.num(dif.get('rudder_rms_deg'), 3, 'deg')}, heading MAE "
                       f"{nb.num(dif.get('heading_mae_deg'), 3, 'deg')} (mean over the paired seeds).")
+        pdif = ((ad.get("pid") or {}).get("difference") or {}).get("metrics") or {}
+        if pdif:
+            points.append("The PID re-designed in the loop, adaptive minus fixed: largest overshoot "
+                          f"{nb.num(pdif.get('overshoot_max_deg'), 3, 'deg')}, heading MAE "
+                          f"{nb.num(pdif.get('heading_mae_deg'), 3, 'deg')}, rudder RMS "
+                          f"{nb.num(pdif.get('rudder_rms_deg'), 3, 'deg')}.")
     if pc:
         points.append("The paper's case gives a steady MAE of "
                       f"{nb.num(pc.get('steady_mae_mean'), 3, 'deg')} (paper 0.86 deg): a PD holds a "

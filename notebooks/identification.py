@@ -325,4 +325,16 @@ if len(algorithms) == 2 and all(est[a].get("timing", {}).get("seconds_per_step")
     points.append(f"{nb.ALG_LABEL.get(algorithms[0])} is {ratio:.0f} times faster per step than "
                   f"{nb.ALG_LABEL.get(algorithms[1])}: compiled code against pure Python, a measure of the "
                   "implementations, not of the algorithms.")
+for a in algorithms:
+    ne = est[a].get("noise_estimate") or {}
+    rq = [(k, ne.get(k) or {}) for k in ("R", "Q")]
+    if all(d.get("std") for _, d in rq):
+        units = {"v": "m/s", "r": "deg/s", "psi": "deg"}
+        txt = "; ".join(f"{k} one-sigma " + ", ".join(f"{n} {nb.num(v, 3)} {units.get(n, '')}"
+                                                       for n, v in d["std"].items()) + f" ({d.get('method')})"
+                        for k, d in rq)
+        scale = rq[1][1].get("scale")
+        points.append(f"Noise settings of {nb.ALG_LABEL.get(a, a)}: {txt}"
+                      + (f"; scale c = {nb.num(scale, 3)}." if scale is not None else "."))
+        break
 nb.conclusion(points)

@@ -117,6 +117,13 @@ for r in ind.get("graphical") or []:
 n_flags = nb.flags_table(groups, "Every trust check that failed, with its reason. A flagged number is "
                          "shown but not used silently: the autopilot basis below says what was used.")
 nb.note("Autopilot designed from: " + str(cm.get("basis") or cm.get("source") or "not stated"))
+dm = cm.get("design_model") or {}
+if dm.get("identified") or dm.get("graphical"):
+    from pipeline.indices.design_model import decision_table
+    rows_dm, cap = decision_table(dm)
+    nb.table(pd.DataFrame(rows_dm).set_index("model"),
+             cap + " The filter's consistency flags above judge its stated uncertainty, not whether its "
+             "model predicts.")
 
 # %% [markdown]
 # ## Zigzag and turning metrics with the IMO check

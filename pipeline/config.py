@@ -190,6 +190,18 @@ class FilterConfig:
     # noise std measured from the identification window by the robust second-difference estimator,
     # pipeline.identify.core.measured_noise_std): a logger's noise is the data's, not the paper's.
     measurement_noise: str = "paper"
+    # Where Q of the motion states comes from: 'paper' (q_std above) or 'data': q of each measured
+    # state = c x its measurement noise (unit-consistent: the paper's (0.02, 0.02, 0.01) puts m/s and
+    # deg/s on one footing), the scale c found by matching the mean NIS of the identification window to
+    # its expectation m (pipeline.identify.core.estimate_process_noise; docs/identification.md).
+    process_noise: str = "paper"
+    # Bracket of the scale c (dimensionless): 0.01 x the logger's noise a step is below any model error
+    # a linear model of a hull leaves at 0.08 s; 10 x is a model error ten times the logger's noise,
+    # where the filter stops learning the parameters (it follows the measurements).
+    process_scale_bracket: tuple[float, float] = (0.01, 10.0)
+    # Stop when the mean NIS is within this share of m: 2 %, a tenth of the half-width of the NIS band
+    # over the few hundred effectively independent steps of a 585-sample window (about +-10 %).
+    process_nis_tolerance: float = 0.02
     alpha: float = 1.0                   # unscented transform spread
     beta: float = 2.0
     kappa: float = 0.0
@@ -333,12 +345,16 @@ class ControlConfig:
     # deg/s: a quarter of the yaw rate the ship reaches at full rudder (K rudder_max, from the design
     # model), so a course change never asks for more than a moderate steady turn
     ref_rate_share: float = 0.25
-    # The design-model rule (pipeline/control/design_model.py): the identified model is designed from
+    # The design-model rule (pipeline.indices.design_model.py): the identified model is designed from
     # unless its pooled held-out free-run heading error exceeds the graphical model's by both this
     # share (the smallest improvement a naval architect would change a model for, as DiagnoseConfig
     # .min_gain) and this many degrees (a tank's heading repeatability, as DiagnoseConfig.min_abs_gain_deg)
     design_rule_rel: float = 0.10
     design_rule_abs_deg: float = 0.10
+    # Where the project's autopilot (PID) is designed (pipeline/control/operating_point.py): at the
+    # course-keeping operating point, 'small_amplitude' (the smallest zigzags' K, T, when usable and
+    # keeping the phase-margin floor on the design model), or 'design_model' (the held-out rule's model)
+    operating_point: str = "small_amplitude"
     # Robustness (pipeline/control/robustness.py): draws of the identified parameters from the filter's
     # covariance for the stable fraction and worst margins (200: the stable fraction to +-3.5 % at
     # 95 %), seeded from ``seed``; the reduced speeds of the nonlinear KCS, as shares of the approach
@@ -370,6 +386,14 @@ class ControlConfig:
     adaptive_min_rudder_std: float = 1.0  # deg
     adaptive_max_nis_ratio: float = 3.0
     adaptive_max_gain_change: float = 0.2
+    # Rudder offset removed from what the in-loop identifier is fed (pipeline/control/adaptive.py): a
+    # constant disturbance (wind) is held by a constant rudder that is not a state of the sway-yaw
+    # model; fed as it is, it teaches the filter that rudder turns nothing (K -> 0).  The offset is the
+    # mean rudder over the last adaptive_bias_cycles course-change cycles (0, +step, 0, -step: the
+    # schedule's own rudder cancels over a whole cycle), or over the course held before the first
+    # change until that many cycles are complete.
+    adaptive_remove_rudder_offset: bool = True
+    adaptive_bias_cycles: float = 1.0
 
 
 @dataclass(frozen=True)

@@ -13,12 +13,12 @@ import pytest
 from pipeline.config import ControlConfig
 from pipeline.control.autopilot import PIDController, ReferenceModel, design_pid
 from pipeline.control.design import design_first_order
-from pipeline.control.design_model import choose_design_model, graphical_parameters
 from pipeline.control.robust import delay_steps, discrete_margins, loop_tf, sampled_margins, sampled_plant
 from pipeline.control.robustness import step_figures
 from pipeline.control.settings import apply, parse_control_table, read_dataset_control
 from pipeline.control.simulate import NomotoShip, simulate_course
 from pipeline.errors import InputError, ModelError
+from pipeline.indices.design_model import choose_design_model, graphical_parameters
 from pipeline.io import Run
 from pipeline.model import simulate
 

@@ -10,6 +10,7 @@ import pytest
 from test_zigzag import simulate_circle, simulate_zigzag
 
 from pipeline.cli import main
+from pipeline.config import ControlConfig
 from pipeline.errors import ModelError
 from pipeline.indices import (
     draw_validity,
@@ -187,10 +188,18 @@ def test_stage_writes_the_catalog_schema(tmp_path):
     for n in INDEX_NAMES:
         p16, p50, p84 = chk["percentiles_16_50_84"][n]
         assert p16 < ind["identified"]["srukf-ffm"][n]["value"] < p84
+    # the runs are a first-order ship K 0.5 1/s, T 6 s; the "identified" parameters are Table 4's (K 0.387):
+    # on the held-out runs the graphical model (fitted to these runs) predicts better, and the one
+    # design-model decision takes it, with both errors and the rule
     cm = ind["control_model"]
-    assert "srukf-ffm" in cm["source"]
-    assert cm["K"] == pytest.approx(0.38729, rel=1e-4)
+    dm = cm["design_model"]
+    assert dm["chosen"] == "graphical" and cm["source"].startswith("first-order graphical")
+    assert dm["heldout_runs"] == ["z20p", "z10s"] and dm["algorithm"] == "srukf-ffm"
+    i_err, g_err = dm["identified"]["heldout"]["mae_psi_deg"], dm["graphical"]["heldout"]["mae_psi_deg"]
+    assert i_err > 1.1 * g_err and i_err - g_err > 0.1 and "loses" in cm["basis"]
+    assert dm["identified"]["K"] == pytest.approx(0.38729, rel=1e-4)
     gm = ind["graphical_model"]
+    assert cm["K"] == gm["K"] and cm["T"] == gm["T"] and cm["T2"] == 0.0
     assert ind["identification_run"] == "z20s" and "z20s" in gm["source"]
     assert gm["K"] == pytest.approx(0.5, rel=0.03) and gm["T"] == pytest.approx(6.0, rel=0.03)
     methods = {(g["run_id"], g["method"]) for g in ind["graphical"]}
@@ -259,7 +268,11 @@ def test_stage_falls_back_when_identified_model_is_unusable(tmp_path):
     assert main(["indices", "--dataset", "t", "--root", str(root), "--uncertainty", "linear"]) == 0
     ind = json.loads((root / "t" / "indices" / "indices.json").read_text())
     assert "srukf-ffm" in ind["identified_failures"]
-    assert ind["control_model"]["source"].startswith("identified ffm-ukf")
+    cm = ind["control_model"]
+    # the candidate falls back to FFM-UKF (saying why SR-UKF-FFM is not one); on these first-order
+    # runs (K 0.5, T 6) its Table 4 parameters lose to the graphical model on the held-out runs
+    assert cm["design_model"]["algorithm"] == "ffm-ukf" and cm["design_model"]["chosen"] == "graphical"
+    assert [r["candidate"] for r in cm["rejected"]] == ["identified srukf-ffm", "identified ffm-ukf"]
     assert ind["uncertainty_method"]["ffm-ukf"] == "linear"
 
 
@@ -316,9 +329,11 @@ def test_stage_results_are_typed_and_serialise_to_the_written_files(tmp_path, ca
     assert not any("K_std" in r.to_json() for r in ind.graphical if r.method == "standard")
     if case == "srukf-unusable":
         assert set(ind.identified_failures) == {"srukf-ffm"} and set(ind.identified) == {"ffm-ukf"}
-        assert cm.source.startswith("identified ffm-ukf") and "srukf-ffm" in cm.basis
+        assert cm.design_model["algorithm"] == "ffm-ukf"
+        assert cm.rejected[0]["candidate"] == "identified srukf-ffm"
     else:
-        assert cm.indices["K"] == pytest.approx(0.38729, rel=1e-4)
+        assert cm.design_model["identified"]["K"] == pytest.approx(0.38729, rel=1e-4)
+    assert cm.design_model["chosen"] == "graphical" and cm.indices["K"] == ind.graphical_model.K
 
 
 def test_refused_control_model_keeps_its_own_keys():
@@ -356,3 +371,28 @@ def test_paper_figures_have_one_source():
     got = model.nomoto_indices(paper.TABLE4)
     for n in INDEX_NAMES:
         assert float(got[n]) == pytest.approx(paper.TABLE7[n], rel=2e-3), n
+
+
+def test_one_design_model_decision_takes_the_identified_model_that_predicts(tmp_path):
+    """The identified parameters of the ship the runs come from (first order, K 0.5 1/s, T 6 s, written
+    as the six parameters): they do not lose on the held-out runs, so the indices stage designs from
+    them, and the control stage designs from the same model without deciding again."""
+    from pipeline.control.stage import run_control
+    from pipeline.indices.design_model import graphical_parameters
+
+    root = _dataset(tmp_path, srukf_params=graphical_parameters(0.5, 6.0))
+    assert main(["indices", "--dataset", "t", "--root", str(root)]) == 0
+    ind = read_json(root / "t" / "indices" / "indices.json")
+    cm = ind["control_model"]
+    assert cm["design_model"]["chosen"] == "identified" and cm["source"].startswith("identified srukf-ffm")
+    assert cm["K"] == pytest.approx(0.5, rel=1e-9)
+    doc, _ = run_control(ind, ControlConfig(seeds=1, robust_draws=2, bode_points=20, duration=60.0,
+                                            steady_start=40.0), plants=("nomoto",), progress=False)
+    assert doc["design_model"]["chosen"] == "identified"
+    assert doc["design_model"]["identified"]["heldout"] == cm["design_model"]["identified"]["heldout"]
+    assert doc["designs"]["identified"]["K"] == pytest.approx(0.5, rel=1e-9)
+    # both reports show the decision from the same rows
+    from pipeline.indices.design_model import decision_table
+    rows, cap = decision_table(cm["design_model"])
+    assert [r["chosen"] for r in rows] == ["yes", ""] and "z20p, z10s" in cap
+    assert rows[0]["held-out MAE psi (deg)"] == cm["design_model"]["identified"]["heldout"]["mae_psi_deg"]

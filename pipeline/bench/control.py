@@ -4,6 +4,12 @@ Back to back in one run: the whole control stage (:func:`pipeline.control.stage.
 paper's indices with the KCS plant, the robustness block and the adaptive run), then the adaptive
 block alone on the same seeds, which reports the seconds spent in the streaming identifier's updates.
 The ratio of the two is the identification's share of the stage (target: below 10 %).
+
+Then the robustness draws (``robust_draws`` parameter draws x the stage's three designs) two ways in the
+same run: the baseline as the stage used to run them (each draw's plant through its transfer function,
+python-control's ``c2d``, BLAS on its default threads, the plant rebuilt for every design) and the
+stage's way (:func:`pipeline.control.robust.parameters_plant` once per draw, one BLAS thread); the
+ratio is the speed-up (docs/control.md, "Speed").
 """
 
 from __future__ import annotations
@@ -36,10 +42,50 @@ def run(quick: bool = False) -> list[dict]:
     stage = time.perf_counter() - t0
     seeds = wave_seeds(cfg)[:cfg.adaptive_seeds]
     _, ident = adaptive_block(theta, cov, PAPER_TABLE7["K"], PAPER_TABLE7["T"], seeds, cfg)
+    base, cand = _draws_two_ways(doc, cfg, np.asarray(theta, float), cov)
     return [
         {"name": f"control stage, {cfg.seeds} seeds, KCS, adaptive", "value": stage, "unit": "s"},
+        {"name": f"robustness draws, {cfg.robust_draws} x 3 designs, baseline (transfer-function route, "
+                 "default BLAS threads)", "value": base, "unit": "s"},
+        {"name": "robustness draws, the stage's way (state-space route, one BLAS thread)", "value": cand,
+         "unit": "s"},
+        {"name": "robustness draws: baseline / stage's way", "value": base / cand, "unit": "x",
+         "note": "same run, back to back"},
         {"name": "in-loop identification (streaming updates)", "value": ident, "unit": "s",
          "note": f"the {len(seeds)} adaptive runs (the fixed-gain runs carry no identifier)"},
         {"name": "in-loop identification / control stage", "value": 100.0 * ident / stage, "unit": "%",
          "target": "< 10", "note": "same run, back to back"},
     ]
+
+
+def _draws_two_ways(doc: dict, cfg: ControlConfig, theta: np.ndarray, cov: np.ndarray) -> tuple[float, float]:
+    """Seconds of the robustness draws the old way and the stage's way (module docstring)."""
+    from threadpoolctl import threadpool_limits
+
+    from pipeline.control.autopilot import design_pid
+    from pipeline.control.design import design_first_order
+    from pipeline.control.robust import (
+        discrete_margins,
+        loop_tf,
+        parameters_rate_tf,
+        sampled_plant_tf,
+    )
+    from pipeline.control.robustness import _draws
+
+    cm, gm = doc["control_model"], doc["graphical_model"]
+    designs = {"identified": design_first_order(cm["K"], cm["T"], cfg.tw, name="identified"),
+               "graphical": design_first_order(gm["K"], gm["T"], cfg.tw, name="graphical"),
+               "autopilot": design_pid(cm["K"], cm["T"], cfg.tw, rudder_max=cfg.rudder_max)}
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 41]))
+    draws = rng.multivariate_normal(theta, 0.5 * (cov + cov.T), size=cfg.robust_draws, method="eigh")
+    t0 = time.perf_counter()
+    for d in designs.values():
+        for th in draws:
+            plant = sampled_plant_tf(parameters_rate_tf(th), cfg.dt,
+                                     servo_time_constant=cfg.servo_time_constant, dead_time=cfg.dead_time)
+            discrete_margins(loop_tf(d, plant, cfg.dt), n_grid=600)
+    base = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    with threadpool_limits(limits=1, user_api="blas"):
+        _draws(designs, theta, cov, cfg)
+    return base, time.perf_counter() - t0

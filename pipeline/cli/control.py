@@ -43,18 +43,17 @@ def paper_indices() -> dict:
             "graphical_model": {"source": "paper (graphical method)", **PAPER_GRAPHICAL}}
 
 
-def dataset_inputs(cat, indices: dict, cfg: ControlConfig, *, with_runs: bool = True):
-    """(settings, notice, design-model choice, robustness inputs) of a dataset from its processed files.
+def dataset_inputs(cat, indices: dict, cfg: ControlConfig):
+    """(settings, notice, robustness inputs) of a dataset from its processed files.
 
-    Settings: the ``[control]`` table of the dataset.toml that runs/index.json names.  The design-model
-    choice compares the identified and graphical models on the held-out runs (pipeline/control/
-    design_model.py); the robustness inputs are the identified parameters and covariance and, for the
-    built-in tank's KCS, its linearisation straight ahead and at the reduced speeds.
+    Settings: the ``[control]`` table of the dataset.toml that runs/index.json names.  Which model to
+    design from is not decided here: the indices stage decides it on the held-out runs
+    (``control_model.design_model`` of indices.json, pipeline/indices/design_model.py).  The
+    robustness inputs are the identified parameters and covariance and, for the built-in tank's KCS,
+    its linearisation straight ahead and at the reduced speeds.
     """
-    from pipeline.control.design_model import choose_design_model
     from pipeline.control.settings import apply, read_dataset_control
     from pipeline.model import PARAM_NAMES
-    from pipeline.runinfo import choose_runs
 
     index = read_json(cat.runs_index) if cat.runs_index.is_file() else {}
     part = index.get("ship") if isinstance(index.get("ship"), dict) else {}
@@ -64,36 +63,15 @@ def dataset_inputs(cat, indices: dict, cfg: ControlConfig, *, with_runs: bool = 
     est_path = cat.identify_dir("srukf-ffm") / "estimates.json"
     est = read_json(est_path) if est_path.is_file() else None
     extra: dict = {}
-    identified = None
     if est is not None:
         try:
             theta = [float(est["parameters"][n]) for n in PARAM_NAMES]
             extra = {"parameters": theta, "covariance": est["covariance"]}
+            q = (est.get("settings") or {}).get("q_std")
+            if isinstance(q, list) and len(q) >= 3:     # the identify stage's Q, for the in-loop filter
+                extra["q_std"] = [float(x) for x in q[:3]]
         except (KeyError, TypeError, ValueError):
             raise InputError("parameters or covariance missing or not numbers", file=est_path) from None
-        block = (indices.get("identified") or {}).get("srukf-ffm") or {}
-        try:
-            ind = {n: float(block[n]["value"]) for n in ("K", "T1", "T2", "T3", "T")}
-        except (KeyError, TypeError, ValueError):
-            ind = None
-        if ind and ind["K"] > 0 and ind["T"] > 0 and ind["T1"] > 0 and ind["T2"] > 0:
-            identified = {"parameters": dict(zip(PARAM_NAMES, theta, strict=True)), "indices": ind}
-    choice = None
-    gm = indices.get("graphical_model")
-    if with_runs and gm is not None and index.get("runs"):
-        from pipeline.io import read_run
-
-        try:
-            _, held = choose_runs(index["runs"], (est or {}).get("run_id"))
-        except ValueError as exc:
-            raise InputError(str(exc), file=cat.runs_index) from None
-        files = {e["run_id"]: e.get("file", f"{e['run_id']}.parquet") for e in index["runs"]}
-        runs = []
-        for rid in held:
-            run = read_run(cat.runs_dir / files[rid])
-            run.meta["run_id"] = rid
-            runs.append(run)
-        choice = choose_design_model(identified, {"K": float(gm["K"]), "T": float(gm["T"])}, runs, cfg)
     if indices.get("builtin_tank"):
         from dataclasses import replace as _replace
 
@@ -107,7 +85,7 @@ def dataset_inputs(cat, indices: dict, cfg: ControlConfig, *, with_runs: bool = 
             extra["linearised"] = {s: linearise(_replace(base, approach_speed=base.approach_speed * s))
                                    for s in (1.0, *cfg.reduced_speeds)}
             extra["kcs"] = True
-    return cfg, notice, choice, extra
+    return cfg, notice, extra
 
 
 def _run(args) -> int:
@@ -129,18 +107,18 @@ def _run(args) -> int:
         changes["wave"] = False
     cfg = replace(cfg, **changes)
 
-    choice, extra, notice = None, {}, None
+    extra, notice = {}, None
     if args.paper:
         doc, source = paper_indices(), "paper"
         doc["dataset"] = args.dataset
     else:
         path = args.indices or (cat.indices_dir / "indices.json")
         doc, source = read_json(path), str(path)
-        cfg, notice, choice, extra = dataset_inputs(cat, doc, cfg, with_runs=args.indices is None)
+        cfg, notice, extra = dataset_inputs(cat, doc, cfg)
     if args.plants is not None and "kcs" not in args.plants:
         extra.pop("kcs", None)
     metrics, ts = run_control(doc, cfg, source=source, plants=tuple(args.plants) if args.plants else None,
-                              progress=not args.no_progress, design_choice=choice, robustness=extra)
+                              progress=not args.no_progress, robustness=extra)
     if notice:                                   # one line, once the run has succeeded
         print(notice, file=sys.stderr)
         metrics["notes"].append(notice)

@@ -32,6 +32,9 @@ def register(sub) -> None:
                    help="identification window as a number of zigzag half-periods after the first execute")
     p.add_argument("--measurement-noise", choices=("paper", "data"), default=None,
                    help="R of the filter: the paper's setting (default) or measured from the run")
+    p.add_argument("--process-noise", choices=("paper", "data"), default=None,
+                   help="Q of the motion states: the paper's setting (default) or matched to the run's "
+                        "innovations (mean NIS = m)")
     p.add_argument("--scale", type=float, default=None, help="scale factor of a full-scale raw file")
     p.add_argument("--run-id", default=None, help="catalog mode: identify this run instead of the default")
     p.add_argument("--reference", action="store_true", help="SR-UKF: numpy reference path instead of numba")
@@ -90,6 +93,8 @@ def dataset_settings(cfg: FilterConfig, settings: dict, args, where: Path) -> Fi
             cfg = dataclasses.replace(cfg, samples=int(settings["samples"]))
     if args.measurement_noise is None and settings.get("measurement_noise") is not None:
         cfg = dataclasses.replace(cfg, measurement_noise=str(settings["measurement_noise"]))
+    if args.process_noise is None and settings.get("process_noise") is not None:
+        cfg = dataclasses.replace(cfg, process_noise=str(settings["process_noise"]))
     return cfg
 
 
@@ -112,6 +117,8 @@ def _run(args) -> int:
         cfg = dataclasses.replace(cfg, fast=False)
     if args.measurement_noise is not None:
         cfg = dataclasses.replace(cfg, measurement_noise=args.measurement_noise)
+    if args.process_noise is not None:
+        cfg = dataclasses.replace(cfg, process_noise=args.process_noise)
     if args.samples is not None and args.samples < 10:
         raise InputError(f"--samples must be at least 10, got {args.samples}")
     if args.run is not None:

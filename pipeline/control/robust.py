@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import control as ct
 import numpy as np
+from scipy.linalg import expm
 
 from pipeline.control.autopilot import PIDDesign
 from pipeline.control.design import CGSADesign
@@ -51,16 +52,47 @@ def sampled_plant_tf(r_tf: ct.TransferFunction, dt: float, *, servo_time_constan
     One state-space model (two outputs), so the loop has no duplicated plant modes."""
     g = r_tf if servo_time_constant <= 0 else r_tf * ct.tf([1.0], [float(servo_time_constant), 1.0])
     sr = ct.ss(g)
-    a, b, c = (np.asarray(m, dtype=float) for m in (sr.A, sr.B, sr.C))
+    return sampled_plant_ss(sr.A, sr.B, sr.C, dt, dead_time=dead_time)
+
+
+def parameters_plant(theta, dt: float, *, servo_time_constant: float = 0.0,
+                     dead_time: float = 0.0) -> ct.StateSpace:
+    """:func:`sampled_plant_ss` of the sway-yaw model with the six parameters a11 ... b21 (the same
+    plant as ``sampled_plant_tf(parameters_rate_tf(theta), ...)`` without the transfer-function detour)."""
+    a11, a12, a21, a22, b11, b21 = (float(x) for x in theta)
+    return sampled_plant_ss([[a11, a12], [a21, a22]], [b11, b21], [0.0, 1.0], dt,
+                            servo_time_constant=servo_time_constant, dead_time=dead_time)
+
+
+def sampled_plant_ss(a, b, c, dt: float, *, servo_time_constant: float = 0.0,
+                     dead_time: float = 0.0) -> ct.StateSpace:
+    """:func:`sampled_plant_tf` from a state-space rudder -> yaw-rate model x' = a x + b delta,
+    r = c x (deg/s per deg); the servo lag is added here as one more state.  The zero-order-hold
+    discretisation is the matrix exponential of the augmented system (exact for the held command)."""
+    a = np.atleast_2d(np.asarray(a, dtype=float))
+    b = np.asarray(b, dtype=float).reshape(-1, 1)
+    c = np.asarray(c, dtype=float).reshape(1, -1)
+    tau = float(servo_time_constant)
+    if tau > 0:                      # servo state s' = (u - s)/tau drives the hull
+        n0 = a.shape[0]
+        a2 = np.zeros((n0 + 1, n0 + 1))
+        a2[:n0, :n0] = a
+        a2[:n0, n0] = b[:, 0]
+        a2[n0, n0] = -1.0 / tau
+        b = np.zeros((n0 + 1, 1))
+        b[n0, 0] = 1.0 / tau
+        c = np.hstack([c, [[0.0]]])
+        a = a2
     n = a.shape[0]
-    aa = np.zeros((n + 1, n + 1))
-    aa[:n, :n] = a
-    aa[n, :n] = c[0]
-    bb = np.vstack([b, [[0.0]]])
+    big = np.zeros((n + 2, n + 2))
+    big[:n, :n] = a
+    big[n, :n] = c[0]
+    big[:n, n + 1] = b[:, 0]
+    e = expm(big * float(dt))
     cc = np.zeros((2, n + 1))
     cc[0, n] = 1.0
     cc[1, :n] = c[0]
-    sysd = ct.c2d(ct.ss(aa, bb, cc, np.zeros((2, 1))), dt, method="zoh")
+    sysd = ct.ss(e[:n + 1, :n + 1], e[:n + 1, n + 1:], cc, np.zeros((2, 1)), dt)
     nd = delay_steps(dead_time, dt)
     if nd == 0:
         return sysd

@@ -24,9 +24,8 @@ from pipeline.control.robust import (
     discrete_margins,
     loop_tf,
     nyquist_data,
-    parameters_rate_tf,
+    parameters_plant,
     sampled_margins,
-    sampled_plant_tf,
 )
 from pipeline.control.simulate import NomotoShip, make_kcs_ship, simulate_course
 
@@ -52,21 +51,25 @@ def _step(design, ship, cfg: ControlConfig) -> dict[str, float]:
     return step_figures(fr["time"].to_numpy(), fr["psi"].to_numpy(), cfg.step_deg, cfg.settle_share)
 
 
-def _draws(design, theta: np.ndarray, cov: np.ndarray, cfg: ControlConfig) -> dict[str, Any]:
+def _draws(designs: dict, theta: np.ndarray, cov: np.ndarray, cfg: ControlConfig) -> dict[str, dict]:
+    """Per design: the stable share and worst margins over ``cfg.robust_draws`` draws of the parameters
+    from N(theta, cov) (the same draws and sampled plants for every design)."""
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 41]))
     cov = 0.5 * (cov + cov.T)
     draws = rng.multivariate_normal(theta, cov, size=cfg.robust_draws, method="eigh")
-    rows = []
-    for th in draws:
-        plant = sampled_plant_tf(parameters_rate_tf(th), cfg.dt, servo_time_constant=cfg.servo_time_constant,
-                                 dead_time=cfg.dead_time)
-        rows.append(discrete_margins(loop_tf(design, plant, cfg.dt), n_grid=600))
-    stable = [r for r in rows if r["stable"]]
-    out: dict[str, Any] = {"draws": len(rows), "stable_fraction": len(stable) / len(rows) if rows else None}
-    for k, how in WORST_MARGIN.items():
-        vals = [r[k] for r in stable if np.isfinite(r[k])]
-        out[f"worst_{k}"] = float(how(vals)) if vals else None
-    return out
+    plants = [parameters_plant(th, cfg.dt, servo_time_constant=cfg.servo_time_constant,
+                               dead_time=cfg.dead_time) for th in draws]
+    result = {}
+    for name, design in designs.items():
+        rows = [discrete_margins(loop_tf(design, plant, cfg.dt), n_grid=600) for plant in plants]
+        stable = [r for r in rows if r["stable"]]
+        out: dict[str, Any] = {"draws": len(rows),
+                               "stable_fraction": len(stable) / len(rows) if rows else None}
+        for k, how in WORST_MARGIN.items():
+            vals = [r[k] for r in stable if np.isfinite(r[k])]
+            out[f"worst_{k}"] = float(how(vals)) if vals else None
+        result[name] = out
+    return result
 
 
 def robustness(designs: dict, control_model: dict, cfg: ControlConfig, extra: dict) -> dict[str, Any]:
@@ -85,14 +88,16 @@ def robustness(designs: dict, control_model: dict, cfg: ControlConfig, extra: di
                            "dead_time_s": cfg.dead_time,
                            "dead_time_samples": int(round(cfg.dead_time / cfg.dt)),
                            "designs": {}}
+    drawn = (_draws(designs, np.asarray(theta, float), np.asarray(cov, float), cfg)
+             if theta is not None and cov is not None else {})
     for name, d in designs.items():
         row: dict[str, Any] = {"design_model": sampled_margins(d, cm["K"], cm["T1"], cm["T2"], cm["T3"],
                                                                cfg.dt, **gear)}
         row["step_design_model"] = _step(d, NomotoShip(cm["K"], cm["T1"], cm["T2"], cm["T3"],
                                                        rudder_max=cfg.rudder_max, rudder_rate=cfg.rudder_rate,
                                                        **gear), cfg)
-        if theta is not None and cov is not None:
-            row["identified_draws"] = _draws(d, np.asarray(theta, float), np.asarray(cov, float), cfg)
+        if name in drawn:
+            row["identified_draws"] = drawn[name]
         for share, m in lin.items():
             key = "straight_ahead" if float(share) == 1.0 else f"speed_{float(share):.2f}"
             try:

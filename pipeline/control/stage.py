@@ -25,6 +25,7 @@ from dataclasses import asdict
 
 import numpy as np
 import pandas as pd
+from threadpoolctl import threadpool_limits
 
 from pipeline.config import ControlConfig
 from pipeline.control.autopilot import PIDDesign, design_pid
@@ -40,6 +41,7 @@ from pipeline.control.design import (
 )
 from pipeline.control.disturbance import wave_sequence, wave_variance_theory, wind_from_config
 from pipeline.control.metrics import WORST, course_metrics, seed_statistics
+from pipeline.control.operating_point import operating_point
 from pipeline.control.robustness import nyquist_for
 from pipeline.control.robustness import robustness as robustness_block
 from pipeline.control.settings import KEYS as SETTING_KEYS
@@ -243,6 +245,11 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                 robustness: dict | None = None) -> tuple[dict, pd.DataFrame]:
     """Designs, simulations over seeds and statistics for one dataset.
 
+    BLAS runs on one thread here (threadpoolctl): every matrix of the stage is at most about ten by
+    ten (plant discretisations, loop responses), where a second OpenBLAS thread only spins against a
+    busy core; scipy's matrix exponential of a 4 x 4 took 20 ms with two threads on the loaded 2-core
+    machine and 0.03 ms with one (docs/control.md, "Speed").
+
     Parameters
     ----------
     indices : the parsed indices document (needs "control_model" K, T1, T2, T3, T; "graphical_model"
@@ -250,8 +257,9 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
     cfg : control settings.  source : file name used in error messages.
     plants : which plants to run (default: 'nomoto', plus 'kcs' for virtual data when available).
     progress : show a tqdm bar over the runs.
-    design_choice : the ``design_model`` block of :func:`pipeline.control.design_model.choose_design_model`
-        (which model to design from, decided on held-out runs); None: the indices' control_model.
+    design_choice : a ``design_model`` block of :func:`pipeline.indices.design_model.choose_design_model`
+        to design by instead of the indices' own (``control_model.design_model``, decided by the indices
+        stage on held-out runs; without either, the indices' control_model as it is).
     robustness : extra inputs of the robustness block (:func:`pipeline.control.robustness.robustness`):
         "parameters" and "covariance" of the identified model, "linearised" K, T1, T2, T3 of the ship
         straight ahead; None: margins on the design model only.
@@ -261,6 +269,14 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
     (metrics document, time series frame with plant, design, seed, time, psi_ref, psi, r, delta_cmd,
     delta, wave, wind).
     """
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _run_control(indices, cfg, source=source, plants=plants, progress=progress,
+                            design_choice=design_choice, robustness=robustness)
+
+
+def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plants: tuple[str, ...] | None,
+                 progress: bool, design_choice: dict | None,
+                 robustness: dict | None) -> tuple[dict, pd.DataFrame]:
     cfg = ControlConfig() if cfg is None else cfg
     if not isinstance(indices, dict):
         raise InputError("indices document is not a JSON object", file=source)
@@ -271,6 +287,8 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
     graphical_model = (_model(indices, "graphical_model", ("K", "T"), source)
                        if indices.get("graphical_model") is not None else None)
     provenance = indices.get("provenance", "unknown")
+    if design_choice is None:       # the one decision, made by the indices stage on held-out runs
+        design_choice = (indices.get("control_model") or {}).get("design_model")
     if design_choice is not None:
         chosen = design_choice.get("chosen")
         if chosen == "identified" and design_choice.get("identified"):
@@ -279,10 +297,16 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
             control_model = _graphical_control_model(graphical_model)
     designs = build_designs(control_model, graphical_model, cfg)
     base = designs["graphical" if primary_name(control_model) == "graphical" else "identified"]
-    designs["autopilot"] = design_pid(base.K, base.T, cfg.tw, rudder_max=cfg.rudder_max, zeta=cfg.pid_zeta,
-                                      ki_ratio=cfg.pid_ki_ratio, ref_wn_ratio=cfg.ref_wn_ratio,
-                                      ref_zeta=cfg.ref_zeta, ref_rate_share=cfg.ref_rate_share)
-    notes = []
+    lin = (robustness or {}).get("linearised") or {}
+    straight = next((m for share, m in lin.items() if float(share) == 1.0), None)
+    op = operating_point(control_model, indices, cfg, straight)
+    op_model = op["models"][op["used"]]
+    designs["autopilot"] = design_pid(op_model["K"], op_model["T"], cfg.tw, rudder_max=cfg.rudder_max,
+                                      zeta=cfg.pid_zeta, ki_ratio=cfg.pid_ki_ratio,
+                                      ref_wn_ratio=cfg.ref_wn_ratio, ref_zeta=cfg.ref_zeta,
+                                      ref_rate_share=cfg.ref_rate_share)
+    notes = [f"autopilot (PID) designed from the {op['used'].replace('_', '-')} model "
+             f"(K {op_model['K']:.4g} 1/s, T {op_model['T']:.4g} s): {op['why']}"]
     flagged = _flagged_identified(indices)
     if primary_name(control_model) == "graphical" and flagged is not None:
         # shown beside the autopilot for comparison (the paper's identified-vs-graphical figures),
@@ -427,6 +451,7 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                        if paper_plant else None),
         "design_model": _design_model_block(design_choice, control_model),
         "settings": {k: getattr(cfg, f) for k, (f, _, _) in SETTING_KEYS.items()},
+        "operating_point": op,
     }
     rob = robustness_block(designs, control_model, cfg, robustness or {})
     for name, row in rob.pop("designs").items():     # SPEC section 10: the margins belong to each design
@@ -438,7 +463,8 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
         from pipeline.control.adaptive import adaptive_block
 
         doc["adaptive"], secs = adaptive_block(extra["parameters"], extra["covariance"], base.K, base.T,
-                                               seeds[:cfg.adaptive_seeds], cfg)
+                                               seeds[:cfg.adaptive_seeds], cfg, q_std=extra.get("q_std"),
+                                               pid_start=(op_model["K"], op_model["T"]))
         print(f"control: adaptive in-loop run, {len(seeds[:cfg.adaptive_seeds])} seeds x 2; streaming "
               f"identification {secs:.2f} s", file=sys.stderr)
     doc["robustness"]["nyquist"] = nyquist_for(designs, control_model, cfg, n=cfg.bode_points)

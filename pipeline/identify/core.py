@@ -240,6 +240,12 @@ def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: Fi
     elif cfg.measurement_noise != "paper":
         raise InputError(f"measurement_noise must be 'paper' or 'data', got {cfg.measurement_noise!r}")
     x0, P0 = initial_state(Y3[0], meas_idx, cfg)
+    q_estimate = None
+    if cfg.process_noise == "data":
+        q_estimate = estimate_process_noise(x0, P0, Y3[1:], delta[:-1], h, cfg, meas_idx)
+        cfg = dataclasses.replace(cfg, q_std=tuple(q_estimate["q_std_all"]))
+    elif cfg.process_noise != "paper":
+        raise InputError(f"process_noise must be 'paper' or 'data', got {cfg.process_noise!r}")
     out = run_filter(algorithm, x0, P0, Y3[1:], delta[:-1], h, cfg, meas_idx)
     cov = out.P_final[3:, 3:]
     theta = out.x_final[3:]
@@ -256,6 +262,11 @@ def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: Fi
     consistency["f_mean"], consistency["f_min"] = float(np.mean(out.f)), float(np.min(out.f))
     consistency["r_std"] = {STATE_NAMES[i]: float(cfg.r_std[i]) for i in meas_idx}
     consistency["r_std_source"] = r_source
+    consistency["q_std"] = {STATE_NAMES[i]: float(cfg.q_std[i]) for i in range(3)}
+    consistency["q_std_source"] = (q_estimate["method"] if q_estimate is not None
+                                   else "paper setting (FilterConfig.q_std)")
+    if q_estimate is not None:
+        consistency["noise_estimate"] = {k: v for k, v in q_estimate.items() if k != "q_std_all"}
     flags = trust_flags(consistency, idx, idx_err, delta, cfg)
     fails = int(out.chol_failures[-1]) if out.chol_failures is not None and steps else None
     return Identification(
@@ -293,6 +304,80 @@ def measured_noise_std(Y3: np.ndarray, meas_idx, fallback) -> tuple[tuple[float,
     src = ("measured from the run (robust second differences)" + (f" for {', '.join(measured)}" if
            len(measured) < len(meas_idx) else "") if measured else "paper setting (no measurable noise)")
     return (out[0], out[1], out[2]), src
+
+
+def _mean_nis(x0, P0, Y3, delta_prev, h, cfg: FilterConfig, meas_idx) -> float:
+    """Mean NIS of the SR-UKF-FFM (compiled kernel) over the window; inf when the filter breaks down."""
+    try:
+        out = run_filter("srukf-ffm", x0, P0, Y3, delta_prev, h, dataclasses.replace(cfg, fast=True),
+                         meas_idx)
+    except FilterError:
+        return float("inf")
+    nis = out.nis[np.isfinite(out.nis)]
+    return float(np.mean(nis)) if nis.size else float("inf")
+
+
+def estimate_process_noise(x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, h: float, cfg: FilterConfig,
+                           meas_idx) -> dict[str, Any]:
+    """Process noise Q of the motion states from the data: covariance matching of the mean NIS.
+
+    Structure: q_i = c r_i for each measured state i (one-sigma per step, in its unit: v m/s, r deg/s,
+    psi deg), r_i the measurement noise in ``cfg.r_std`` (measured from the run when
+    ``measurement_noise = 'data'``); an unmeasured v takes c x ``cfg.q_std[0]`` (the paper's, scaled
+    alike); the parameters keep ``cfg.q_std[3:]``.  The innovation covariance the filter predicts is
+    right on average when the mean NIS equals m, the number of measured channels (Bar-Shalom, Li &
+    Kirubarajan 2001, sec. 5.4); the mean NIS falls as c grows (more process noise, wider predicted
+    innovations), so c is found by bisection on log c within ``cfg.process_scale_bracket`` until the
+    mean NIS is within ``cfg.process_nis_tolerance`` of m (at most 30 halvings).  When the bracket does
+    not hold the crossing, the end nearer to it is taken and ``matched`` is False.
+
+    Parameters
+    ----------
+    x0, P0 : initial posterior (9,), (9, 9) (units of the module docstring).
+    Y3 : (N, 3) measured v m/s, r deg/s, psi deg after sample 0.  delta_prev : (N,) rudder, deg.
+    h : step, s.  cfg : filter settings (R used as given).  meas_idx : measured states.
+
+    Returns
+    -------
+    dict
+        ``method`` (one line), ``scale`` c (-), ``q_std`` {state: one-sigma per step}, ``q_std_all``
+        (the nine q_std), ``mean_nis`` at c, ``expected`` m, ``matched``, ``evaluations``, ``bracket``.
+    """
+    meas = [int(i) for i in np.asarray(meas_idx)]
+    m = len(meas)
+    base = np.array([cfg.r_std[i] if i in meas else cfg.q_std[i] for i in range(3)], dtype=float)
+
+    def q_of(c: float) -> tuple[float, ...]:
+        return (*(c * base), *cfg.q_std[3:])
+
+    def nis_of(c: float) -> float:
+        return _mean_nis(x0, P0, Y3, delta_prev, h, dataclasses.replace(cfg, q_std=q_of(c)), meas_idx)
+
+    lo, hi = (float(x) for x in cfg.process_scale_bracket)
+    n_lo, n_hi = nis_of(lo), nis_of(hi)
+    evals = 2
+    matched = True
+    if n_lo <= m:                        # even the least process noise leaves the filter under-confident
+        c, nis, matched = lo, n_lo, abs(n_lo / m - 1) <= cfg.process_nis_tolerance
+    elif n_hi >= m:                      # even the most leaves it over-confident
+        c, nis, matched = hi, n_hi, abs(n_hi / m - 1) <= cfg.process_nis_tolerance
+    else:
+        c, nis = hi, n_hi
+        for _ in range(30):
+            c = float(np.sqrt(lo * hi))
+            nis = nis_of(c)
+            evals += 1
+            if abs(nis / m - 1) <= cfg.process_nis_tolerance:
+                break
+            lo, hi = (c, hi) if nis > m else (lo, c)
+    q = q_of(c)
+    return {"method": ("covariance matching of the mean NIS: q of each measured state = c x its "
+                       "measurement noise, c by bisection so that the mean NIS of the identification "
+                       f"window equals m = {m}"),
+            "scale": c, "q_std": {STATE_NAMES[i]: float(q[i]) for i in range(3)},
+            "q_std_all": [float(x) for x in q], "mean_nis": nis, "expected": float(m),
+            "matched": bool(matched), "evaluations": evals,
+            "bracket": [float(x) for x in cfg.process_scale_bracket]}
 
 
 def trust_flags(consistency: dict[str, Any], indices: dict[str, float] | None, indices_error: str | None,
@@ -435,8 +520,10 @@ def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfi
         "consistency": ident.consistency,
         "filter_state": {"names": list(STATE9), "x": ident.x_final.tolist(), "P": ident.P_final.tolist()},
         "settings": {
-            "q_std": list(cfg.q_std), "alpha": cfg.alpha, "beta": cfg.beta,
-            "measurement_noise": cfg.measurement_noise,
+            "q_std": [(ident.consistency.get("q_std") or {}).get(n, cfg.q_std[i]) if i < 3 else cfg.q_std[i]
+                      for i, n in enumerate(STATE9)],            # the Q used (estimated or paper)
+            "alpha": cfg.alpha, "beta": cfg.beta,
+            "measurement_noise": cfg.measurement_noise, "process_noise": cfg.process_noise,
             "r_std": [(ident.consistency.get("r_std") or {}).get(n, cfg.r_std[i])
                       for i, n in enumerate(STATE_NAMES)],      # the R used (measured or paper)
             "kappa": cfg.kappa, "theta0": list(cfg.theta0), "theta0_std": list(cfg.theta0_std),
@@ -450,6 +537,11 @@ def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfi
     if ident.indices_error:
         doc["indices_error"] = ident.indices_error
     doc["flags"] = ident.flags
+    doc["noise_estimate"] = {      # docs/identification.md#process-noise-from-the-data
+        "R": {"method": ident.consistency.get("r_std_source"), "std": ident.consistency.get("r_std")},
+        "Q": {"method": ident.consistency.get("q_std_source"), "std": ident.consistency.get("q_std"),
+              **{k: v for k, v in (ident.consistency.get("noise_estimate") or {}).items() if k != "q_std"}},
+    }
     if ident.window:
         doc["window"] = ident.window
     if ident.filterpy_failures is not None:

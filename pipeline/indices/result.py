@@ -181,6 +181,9 @@ class ControlModel:
     second_order: Mapping[str, Any]
     refused: bool = False
     reason: str | None = None
+    # the held-out decision (pipeline/indices/design_model.py): rule, both errors, the chosen model;
+    # None when no held-out run was there to judge by (the choice then rests on the trust flags)
+    design_model: Mapping[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"source": self.source}
@@ -190,6 +193,8 @@ class ControlModel:
         out.update(self.primes)
         out.update({"basis": self.basis, "rejected": [dict(r) for r in self.rejected],
                     "flags": [dict(f) for f in self.flags], "second_order": dict(self.second_order)})
+        if self.design_model is not None:
+            out["design_model"] = dict(self.design_model)
         return out
 
     @classmethod
@@ -198,7 +203,7 @@ class ControlModel:
                    primes={k: v for k, v in doc.items() if k.endswith("_prime")}, basis=doc["basis"],
                    rejected=tuple(dict(r) for r in doc["rejected"]), flags=_flags(doc["flags"]),
                    second_order=dict(doc["second_order"]), refused=bool(doc.get("refused", False)),
-                   reason=doc.get("reason"))
+                   reason=doc.get("reason"), design_model=doc.get("design_model"))
 
 
 @dataclass(frozen=True)

@@ -11,9 +11,11 @@ Documented choices:
   draws with no real positive time constants and the 16/50/84 % percentiles of each index.  When
   that fraction is not small the Gaussian bounds are local only (the indices are ratios of
   parameters and become heavy-tailed), and the percentiles are the honest spread;
-* ``control_model`` is the SR-UKF-FFM identified model; if its parameters have no real positive time
-  constants (ModelError) it falls back to FFM-UKF, then to the first-order graphical model
-  (T1 = T, T2 = T3 = 0); ``source`` always says which.
+* ``control_model`` is the one design-model decision (``design_model`` in it): the identified model
+  (SR-UKF-FFM, else FFM-UKF when SR-UKF-FFM has no real positive time constants) unless it loses to the
+  first-order graphical model (T1 = T, T2 = T3 = 0) on the held-out runs
+  (pipeline/indices/design_model.py); without held-out runs the trust flags decide; ``source`` always
+  says which.
 """
 
 from __future__ import annotations
@@ -26,9 +28,10 @@ import pandas as pd
 
 from pipeline import paper
 from pipeline.catalog import is_builtin_tank
-from pipeline.config import IndicesConfig
+from pipeline.config import ControlConfig, IndicesConfig
 from pipeline.errors import InputError, PipelineError
 from pipeline.indices import trust
+from pipeline.indices.design_model import choose_design_model
 from pipeline.indices.imo import imo_check
 from pipeline.indices.nomoto_kt import graphical_kt, integral_kt
 from pipeline.indices.result import (
@@ -161,13 +164,90 @@ def identified(estimates: dict[str, Any], *, config: IndicesConfig | None = None
     return {"indices": vals, "method": used, "check": check}
 
 
+def _usable_identified(ident_out: dict[str, Any], ident_flags: dict[str, list],
+                       estimates: dict[str, dict]) -> str | None:
+    """The first algorithm (SR-UKF-FFM, then FFM-UKF) whose model can be designed from at all: indices
+    defined, K, T > 0 and no sign flag on them (the consistency flags judge its uncertainty, not this)."""
+    for alg in ("srukf-ffm", "ffm-ukf"):
+        vals = ident_out.get(alg)
+        if vals is None or not (estimates.get(alg) or {}).get("parameters"):
+            continue
+        k, t = vals["K"]["value"], vals["T"]["value"]
+        signs = [f for f in ident_flags.get(alg, [])
+                 if f.get("check") in ("sign", "nomoto_K", "nomoto_indices")]
+        if k is not None and t is not None and k > 0 and t > 0 and not signs:
+            return alg
+    return None
+
+
+def heldout_control_model(ident_out: dict[str, Any], *, ident_flags: dict[str, list],
+                          failures: dict[str, str], graphical_model: dict[str, Any],
+                          estimates: dict[str, dict], ident: str, lpp: float | None, u: float | None,
+                          heldout: list[Run], rule: ControlConfig | None = None) -> ControlModel | None:
+    """The control model chosen by the held-out rule (pipeline/indices/design_model.py), or None when
+    neither candidate can be designed from (the caller then refuses, saying why).
+
+    Candidates: the identified model of :func:`_usable_identified` and the first-order graphical model
+    unless its own K, T are flagged (sign, ill-conditioned).  With both, the rule decides on the
+    ``heldout`` runs; with one, it is taken and its held-out error still shown.  K 1/s, T s.
+    """
+    rule = rule or ControlConfig()
+    alg = _usable_identified(ident_out, ident_flags, estimates)
+    unusable = {a: failures[a] for a in ("srukf-ffm", "ffm-ukf") if a in failures and a != alg}
+    gm = graphical_model
+    g_block = trust.blocking(gm.get("flags", []), ("K", "T"))
+    identified = None
+    if alg is not None:
+        identified = {"parameters": estimates[alg]["parameters"],
+                      "indices": {n: ident_out[alg][n]["value"] for n in INDEX_NAMES}}
+    if identified is None and g_block:
+        return None
+    choice = choose_design_model(identified, {"K": gm["K"], "T": gm["T"]}, heldout, rule)
+    if g_block and identified is not None and choice["chosen"] != "identified":
+        choice["chosen"] = "identified"
+        choice["reason"] += "; but the graphical K, T are flagged (" + trust.reasons(g_block) + \
+            "), so the identified model"
+    if alg is not None:
+        choice["algorithm"] = alg
+    rejected = [{"candidate": f"identified {a}", "reasons": ident_flags_or_failure}
+                for a, ident_flags_or_failure in unusable.items()]
+    if choice["chosen"] == "identified":
+        est_run = estimates[alg].get("run_id", ident)
+        vals = {n: ident_out[alg][n]["value"] for n in INDEX_NAMES}
+        second = trust.blocking(ident_flags.get(alg, []), ("T1", "T2", "T3"))
+        second = [f for f in second if f.get("subject") != "filter"]   # the filter's own flags: reported
+        rejected.append({"candidate": "graphical (standard method)", "reasons": choice["reason"]})
+        return ControlModel(
+            source=f"identified {alg}, Eq. 6 on run {est_run} (chosen by the design-model rule on held-out "
+                   "runs)", indices=vals, primes=trust.primes(vals, lpp, u),
+            basis=f"{choice['reason']} (rule: {choice['rule']})", rejected=tuple(rejected),
+            flags=tuple(ident_flags.get(alg, [])),
+            second_order={"ok": not second and vals["T2"] > 0 and vals["T3"] > 0,
+                          "reason": trust.reasons(second) if second else
+                          (None if vals["T2"] > 0 and vals["T3"] > 0 else "T2 or T3 not positive")},
+            design_model=choice)
+    vals = {"K": gm["K"], "T1": gm["T"], "T2": 0.0, "T3": 0.0, "T": gm["T"]}
+    if alg is not None:
+        rejected.append({"candidate": f"identified {alg}", "reasons": choice["reason"]})
+    return ControlModel(
+        source=f"first-order graphical model, standard method on run {gm.get('run_id')} (chosen by the "
+               "design-model rule on held-out runs)",
+        indices=vals, primes=trust.primes(vals, lpp, u),
+        basis=f"{choice['reason']} (rule: {choice['rule']})", rejected=tuple(rejected),
+        flags=tuple(gm.get("flags", [])), second_order={"ok": False, "reason": "first-order model"},
+        design_model=choice)
+
+
 def control_model(ident_out: dict[str, Any], *, ident_flags: dict[str, list], failures: dict[str, str],
                   graphical_model: dict[str, Any], estimates: dict[str, dict], ident: str,
-                  lpp: float | None, u: float | None) -> ControlModel:
+                  lpp: float | None, u: float | None, heldout: list[Run] | None = None,
+                  rule: ControlConfig | None = None) -> ControlModel:
     """The indices the autopilot is designed from, and why (never a flagged set without saying so).
 
-    Candidates in order: SR-UKF-FFM identified, FFM-UKF identified, the first-order graphical model.
-    The first whose K and T (what the first-order CGSA design uses) carry no blocking flag
+    With ``heldout`` runs (the zigzags the validate stage holds out) the held-out rule decides
+    (:func:`heldout_control_model`, the one decision the control stage and both reports read).
+    Without them, candidates in order: SR-UKF-FFM identified, FFM-UKF identified, the first-order
+    graphical model.  The first whose K and T (what the first-order CGSA design uses) carry no blocking flag
     (:func:`pipeline.indices.trust.blocking`) is taken; ``basis`` says which and why the others were
     not.  ``second_order`` says whether T1, T2, T3 are trustworthy enough for the second-order design.
     When every candidate is flagged the model is ``refused`` with the reasons, and the control
@@ -189,12 +269,23 @@ def control_model(ident_out: dict[str, Any], *, ident_flags: dict[str, list], fa
         The identification run's id (when an estimate names none).
     lpp, u : float or None
         Length between perpendiculars (m) and approach speed (m/s) for K', T' (None: not computed).
+    heldout : list of Run, optional
+        The held-out runs the design-model rule judges on (none: the trust flags decide).
+    rule : ControlConfig, optional
+        The rule's thresholds (``design_rule_rel``, ``design_rule_abs_deg``).
 
     Returns
     -------
     ControlModel
         The chosen indices (K 1/s, T1 T2 T3 T s), their primed values and the reasons.
     """
+    if heldout:
+        got = heldout_control_model(ident_out, ident_flags=ident_flags, failures=failures,
+                                    graphical_model=graphical_model,
+                                    estimates=estimates, ident=ident, lpp=lpp, u=u, heldout=heldout,
+                                    rule=rule)
+        if got is not None:
+            return got
     rejected = []
     for alg in ("srukf-ffm", "ffm-ukf"):
         if alg not in ident_out:
@@ -380,9 +471,16 @@ def build_documents(index: dict[str, Any], runs: dict[str, Run], estimates: dict
         source=graphical_model["source"], run_id=graph_id, K=gm["K"], T=gm["T"],
         primes=trust.primes({"K": gm["K"], "T": gm["T"]}, lpp_g, u_g), flags=tuple(gm_flags))
     lpp_i, u_i, _ = trust.length_and_speed(entry_by_id.get(ident, {}), index)
+    _, held_ids = choose_runs(entries, ident)
+    heldout = []
+    for rid in held_ids:          # the validate stage's held-out runs (pipeline/runinfo.py)
+        if rid in runs:
+            run = runs[rid]
+            run.meta["run_id"] = rid
+            heldout.append(run)
     chosen = control_model(ident_out, ident_flags=ident_flags, failures=failures,
                            graphical_model=graphical_model.to_json(), estimates=estimates, ident=ident,
-                           lpp=lpp_i, u=u_i)
+                           lpp=lpp_i, u=u_i, heldout=heldout)
 
     graphical: list[KTRow] = []
     for r in results:

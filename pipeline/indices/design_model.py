@@ -1,5 +1,9 @@
 """Which model the autopilot is designed from: the identified one unless it loses on held-out runs.
 
+The one place this is decided: the indices stage (``control_model.design_model`` of indices.json),
+which the control stage and both reports read (docs/control.md, "Which model the autopilot is
+designed from").
+
 The filter's consistency (NIS, whiteness, parameter covariance) says whether its *uncertainty* is
 right; whether its *model* is fit to design from is a question of prediction.  Both candidates are
 scored the same way on the same held-out runs (the zigzags the validate stage holds out):
@@ -79,3 +83,18 @@ def choose_design_model(identified: dict[str, Any] | None, graphical: dict[str, 
     out["reason"] = (f"held-out MAE psi: identified {a:.3g} deg, graphical {b:.3g} deg: "
                      + ("the identified model loses" if loses else "the identified model does not lose"))
     return out
+
+
+def decision_table(block: dict[str, Any]) -> tuple[list[dict[str, Any]], str]:
+    """Rows (model, K 1/s, T s, held-out MAE psi deg, samples, chosen) and the caption of a
+    ``design_model`` block, as the indices and control reports show it (the same table on both)."""
+    rows = []
+    for name in ("identified", "graphical"):
+        blk = block.get(name) or {}
+        ho = blk.get("heldout") or {}
+        rows.append({"model": name, "K (1/s)": blk.get("K"), "T (s)": blk.get("T"),
+                     "held-out MAE psi (deg)": ho.get("mae_psi_deg"), "samples": ho.get("samples"),
+                     "chosen": "yes" if block.get("chosen") == name else ""})
+    caption = (f"The one design-model decision, made by the indices stage: {block.get('rule')}. "
+               f"{block.get('reason', '')}. Held-out runs: {', '.join(block.get('heldout_runs') or [])}.")
+    return rows, caption
