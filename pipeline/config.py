@@ -305,8 +305,8 @@ class ControlConfig:
     setpoint: float = 60.0               # deg, course step 0 -> setpoint
     duration: float = 200.0              # s
     dt: float = 0.08                     # s, simulation step
-    rudder_max: float = 35.0             # deg
-    rudder_rate: float = 14.28           # deg/s (model scale KCS)
+    rudder_max: float = TankConfig.rudder_max    # deg, the KCS's steering gear (TankConfig)
+    rudder_rate: float = TankConfig.rudder_rate  # deg/s, model scale KCS (TankConfig)
     wind_rudder: float = 2.0             # deg, wind as a constant equivalent rudder
     wave_num: tuple[float, ...] = (0.2386, 0.0)                # G(s) numerator, s-polynomial
     wave_den: tuple[float, float, float] = (1.0, 0.3593, 0.8067)

@@ -152,7 +152,6 @@ def test_synthetic_zigzag_servo_is_the_tank_kcs():
                 if not h.startswith("pipeline/config.py:")]
 
 
-@pytest.mark.xfail(strict=True, reason="control/simulate.py's servo defaults written once after merge")
 def test_control_servo_limits_written_once():
     hits = [h for rel in _sources() if rel.startswith(LATER) for h in number_tokens(rel, 14.28)]
     assert not hits, hits
@@ -193,8 +192,6 @@ def test_paper_figures_are_literals_only_in_paper_module():
     assert not hits, hits
 
 
-@pytest.mark.xfail(strict=True,
-                   reason="control/stage.py's PAPER_CONTROL reads pipeline.paper.CONTROL after merge")
 def test_paper_figures_are_literals_only_in_paper_module_control():
     hits = _paper_literals([r for r in _sources() if r.startswith(LATER)])
     assert not hits, hits

@@ -69,7 +69,8 @@ class SwayYawShip:
     parameters as a change of speed U -> share U does (a_ij by share, b_i by share^2: K by share, the
     time constants by 1/share), so its Nomoto K after the change is known exactly."""
 
-    def __init__(self, theta, *, rudder_max: float = 35.0, rudder_rate: float = 14.28):
+    def __init__(self, theta, *, rudder_max: float = TankConfig.rudder_max,
+                 rudder_rate: float = TankConfig.rudder_rate):
         from pipeline.model import as_theta
 
         self.theta = as_theta(theta).astype(float)

@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 from scipy.linalg import expm
 
+from pipeline.config import TankConfig
 from pipeline.control.autopilot import PIDDesign, make_controller
 from pipeline.control.design import CGSADesign
 from pipeline.errors import ModelError
@@ -37,7 +38,8 @@ class NomotoShip:
     """
 
     def __init__(self, K: float, T1: float, T2: float = 0.0, T3: float = 0.0, *,
-                 rudder_max: float | None = 35.0, rudder_rate: float | None = 14.28,
+                 rudder_max: float | None = TankConfig.rudder_max,
+                 rudder_rate: float | None = TankConfig.rudder_rate,
                  servo_time_constant: float = 0.0, dead_time: float = 0.0):
         if not (np.isfinite(K) and K > 0):
             raise ModelError(f"K = {K} must be > 0 (1/s)")
@@ -159,7 +161,7 @@ def make_kcs_ship(rudder_max: float, rudder_rate: float, dead_time: float = 0.0,
 
 
 def simulate_course(design: CGSADesign | PIDDesign, ship, *, setpoint: float, duration: float, dt: float,
-                    rudder_max: float | None = 35.0, wind: float = 0.0,
+                    rudder_max: float | None = TankConfig.rudder_max, wind: float = 0.0,
                     wave: np.ndarray | None = None) -> pd.DataFrame:
     """Course change 0 -> ``setpoint`` deg at t = 0, then course keeping, for ``duration`` s.
 

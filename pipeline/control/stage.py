@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
+from pipeline import paper
 from pipeline.config import ControlConfig
 from pipeline.control.autopilot import PIDDesign, design_pid
 from pipeline.control.design import (
@@ -50,8 +51,7 @@ from pipeline.errors import InputError
 from pipeline.progress import bar
 
 PAPER_CONTROL = {
-    "rise_time": 24.0, "max_deviation": 1.46, "steady_mae": 0.86, "max_rudder_below": 25.0,
-    "steady_rudder_min": -3.78, "steady_rudder_max": -1.09, "mean_rudder": -1.70,
+    **paper.CONTROL,
     "note": "Meng et al. (2024): Table 7 indices, Tw = 3 s, wind 2 deg, wave G(s); set course 0 -> 60 deg",
 }
 
