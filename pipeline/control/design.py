@@ -4,7 +4,7 @@ Units at the edges: K in 1/s (deg/s of yaw rate per deg of rudder, so psi/delta 
 constants in s, heading psi and rudder delta in deg, frequencies in rad/s.  The transfer functions are
 unit-consistent in deg (psi/delta is deg/deg), so no degree/radian conversion is needed here.
 
-Design rule (ALGORITHMS.md "CGSA"): shape the complementary sensitivity directly, T(s) = 1/(Tw s + 1).
+Design rule (docs/control.md): shape the complementary sensitivity directly, T(s) = 1/(Tw s + 1).
 
 * First order, plant G1 = K / (s (T s + 1)):  Kc = (T s + 1)/(K Tw), a PD controller with
   Kp = 1/(K Tw) (deg/deg), Kd = T/(K Tw) (deg per deg/s).  Then L = Kc G1 = 1/(Tw s) exactly.

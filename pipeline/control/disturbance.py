@@ -1,6 +1,6 @@
 """Wind and wave disturbances, each as an equivalent rudder angle in deg added to the actual rudder.
 
-Wave (paper, ALGORITHMS.md): G(s) = 0.2386 s / (s^2 + 0.3593 s + 0.8067) = Kw s/(s^2 + 2 lambda w0 s
+Wave (paper; docs/control.md): G(s) = 0.2386 s / (s^2 + 0.3593 s + 0.8067) = Kw s/(s^2 + 2 lambda w0 s
 + w0^2), w0 = 0.898 rad/s, lambda = 0.20, sigma = 0.664, driven by unit-intensity continuous white noise
 w (E[w(t) w(t+tau)] = delta(tau)).  In discrete time with step dt the noise is a sequence of
 independent N(0, 1/dt) samples held over each step, and G is discretised exactly for that held input

@@ -1,4 +1,4 @@
-"""Course-keeping metrics (SPEC section 6) on a simulated or measured course change.
+"""Course-keeping metrics (docs/contract.md#metrics) on a simulated or measured course change.
 
 Definitions (all angles deg, times s; the course step goes from psi(0) to the set course):
 

@@ -40,7 +40,8 @@ def rate_tf(K: float, T1: float, T2: float = 0.0, T3: float = 0.0) -> ct.Transfe
 
 
 def parameters_rate_tf(theta) -> ct.TransferFunction:
-    """Rudder -> yaw rate of the sway-yaw model with the six parameters a11 ... b21 (SPEC section 5)."""
+    """Rudder -> yaw rate of the sway-yaw model with the six parameters a11 ... b21
+    (docs/contract.md#the-identification-model)."""
     a11, a12, a21, a22, b11, b21 = (float(x) for x in theta)
     return ct.tf(ct.ss([[a11, a12], [a21, a22]], [[b11], [b21]], [[0.0, 1.0]], [[0.0]]))
 

@@ -75,9 +75,9 @@ def _draws(designs: dict, theta: np.ndarray, cov: np.ndarray, cfg: ControlConfig
 def robustness(designs: dict, control_model: dict, cfg: ControlConfig, extra: dict) -> dict[str, Any]:
     """Per design: margins on the design model, over draws, straight ahead and at reduced speed; steps.
 
-    ``extra``: optional "parameters" (six, SPEC order) and "covariance" (6 x 6) of the identified model,
-    "linearised" ({"1.0": K, T1, T2, T3 at each speed share}, the KCS only) and "kcs" (True to simulate
-    the nonlinear KCS steps).
+    ``extra``: optional "parameters" (six, the order of docs/contract.md#the-identification-model) and
+    "covariance" (6 x 6) of the identified model, "linearised" ({"1.0": K, T1, T2, T3 at each speed share},
+    the KCS only) and "kcs" (True to simulate the nonlinear KCS steps).
     """
     cm = control_model
     gear = {"servo_time_constant": cfg.servo_time_constant, "dead_time": cfg.dead_time}

@@ -115,7 +115,7 @@ def _identified_indices(indices: dict) -> dict | None:
 
 
 def _design_model_block(choice: dict | None, control_model: dict) -> dict:
-    """SPEC section 10 ``design_model``: the model designed from, its indices, the rule and both errors."""
+    """docs/control.md ``design_model``: the model designed from, its indices, the rule and both errors."""
     out = {"chosen": primary_name(control_model), "source": control_model.get("source"),
            "indices": {n: control_model[n] for n in ("K", "T1", "T2", "T3", "T")}}
     if choice is None:
@@ -454,7 +454,7 @@ def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plant
         "operating_point": op,
     }
     rob = robustness_block(designs, control_model, cfg, robustness or {})
-    for name, row in rob.pop("designs").items():     # SPEC section 10: the margins belong to each design
+    for name, row in rob.pop("designs").items():     # docs/control.md: the margins belong to each design
         doc["designs"][name]["sampled_loop"] = row
     doc["robustness"] = rob
     extra = robustness or {}
