@@ -76,15 +76,28 @@ class Param:
     feature: tuple[int, int] | None = None  # (feature code, equation) for a term linear in the parameter
     time_scaled: bool = False
     speed_scaled: bool = False
+    #: a damping coefficient of a hull term (SPEC signs: negative damps).  Held <= 0 in the anchored
+    #: form of an extension (fit.Layout.bounds, docs/diagnosis.md "Sound at every amplitude"): there
+    #: the linear part is the small-motion model and the term is the growth of damping with amplitude
+    damping: bool = False
 
     def _scale(self, ctx: Context) -> float:
         if self.speed_scaled:
             return float(ctx.u_ref or 1.0)
         return ctx.t_ship if self.time_scaled else 1.0
 
-    def bounds(self, ctx: Context) -> tuple[float, float]:
+    def bounds(self, ctx: Context, signed: bool = False) -> tuple[float, float]:
+        """(lower, upper) bound in ``unit``; ``signed``: a damping parameter's upper bound held at 0."""
         k = self._scale(ctx)
-        return self.lo * k, self.hi * k
+        lo, hi = self.lo * k, self.hi * k
+        if signed and self.damping:
+            hi = min(hi, 0.0)
+        return lo, hi
+
+    @property
+    def hull_term(self) -> bool:
+        """A term of the hull force in (v, r), vanishing at v = r = 0 (a feature term)."""
+        return self.feature is not None
 
     def start_value(self, ctx: Context) -> float:
         return self.start * self._scale(ctx)
