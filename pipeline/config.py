@@ -320,8 +320,8 @@ class DiagnoseConfig:
     # MARIN KVLCC2 side-swap fold 1 the extended model's held-out cut is 84 % against the bounded fit
     # (14.06 -> 2.18 deg) and 22 % against the unconstrained one (2.78 deg); docs/diagnosis.md
     best_linear_baseline: bool = False
-    # an extension with hull terms (terms in v, r that vanish at v = r = 0) whose linear part is less
-    # stable than the data's linear models allow (pipeline.diagnose.select.Search.growth_allowance) is
+    # an extension with hull terms (terms in v, r that vanish at v = r = 0) whose linear part grows
+    # where the data's linear fits decay (pipeline.diagnose.select.Search.growth_allowance) is
     # refitted in its anchored form: the linear part held at the fold's baseline, its damping terms
     # signed.  Such an extension buys its large-amplitude fit with a small-motion model the data do not
     # support, held up at large amplitude by the added terms: on the HSVA KVLCC2 the sway damping fitted

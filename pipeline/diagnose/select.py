@@ -232,12 +232,19 @@ class Search:
         return self._fits[key]
 
     def growth_allowance(self, k: int) -> float:
-        """The least stable small-motion model fold ``k``'s data allow (1/s): the larger growth rate
-        (:func:`~pipeline.diagnose.fit.growth_rate`) of its two linear fits (with and without the
-        ship-sign bounds, fitted on every amplitude of the training runs, the smallest included), plus
-        1/D, D the longest training run (s): a growth rate below 1/D multiplies a disturbance by less
-        than e within any run, so no run of the data tells it from the linear fits' own."""
-        rates = [growth_rate(self.fit(k, ()).theta)]
+        """The least stable small-motion model fold ``k``'s data allow (1/s): neutral (0), or the
+        larger growth rate (:func:`~pipeline.diagnose.fit.growth_rate`) of its two linear fits (with
+        and without the ship-sign bounds) where one is course-unstable, plus 1/D, D the longest
+        training run (s).
+
+        Why not the linear fits' own rate: a linear fit over every amplitude takes up the nonlinear
+        damping of the large manoeuvres, so it is more stable than the ship's small-motion model, and
+        a right extension is less stable than it (a hidden r^3 yaw damping of the seeded truths is
+        the case: the extension's linear part is the truth's).  What the data do not allow is a
+        small-motion model that grows where every linear fit of them decays.  Why 1/D: a growth rate
+        below it multiplies a disturbance by less than e within any run, so no run tells it from
+        neutral."""
+        rates = [0.0, growth_rate(self.fit(k, ()).theta)]
         free = self.unconstrained(k)
         if free is not None:
             rates.append(growth_rate(free.theta))
