@@ -248,8 +248,11 @@ class Search:
         free = self.unconstrained(k)
         if free is not None:
             rates.append(growth_rate(free.theta))
-        dur = max(float(s.t[-1] - s.t[0]) for s in self.folds[k].train)
-        return max(rates) + 1.0 / dur
+        return max(rates) + self._neutral(k)
+
+    def _neutral(self, k: int) -> float:
+        """1/D (1/s), D the longest training run of fold ``k`` (s): :meth:`growth_allowance`."""
+        return 1.0 / max(float(s.t[-1] - s.t[0]) for s in self.folds[k].train)
 
     def sound(self, k: int, structure, fit: FitResult) -> FitResult:
         """``fit`` of ``structure`` in fold ``k``, or its anchored form where it is not sound at small
@@ -262,8 +265,11 @@ class Search:
         ``DiagnoseConfig.anchor_small_motion`` False; a refit that fails keeps the free fit (the
         held-out gates judge it)."""
         hull = any(p.hull_term for e, f in structure for p in BY_NAME[e].form(f).params)
-        if (not self.cfg.anchor_small_motion or not hull or fit.hold_linear is not None
-                or growth_rate(fit.theta) <= self.growth_allowance(k)):
+        if not self.cfg.anchor_small_motion or not hull or fit.hold_linear is not None:
+            return fit
+        rate = growth_rate(fit.theta)
+        # the allowance is at least 1/D (neutral): below it no linear fit need be looked at
+        if rate <= self._neutral(k) or rate <= self.growth_allowance(k):
             return fit
         anchor = self.linear(k)
         hold = tuple(float(x) for x in anchor.theta[:4])
