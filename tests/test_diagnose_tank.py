@@ -212,7 +212,9 @@ OWN = "nonlinear_yaw_damping"
 #: signal (the reasoning of tests/truths/cases.py HULL_NL).  Measured 2026-11-23: with the held-out
 #: start boxed by the approach's own uncertainty the clean ship is named nonlinear_sway_damping
 #: (held-out 0.66 -> 0.08 deg), and with an offset injected offset + sway_yaw_coupling.
-HULL_NL = ("nonlinear_sway_damping", "sway_yaw_coupling", "nonlinear_yaw_damping")
+#: hull_nonlinearity is the same hull nonlinearity carried by the Abkowitz-type set in one step
+#: (docs/diagnosis.md, "The catalogue"): a right name for it, not a rival
+HULL_NL = ("nonlinear_sway_damping", "sway_yaw_coupling", "nonlinear_yaw_damping", "hull_nonlinearity")
 KINDS = ("none", "rudder_offset", "nonlinear_yaw_damping", "rudder_offset", "nonlinear_yaw_damping")
 
 
