@@ -432,6 +432,18 @@ class DiagnoseConfig:
     # MARIN KVLCC2 side-swap fold 1 the extended model's held-out cut is 84 % against the bounded fit
     # (14.06 -> 2.18 deg) and 22 % against the unconstrained one (2.78 deg); docs/diagnosis.md
     best_linear_baseline: bool = False
+    # an extension with hull terms (terms in v, r that vanish at v = r = 0) whose linear part grows
+    # where the data's linear fits decay (pipeline.diagnose.select.Search.growth_allowance) is
+    # refitted in its anchored form: the linear part held at the fold's baseline, its damping terms
+    # signed.  Such an extension buys its large-amplitude fit with a small-motion model the data do not
+    # support, held up at large amplitude by the added terms: on the HSVA KVLCC2 the sway damping fitted
+    # on the large zigzags took a21 from 0 to -2.80 (growth rate -0.032 -> +0.018 1/s) and ran away on
+    # the 1 deg zigzag 10/1 (5.32 -> 28.26 deg), where the anchored form holds (docs/diagnosis.md,
+    # "Sound at every amplitude").  Off by default: with it on, the HSVA catalog design named r|r| yaw
+    # damping in its anchored form and the three unseen test runs got worse, 3.54 -> 5.66 deg (-60 %,
+    # flagged): the anchored form still refits the rudder gains b11, b21, the linear part's remaining
+    # compensation (docs/diagnosis.md, "Known limits")
+    anchor_small_motion: bool = False
     # the linear baseline is called inadequate (diagnosis.json baseline_adequate false) when its pooled
     # held-out MAE psi exceeds this many noise floors F = max(2 x heading noise, min_abs_gain_deg).  A
     # model that is right leaves the measurement noise, whose mean absolute value sqrt(2/pi) sigma is

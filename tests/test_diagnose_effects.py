@@ -27,7 +27,7 @@ SPEC_NAMES = {
 }
 #: effects the open catalogue has beyond docs/diagnosis.md's table ("open: more may be added, each with its
 #: own name")
-OPEN_NAMES = {"heading_misalignment"}
+OPEN_NAMES = {"heading_misalignment", "hull_nonlinearity"}
 CTX = Context(t_ship=5.0, h=0.08, d_max=20.0, r_max=3.0, v_max=0.1, u_ref=2.0, u_min_ratio=0.85)
 THETA = np.array(list(PAPER_TABLE4.values()))
 T = np.arange(1200) * 0.08
@@ -103,6 +103,12 @@ def test_kernel_features_are_the_definition():
             assert _feature(code, v, r) == pytest.approx(
                 float(feature_value(code, v, r)), rel=1e-14, abs=1e-300
             )
+            assert _feature(code, v, r, 0.7) == pytest.approx(
+                float(feature_value(code, v, r, 0.7)), rel=1e-14, abs=1e-300
+            )
+    # the non-dimensional cubic terms (v'^2 r' on u^2) are the dimensional ones divided by u/U
+    assert feature_value(8, 0.1, 2.0, 0.5) == pytest.approx(2.0 * feature_value(3, 0.1, 2.0))
+    assert feature_value(9, 0.1, 2.0, 0.5) == pytest.approx(2.0 * feature_value(4, 0.1, 2.0))
 
 
 def _sim(effect, **vals):
@@ -211,3 +217,14 @@ def test_diverging_trial_model_stays_finite():
     free-run heading grows at most at the clip rate (residuals large and finite for the optimiser)."""
     x = simulate_extended(THETA, (0, 0, 0), DELTA, 0.08, n_rrr_s_per_deg2=0.5, lag_s=0.3)
     assert np.all(np.isfinite(x)) and np.abs(x[:, 2]).max() <= 500.0 * T[-1] + 1e-6
+
+
+def test_every_effect_carries_its_words_and_estimate_key():
+    """An effect is one file: its label, signature axis and estimate key live on it (an effect added
+    without them would draw an empty name in the report and a missing size in the studies)."""
+    from pipeline.diagnose.effects import CATALOGUE
+
+    for e in CATALOGUE:
+        assert e.label and e.label != e.name, e.name
+        assert e.signature_axis[0] != "time", e.name
+        assert e.estimate_key, e.name

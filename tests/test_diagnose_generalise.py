@@ -1287,7 +1287,7 @@ def test_container_side_swap(ct_root, form, seed, dist, fold):
 FY_HULLS = ("ferry", "bulker")
 #: the hull's kinds: Hoerner's cross-flow drag integral mixes v|v|, r|r| and the |.| cross forms (its
 #: rudder is linear and logged as measured, its speed held, its sensors true in the mean)
-FY_HULL_KINDS = ("nonlinear_yaw_damping", "nonlinear_sway_damping", "sway_yaw_coupling")
+FY_HULL_KINDS = ("nonlinear_yaw_damping", "nonlinear_sway_damping", "sway_yaw_coupling", "hull_nonlinearity")
 #: disturbed runs: where the truth's own equations (no disturbance, free run from the logged rudder)
 #: cut the fold's held-out heading MAE by this much against the linear baseline, the data show the
 #: hull's nonlinearity and a hull kind must be named; the bar of the hidden-effect cases

@@ -212,7 +212,9 @@ OWN = "nonlinear_yaw_damping"
 #: signal (the reasoning of tests/truths/cases.py HULL_NL).  Measured 2026-11-23: with the held-out
 #: start boxed by the approach's own uncertainty the clean ship is named nonlinear_sway_damping
 #: (held-out 0.66 -> 0.08 deg), and with an offset injected offset + sway_yaw_coupling.
-HULL_NL = ("nonlinear_sway_damping", "sway_yaw_coupling", "nonlinear_yaw_damping")
+#: hull_nonlinearity is the same hull nonlinearity carried by the Abkowitz-type set in one step
+#: (docs/diagnosis.md, "The catalogue"): a right name for it, not a rival
+HULL_NL = ("nonlinear_sway_damping", "sway_yaw_coupling", "nonlinear_yaw_damping", "hull_nonlinearity")
 KINDS = ("none", "rudder_offset", "nonlinear_yaw_damping", "rudder_offset", "nonlinear_yaw_damping")
 
 
@@ -473,7 +475,9 @@ def test_tank_dead_time_is_found_with_a_fast_rudder():
 
 #: a noise seed of the tank at which the 10 deg pull-out design's dead time is seen but not named
 #: (measured 2026-11-26 at four seeds: named at the default seed and at 12, not at 11 and 13, where its
-#: held-out cut, 0.098 / 0.092 deg, is under the 0.1 deg heading floor; docstring)
+#: held-out cut, 0.098 / 0.092 deg, is under the 0.1 deg heading floor; docstring).  With
+#: hull_nonlinearity in the catalogue it is named at 13 too (test_tank_dead_time_is_found_with_a_10_deg_
+#: pull_out); the seed is kept for the pull-out tests that were measured at it
 NOT_NAMED_SEED = 13
 
 
@@ -492,11 +496,11 @@ def test_tank_dead_time_is_seen_on_a_pull_out(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="measured 2026-11-26: on the 10 deg pull-out design the dead time "
-                   "is worth +45 % / +68 % added to the final model (cross terms) but its held-out heading "
-                   "cut, 0.092 deg, is under the 0.1 deg heading floor (twice the 0.05 deg heading noise); "
-                   "named at 2 of 4 seeds, at 8 of 8 on the 20 deg design (docstring)")
 def test_tank_dead_time_is_found_with_a_10_deg_pull_out():
+    """The 0.6 s dead time on the 10 deg pull-out design at the seed where, with the hull's
+    nonlinearity carried by single hull effects, its held-out cut (0.092 deg) stayed under the 0.1 deg
+    heading floor: with hull_nonlinearity in the catalogue (the Abkowitz-type set in one step) the ship's
+    own nonlinearity is carried whole and the dead time is named on top of it."""
     rep = _design_diagnosis("PULL_OUT", rudder_delay=0.6, seed=NOT_NAMED_SEED)
     _found_on_top_of_the_ship(rep, "rudder_delay")
 

@@ -6,8 +6,8 @@ Right-hand side (units of SPEC section 5: v m/s, r deg/s, psi deg, delta deg, t 
     e        = lag state (lag_s de/dt = a - e) if lag_s > 0, else a
     g        = (e + offset_deg) (1 + asym sign(.)) + cubic (e + offset_deg)^3     rudder force angle
     s        = (u / U_ref)^speed_exponent                  (ones without speed_loss)
-    dv/dt    = s (a11 v + a12 r) + s^2 b11 g + sum_j c_j f_j(v, r)   over feature terms of dv/dt
-    dr/dt    = s (a21 v + a22 r) + s^2 b21 g + sum_j c_j f_j(v, r)   over feature terms of dr/dt
+    dv/dt    = s (a11 v + a12 r) + s^2 b11 g + sum_j c_j f_j(v, r, s)   over feature terms of dv/dt
+    dr/dt    = s (a21 v + a22 r) + s^2 b21 g + sum_j c_j f_j(v, r, s)   over feature terms of dr/dt
     dpsi/dt  = r
     v read   = v + v_bias_m_s q,  q = u / U_ref (ones without u)   the sway velocity a run gives
 
@@ -42,7 +42,7 @@ _CLIP_D = 1000.0  # deg, lag state
 
 
 @njit(cache=True, inline="always")
-def _feature(code, v, r):  # pragma: no cover - compiled; held to effects.base.feature_value by a test
+def _feature(code, v, r, s=1.0):  # pragma: no cover - compiled; held to effects.base.feature_value
     if code == 0:
         return r * r * r
     if code == 1:
@@ -57,6 +57,10 @@ def _feature(code, v, r):  # pragma: no cover - compiled; held to effects.base.f
         return v * abs(r)
     if code == 6:
         return abs(v) * r
+    if code == 8:
+        return v * v * r / s
+    if code == 9:
+        return v * r * r / s
     return v * v * v
 
 
@@ -69,7 +73,7 @@ def _deriv(v, r, e, a_in, s, th, codes, eqs, coefs, lag, offset, asym, cubic):  
     dv = s * (th[0] * v + th[1] * r) + s * s * th[4] * g
     dr = s * (th[2] * v + th[3] * r) + s * s * th[5] * g
     for j in range(codes.shape[0]):
-        f = coefs[j] * _feature(codes[j], v, r)
+        f = coefs[j] * _feature(codes[j], v, r, s)
         if eqs[j] == 0:
             dv += f
         else:

@@ -386,6 +386,9 @@ class Layout:
     #: the ship-sign bounds a11, a12, a21, a22 <= 0 on (the default); off for the unconstrained
     #: linear fit the baseline is chosen against (docs/diagnosis.md, "The baseline")
     sign_bounds: bool = True
+    #: (a11, a12, a21, a22) held at these values (the anchored form of an extension: its linear part is
+    #: the baseline's, its damping terms signed; docs/diagnosis.md "Sound at every amplitude"); None: free
+    hold_linear: tuple[float, float, float, float] | None = None
 
     @property
     def params(self):
@@ -423,8 +426,13 @@ class Layout:
             # v is latent: its scale is held by a12 (latent_sway_a12); a width of 1e-6 relative, as
             # least_squares needs lo < hi and the starts are clipped 1e-9 inside the bounds
             lo[1], hi[1] = a12 * (1.0 + 1e-6), a12 * (1.0 - 1e-6)
+        if self.hold_linear is not None:
+            # held: a width of 1e-9 relative (least_squares needs lo < hi; starts are clipped inside)
+            for i, x in enumerate(self.hold_linear):
+                w = 1e-9 * max(1.0, abs(float(x)))
+                lo[i], hi[i] = float(x) - w, float(x) + w
         for _, p in self.params:
-            a, b = p.bounds(self.ctx)
+            a, b = p.bounds(self.ctx, signed=self.hold_linear is not None)
             lo.append(a)
             hi.append(b)
         return np.array(lo), np.array(hi)
@@ -501,6 +509,8 @@ class FitResult:
     start_z: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: whether the ship-sign bounds (Layout.bounds) were on in this fit
     sign_bounds: bool = True
+    #: the linear part held in this fit (the anchored form, Layout.hold_linear); None: fitted freely
+    hold_linear: tuple[float, float, float, float] | None = None
 
     @property
     def effects(self) -> list[str]:
@@ -885,13 +895,17 @@ def fit_structure(
     block_T: float = 2.0,
     *,
     sign_bounds: bool = True,
+    hold_linear: tuple[float, float, float, float] | None = None,
 ) -> FitResult:
     """Fit the linear model plus ``structure`` on ``series`` (module docstring).  ``start``: a fit of
     a nested structure (its values are reused, new parameters start at their start values).
-    ``sign_bounds``: keep a11, a12, a21, a22 <= 0 (:meth:`Layout.bounds`); False fits them free."""
+    ``sign_bounds``: keep a11, a12, a21, a22 <= 0 (:meth:`Layout.bounds`); False fits them free.
+    ``hold_linear``: (a11 1/s, a12 (m/s^2)/(deg/s), a21 (deg/s^2)/(m/s), a22 1/s) held, the damping
+    terms signed (the anchored form, :attr:`Layout.hold_linear`); None fits the linear part."""
+    hold = None if hold_linear is None else tuple(float(x) for x in hold_linear)
     memo = _MEMO.get()
     if memo is None or _PLAIN.get():
-        return _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds)
+        return _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold)
     key = (
         tuple(s.content_key() for s in series),
         structure_of(*structure),
@@ -900,11 +914,12 @@ def fit_structure(
         max_nfev,
         block_T,
         sign_bounds,
+        hold,
     )
     hit = memo.get(key)
     if hit is None:
         try:
-            hit = _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds)
+            hit = _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold)
         except ModelError as err:
             hit = err
         memo[key] = hit
@@ -913,8 +928,9 @@ def fit_structure(
     return hit
 
 
-def _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds=True) -> FitResult:
-    layout = Layout(structure_of(*structure), ctx, sign_bounds)
+def _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds=True,
+                   hold_linear=None) -> FitResult:
+    layout = Layout(structure_of(*structure), ctx, sign_bounds, hold_linear)
     lo, hi = layout.bounds()
     need_u = [e for e, _ in layout.structure if BY_NAME[e].needs_u]
     u_ref = reference_speed(series) if need_u else None
@@ -1027,6 +1043,8 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
         raise ModelError("the diagnosis fit produced no finite result")
     n_p = len(names)
     held = {1} if latent_sway_a12(ctx) is not None else set()    # a12 held: it has no variance
+    if layout.hold_linear is not None:     # the anchored form: the linear part is given, not estimated
+        held |= {0, 1, 2, 3}
     keep = [i for i in range(res.x.size) if i not in held]
     full = np.zeros((res.x.size, res.x.size))
     full[np.ix_(keep, keep)] = sandwich_cov(res.jac[:, keep], res.fun,
@@ -1051,6 +1069,7 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
                        if a != 0 and i not in held),
         start_z=np.asarray(res.x[n_p:], dtype=float),
         sign_bounds=layout.sign_bounds,
+        hold_linear=layout.hold_linear,
     )
 
 
@@ -1116,6 +1135,16 @@ def is_stable(theta) -> bool:
     left half-plane: the ship is course-stable (straight-line stable)."""
     a = np.array([[theta[0], theta[1]], [theta[2], theta[3]]], dtype=float)
     return bool(np.all(np.isfinite(a)) and np.all(np.linalg.eigvals(a).real < 0.0))
+
+
+def growth_rate(theta) -> float:
+    """Largest real part (1/s) of the eigenvalues of the linear sway-yaw part [[a11, a12], [a21, a22]]:
+    the small-motion model of any extension whose added terms vanish at v = r = 0.  Negative: a
+    disturbance decays at that rate; positive: course-unstable, it grows as exp(rate t)."""
+    a = np.array([[theta[0], theta[1]], [theta[2], theta[3]]], dtype=float)
+    if not np.all(np.isfinite(a)):
+        return float("inf")
+    return float(np.max(np.linalg.eigvals(a).real))
 
 
 def evaluate(fit: FitResult, series: list[Series]) -> tuple[dict, list[dict]]:

@@ -107,6 +107,7 @@ from pipeline.diagnose.fit import (
     _u_ratio,
     evaluate,
     fit_structure,
+    growth_rate,
     simulate_fit,
     structure_of,
 )
@@ -227,8 +228,60 @@ class Search:
     def fit(self, k: int, structure, start: FitResult | None = None) -> FitResult:
         key = (k, structure_of(*structure))
         if key not in self._fits:
-            self._fits[key] = self._best_start(k, key[1], start)
+            self._fits[key] = self.sound(k, key[1], self._best_start(k, key[1], start))
         return self._fits[key]
+
+    def growth_allowance(self, k: int) -> float:
+        """The least stable small-motion model fold ``k``'s data allow (1/s): neutral (0), or the
+        larger growth rate (:func:`~pipeline.diagnose.fit.growth_rate`) of its two linear fits (with
+        and without the ship-sign bounds) where one is course-unstable, plus 1/D, D the longest
+        training run (s).
+
+        Why not the linear fits' own rate: a linear fit over every amplitude takes up the nonlinear
+        damping of the large manoeuvres, so it is more stable than the ship's small-motion model, and
+        a right extension is less stable than it (a hidden r^3 yaw damping of the seeded truths is
+        the case: the extension's linear part is the truth's).  What the data do not allow is a
+        small-motion model that grows where every linear fit of them decays.  Why 1/D: a growth rate
+        below it multiplies a disturbance by less than e within any run, so no run tells it from
+        neutral."""
+        rates = [0.0, growth_rate(self.fit(k, ()).theta)]
+        free = self.unconstrained(k)
+        if free is not None:
+            rates.append(growth_rate(free.theta))
+        return max(rates) + self._neutral(k)
+
+    def _neutral(self, k: int) -> float:
+        """1/D (1/s), D the longest training run of fold ``k`` (s): :meth:`growth_allowance`."""
+        return 1.0 / max(float(s.t[-1] - s.t[0]) for s in self.folds[k].train)
+
+    def sound(self, k: int, structure, fit: FitResult) -> FitResult:
+        """``fit`` of ``structure`` in fold ``k``, or its anchored form where it is not sound at small
+        motion.  An extension whose added hull terms vanish at v = r = 0 has its linear part as its
+        small-motion model; when that is less stable than the data allow (:meth:`growth_allowance`),
+        the extension buys its large manoeuvres with a small-motion model propped up by the new terms,
+        and it runs away on the small ones.  It is then refitted with the linear part held at the
+        fold's reported baseline (:meth:`linear`) and its damping terms signed (negative), from the
+        baseline and from the free fit, the one of least TRAINING cost kept.  Off with
+        ``DiagnoseConfig.anchor_small_motion`` False; a refit that fails keeps the free fit (the
+        held-out gates judge it)."""
+        hull = any(p.hull_term for e, f in structure for p in BY_NAME[e].form(f).params)
+        if not self.cfg.anchor_small_motion or not hull or fit.hold_linear is not None:
+            return fit
+        rate = growth_rate(fit.theta)
+        # the allowance is at least 1/D (neutral): below it no linear fit need be looked at
+        if rate <= self._neutral(k) or rate <= self.growth_allowance(k):
+            return fit
+        anchor = self.linear(k)
+        hold = tuple(float(x) for x in anchor.theta[:4])
+        fits = []
+        for st in (anchor, fit):
+            try:
+                fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
+                                          max_nfev=self.cfg.max_nfev, block_T=self.cfg.block_T,
+                                          hold_linear=hold))
+            except ModelError:
+                continue
+        return min(fits, key=lambda f: f.cost) if fits else fit
 
     def _linear(self, k: int, sign_bounds: bool, start: FitResult | None) -> FitResult:
         """The linear model fitted on fold ``k``'s training runs with or without the sign bounds: of the
@@ -359,9 +412,12 @@ class Search:
                 start=self._fits[rkey],
                 max_nfev=self.cfg.max_nfev,
                 block_T=self.cfg.block_T,
+                hold_linear=old.hold_linear,
             )
         except ModelError:
             return False
+        if old.hold_linear is None:
+            new = self.sound(k, key[1], new)
         # relative 1e-6: the least-squares stopping tolerance (fit._TOL); smaller is no improvement
         if np.isfinite(new.cost) and new.cost < old.cost * (1.0 - 1e-6):
             self._fits[key] = new

@@ -55,7 +55,8 @@ MIN_GAIN = 0.30   # a named effect must cut the held-out heading MAE by 30 %: th
 #                   magnitudes where the truth's own structure is worth far more than that (shares of
 #                   0.4-1.0 of the linear term, offsets of 1-2 deg), so a smaller gain is a misfit
 EST_TOL = 0.25    # estimates within 25 % where the form matches (the bar of docs/diagnosis.md)
-HULL_NL = ("nonlinear_sway_damping", "sway_yaw_coupling", "nonlinear_yaw_damping")
+#: with hull_nonlinearity, the Abkowitz-type set of those terms in one effect (docs/diagnosis.md)
+HULL_NL = ("nonlinear_sway_damping", "sway_yaw_coupling", "nonlinear_yaw_damping", "hull_nonlinearity")
 TRAIN = ((20, "starboard"), (10, "port"))
 VALIDATE = ((20, "port"), (10, "starboard"))
 TEST = ((15, "starboard"), (15, "port"))

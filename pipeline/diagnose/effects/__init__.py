@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pipeline.diagnose.effects import (
     heading_misalignment,
+    hull_nonlinearity,
     nonlinear_sway_damping,
     nonlinear_yaw_damping,
     rudder_asymmetry,
@@ -32,6 +33,7 @@ CATALOGUE: tuple[Effect, ...] = (
     rudder_saturation.EFFECT,
     rudder_asymmetry.EFFECT,
     heading_misalignment.EFFECT,
+    hull_nonlinearity.EFFECT,
 )
 BY_NAME = {e.name: e for e in CATALOGUE}
 NAMES = tuple(BY_NAME)

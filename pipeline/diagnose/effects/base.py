@@ -38,7 +38,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-#: feature codes of the numba kernel: f(v m/s, r deg/s)
+#: feature codes of the numba kernel: f(v m/s, r deg/s, s); s is the kernel's speed factor (u/U)^n
+#: (docs/diagnosis.md: 1 without speed_loss, u/U with its exponent at 1), by which the cubic terms of
+#: the non-dimensional form are divided (Y = rho/2 L^2 u^2 Y'_vvr v'^2 r' gives dv/dt ~ v^2 r / u)
 FEATURES = {
     0: "r^3",
     1: "r|r|",
@@ -48,16 +50,19 @@ FEATURES = {
     5: "v|r|",
     6: "|v| r",
     7: "v^3",
+    8: "v^2 r / s",
+    9: "v r^2 / s",
 }
 #: equation index of a feature term: 0 adds to dv/dt (m/s^2), 1 to dr/dt (deg/s^2)
 V_EQ, R_EQ = 0, 1
 
 
-def feature_value(code: int, v, r):
-    """Reference (numpy) value of feature ``code`` at (v m/s, r deg/s); the kernel's copy is held to
-    this by tests/test_diagnose_effects.py."""
+def feature_value(code: int, v, r, s=1.0):
+    """Reference (numpy) value of feature ``code`` at (v m/s, r deg/s, speed factor s > 0); the
+    kernel's copy is held to this by tests/test_diagnose_effects.py."""
     v = np.asarray(v, dtype=float)
     r = np.asarray(r, dtype=float)
+    s = np.asarray(s, dtype=float)
     return {
         0: lambda: r**3,
         1: lambda: r * np.abs(r),
@@ -67,6 +72,8 @@ def feature_value(code: int, v, r):
         5: lambda: v * np.abs(r),
         6: lambda: np.abs(v) * r,
         7: lambda: v**3,
+        8: lambda: v * v * r / s,
+        9: lambda: v * r * r / s,
     }[code]()
 
 
@@ -85,15 +92,28 @@ class Param:
     feature: tuple[int, int] | None = None  # (feature code, equation) for a term linear in the parameter
     time_scaled: bool = False
     speed_scaled: bool = False
+    #: a damping coefficient of a hull term (SPEC signs: negative damps).  Held <= 0 in the anchored
+    #: form of an extension (fit.Layout.bounds, docs/diagnosis.md "Sound at every amplitude"): there
+    #: the linear part is the small-motion model and the term is the growth of damping with amplitude
+    damping: bool = False
 
     def _scale(self, ctx: Context) -> float:
         if self.speed_scaled:
             return float(ctx.u_ref or 1.0)
         return ctx.t_ship if self.time_scaled else 1.0
 
-    def bounds(self, ctx: Context) -> tuple[float, float]:
+    def bounds(self, ctx: Context, signed: bool = False) -> tuple[float, float]:
+        """(lower, upper) bound in ``unit``; ``signed``: a damping parameter's upper bound held at 0."""
         k = self._scale(ctx)
-        return self.lo * k, self.hi * k
+        lo, hi = self.lo * k, self.hi * k
+        if signed and self.damping:
+            hi = min(hi, 0.0)
+        return lo, hi
+
+    @property
+    def hull_term(self) -> bool:
+        """A term of the hull force in (v, r), vanishing at v = r = 0 (a feature term)."""
+        return self.feature is not None
 
     def start_value(self, ctx: Context) -> float:
         return self.start * self._scale(ctx)

@@ -18,7 +18,7 @@ class NonlinearSwayDamping(Effect):
         Form(
             "abs",
             (
-                Param("y_vv_per_m", 0.0, -50.0, 50.0, 0.0, "1/m", feature=(2, V_EQ)),
+                Param("y_vv_per_m", 0.0, -50.0, 50.0, 0.0, "1/m", feature=(2, V_EQ), damping=True),
                 Param("n_vv_deg_per_m2", 0.0, -5000.0, 5000.0, 0.0, "deg/m^2", feature=(2, R_EQ)),
             ),
         ),

@@ -17,8 +17,10 @@ class NonlinearYawDamping(Effect):
     magnitude_unit = "cut of the 20/20 yaw-rate amplitude"
     injection = Injection(plants=("truth",), solver="damping_for_cut", field="n_rrr")
     forms = (
-        Form("cubic", (Param("n_rrr_s_per_deg2", 0.0, -1.0, 1.0, 0.0, "s/deg^2", feature=(0, R_EQ)),)),
-        Form("abs", (Param("n_rr_per_deg", 0.0, -2.0, 2.0, 0.0, "1/deg", feature=(1, R_EQ)),)),
+        Form("cubic", (Param("n_rrr_s_per_deg2", 0.0, -1.0, 1.0, 0.0, "s/deg^2", feature=(0, R_EQ),
+                             damping=True),)),
+        Form("abs", (Param("n_rr_per_deg", 0.0, -2.0, 2.0, 0.0, "1/deg", feature=(1, R_EQ),
+                           damping=True),)),
     )
     words = "nonlinear yaw damping"
     term = "dr/dt gains n_rrr r^3 (cubic form) or n_rr r|r| (modulus form); negative = more damping"

@@ -7,6 +7,12 @@ from pipeline.diagnose.effects.base import R_EQ, V_EQ, Effect, Form, Injection, 
 MIN_RESPONSE = 0.05  # as nonlinear_yaw_damping
 
 
+#: damping=True (signed in the anchored form, fit.Layout.bounds): the terms that are a damping growing
+#: with the other motion, v r^2 / v |r| in dv/dt (sway damping growing with the turn) and v^2 r / |v| r
+#: in dr/dt (yaw damping growing with the drift), negative in the MMG and Abkowitz derivatives of
+#: merchant hulls (e.g. KVLCC2: Y'_vrr, N'_vvr < 0); the other two are couplings of either sign
+
+
 class SwayYawCoupling(Effect):
     name = "sway_yaw_coupling"
     label = "sway-yaw cross terms"
@@ -19,8 +25,9 @@ class SwayYawCoupling(Effect):
             "abkowitz",
             (
                 Param("y_vvr_s_per_m_deg", 0.0, -1e3, 1e3, 0.0, "s/(m deg)", feature=(3, V_EQ)),
-                Param("y_vrr_s2_per_deg2", 0.0, -10.0, 10.0, 0.0, "s^2/deg^2", feature=(4, V_EQ)),
-                Param("n_vvr_s_per_m2", 0.0, -1e5, 1e5, 0.0, "s/m^2", feature=(3, R_EQ)),
+                Param("y_vrr_s2_per_deg2", 0.0, -10.0, 10.0, 0.0, "s^2/deg^2", feature=(4, V_EQ),
+                      damping=True),
+                Param("n_vvr_s_per_m2", 0.0, -1e5, 1e5, 0.0, "s/m^2", feature=(3, R_EQ), damping=True),
                 Param("n_vrr_s_per_m_deg", 0.0, -1e3, 1e3, 0.0, "s/(m deg)", feature=(4, R_EQ)),
             ),
         ),
@@ -30,8 +37,8 @@ class SwayYawCoupling(Effect):
             "modulus",
             (
                 Param("y_avr_per_deg", 0.0, -10.0, 10.0, 0.0, "1/deg", feature=(6, V_EQ)),
-                Param("y_var_per_deg", 0.0, -10.0, 10.0, 0.0, "1/deg", feature=(5, V_EQ)),
-                Param("n_avr_per_m", 0.0, -1e3, 1e3, 0.0, "1/m", feature=(6, R_EQ)),
+                Param("y_var_per_deg", 0.0, -10.0, 10.0, 0.0, "1/deg", feature=(5, V_EQ), damping=True),
+                Param("n_avr_per_m", 0.0, -1e3, 1e3, 0.0, "1/m", feature=(6, R_EQ), damping=True),
                 Param("n_var_per_m", 0.0, -1e3, 1e3, 0.0, "1/m", feature=(5, R_EQ)),
             ),
         ),
