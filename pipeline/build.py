@@ -31,7 +31,6 @@ from pipeline.progress import heartbeat
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 VIRTUAL, HSVA, LOCAL = "virtual", "hsva", "local"
-NOT_TANK_SUFFIXES = {".md", ".stamp", ".gitkeep", ".txt", ".json", ".pdf", ".png", ".toml"}
 
 
 # ------------------------------------------------------------------------------------ datasets
@@ -43,8 +42,11 @@ class Dataset:
 
 
 def is_tank_file(path: Path) -> bool:
-    """False for files that are not tank data (README.md, dataset.toml, stamps, hidden files)."""
-    return path.is_file() and not (path.name.startswith(".") or path.suffix.lower() in NOT_TANK_SUFFIXES)
+    """A file that may be tank data: a regular file that ingest would not skip
+    (:func:`pipeline.dataset.is_tank_file`: not README.md, dataset.toml, stamps, notebooks, hidden files)."""
+    from pipeline.dataset import is_tank_file as named_like_tank_data
+
+    return path.is_file() and named_like_tank_data(path)
 
 
 def raw_root(ds: Dataset) -> Path:

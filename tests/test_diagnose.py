@@ -151,7 +151,8 @@ def test_cli_writes_contract_and_leaves_nothing_on_failure(tmp_path, capsys):
 def hsva_design(hsva_dir):
     """All 13 measured HSVA zigzags, roles by the catalog rule, diagnosed once for the tests below."""
     pytest.importorskip("pipeline.ingest")
-    from pipeline.cli.diagnose import load_run, pick_catalog_runs
+    from pipeline.cli.diagnose import load_run
+    from pipeline.diagnose.design import pick_catalog_runs
 
     runs = {p.stem: load_run(p) for p in sorted(hsva_dir.glob("*.dat"))}
     entries = [
@@ -375,7 +376,7 @@ def test_catalog_rule_uses_every_run():
     """Catalog mode: two runs of one rudder amplitude (a pair first) are twins, one trains and one
     validates; with two pairs, the pairs of the smallest and largest amplitude are crossed (each side has
     both sides and both amplitudes); every other zigzag is a test run; one pair: it is the selection."""
-    from pipeline.cli.diagnose import pick_catalog_runs
+    from pipeline.diagnose.design import pick_catalog_runs
 
     e = _entry
     runs = [e("z10s", 10, 10, "starboard"), e("z10p", 10, 10, "port"), e("z20s", 20, 10, "starboard"),
@@ -404,8 +405,10 @@ def _check_design(runs, train, val, test):
     amplitudes within the twin tolerance (so the diagnosis can swap them); the extremes of rudder and
     heading amplitude among twinned runs are in the selection unless no twin of unused runs holds them;
     a test run outside the selection's range then has no free twin."""
-    from pipeline.cli.diagnose import TWIN_TOL, extrapolated
+    from pipeline.config import DiagnoseConfig
+    from pipeline.diagnose.design import extrapolated
 
+    TWIN_TOL = DiagnoseConfig().twin_tolerance
     ids = [r["run_id"] for r in runs]
     assert sorted(train + val + test) == sorted(ids) and len(set(train + val + test)) == len(ids)
     a_tr, a_va = _amp(runs, train, "rudder_deg"), _amp(runs, val, "rudder_deg")
@@ -438,7 +441,7 @@ def test_catalog_rule_spans_hsva_amplitudes():
     and two smallest-heading twins 10/1 + 10/5 and 15/1 + 15/5 (a 1 deg zigzag on each side) are the
     selection; the other three are test runs between them in amplitude, except 5/1 (the only 5 deg
     run: no twin, extrapolated, stated)."""
-    from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
+    from pipeline.diagnose.design import extrapolated, pick_catalog_runs
 
     runs = [_entry(f"HSVA_CPMC_KVLCC2_{n}", a, h, s) for n, a, h, s in HSVA_INDEX]
     train, val, test = pick_catalog_runs(runs)
@@ -463,7 +466,7 @@ def test_catalog_rule_without_pairs():
     twins 30/10 + 30/20 and 10/5 + 10/10 span 10 and 30 deg rudder; the 5 deg heading needs a second
     twin (20/5 + 20/10) to be on both sides; the 20 deg heading has no free twin left, so it is on the
     validation side only; 15/10 and 20/20 are test runs."""
-    from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
+    from pipeline.diagnose.design import extrapolated, pick_catalog_runs
 
     runs = [_entry(f"z{a}_{h}", a, h) for a, h in
             [(10, 5), (10, 10), (15, 10), (20, 5), (20, 10), (20, 20), (30, 10), (30, 20)]]
@@ -478,7 +481,7 @@ def test_catalog_rule_without_pairs():
 def test_catalog_rule_without_twins():
     """No two runs share a rudder amplitude (within 15 %): one fold, the runs at the ends of both
     amplitudes train, the inner runs are dealt validate, test in turn; two runs: larger trains."""
-    from pipeline.cli.diagnose import pick_catalog_runs
+    from pipeline.diagnose.design import pick_catalog_runs
 
     runs = [_entry(f"z{a}", a, h) for a, h in [(5, 1), (10, 5), (15, 10), (20, 5), (25, 5), (35, 20)]]
     train, val, test = pick_catalog_runs(runs)
@@ -495,7 +498,7 @@ def test_catalog_rule_uses_turning_circles():
     crossed (starboard trains in the first twin, then alternately); one without a twin is a test run,
     extrapolated unless the selection holds a turning circle; the zigzags' design is unchanged; an
     index of turning circles alone still gets a design."""
-    from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
+    from pipeline.diagnose.design import extrapolated, pick_catalog_runs
 
     zz = [_entry("z20s", 20, 20), _entry("z20p", 20, 20, "port"), _entry("z10s", 10, 10),
           _entry("z10p", 10, 10, "port")]
@@ -529,7 +532,8 @@ def test_catalog_design_keeps_to_one_approach_speed():
     """A campaign at two speeds (issue 11, item 5): the diagnosis refuses runs more than 15 % apart in
     approach speed (one linear model holds at one speed), so catalog mode designs on the largest set
     that agrees and leaves the others out with the reason, instead of failing on the whole dataset."""
-    from pipeline.cli.diagnose import _other_speed, one_speed
+    from pipeline.cli.diagnose import _other_speed
+    from pipeline.diagnose.design import one_speed
 
     def e(rid, u, kind="zigzag"):
         return {"run_id": rid, "kind": kind, "approach_speed": u}
@@ -618,7 +622,7 @@ def test_catalog_mode_takes_the_descriptions_roles(tmp_path, monkeypatch, capsys
     ({"train": ["z20s"], "validate": ["z20s"]}, "[roles] names run 'z20s' in both train and validate"),
 ])
 def test_descriptions_roles_refused_in_one_line(roles, msg):
-    from pipeline.cli.diagnose import roles_design
+    from pipeline.diagnose.design import roles_design
     from pipeline.errors import InputError
 
     index = {"ship": {"dataset_toml": "data/raw/mine/dataset.toml"}, "roles": roles,
@@ -632,7 +636,7 @@ def test_descriptions_roles_refused_in_one_line(roles, msg):
 def test_catalog_rule_promises_on_any_index():
     """The rule's promises (:func:`_check_design`) on seeded random run indexes: amplitudes from a
     tank's usual grid, sides at random, 2 to 14 runs, some with pairs, some without any twin."""
-    from pipeline.cli.diagnose import pick_catalog_runs
+    from pipeline.diagnose.design import pick_catalog_runs
 
     rng = np.random.default_rng(11)
     for n in range(200):

@@ -1120,7 +1120,7 @@ def test_tanker_with_turning_circles(tk_root, form, seed):
     published model gives offset + cross terms, 74 % / 70 % (seed 1300).  The same six runs of the
     virtual KCS tank give no honest gain (README).  make test runs the linear form's seed 1300 only
     (CI time)."""
-    from pipeline.cli.diagnose import pick_catalog_runs
+    from pipeline.diagnose.design import pick_catalog_runs
 
     files = write_tanker_circles(tk_root / f"circles_{form}{seed}", form, seed)
     runs = {p.stem: load(p, scale=TK_SCALE) for p in files.values()}
