@@ -107,8 +107,8 @@ def _fake_stages(root: Path, ran: list[str], fail: tuple[str, ...] = ()):
     the stages in ``fail``, else writes the stage's outputs (its name and a counter)."""
     outputs = {s.name: s.outputs for s in build.STAGES}
 
-    def fake(argv):
-        stage = argv[0]
+    def fake(stage, dataset, options):
+        assert dataset == "mine" and options["root"] == root     # names and paths as values
         ran.append(stage)
         if stage in fail:
             return 2
@@ -173,9 +173,8 @@ def test_the_build_reads_the_files_the_description_names(tmp_path):
     names = [p.name for p in build.raw_files(ds)]
     assert names == ["zz10_s.csv", "zz20_s.csv"]
     assert names == [p.name for p in load_dataset("mine", raw, write_missing=False).raw_files()]
-    argv = build._ingest_argv(ds, tmp_path / "proc")[0]
-    handed = [Path(a).resolve() for a in argv if a.endswith(".csv")]
-    assert handed == [(elsewhere / n).resolve() for n in names]
+    (call,) = build._ingest_calls(ds, tmp_path / "proc")
+    assert [Path(a).resolve() for a in call["files"]] == [(elsewhere / n).resolve() for n in names]
 
 
 def test_the_build_and_ingest_skip_the_same_files(tmp_path):

@@ -191,22 +191,21 @@ def test_one_bad_dataset_never_stops_the_others(tmp_path, monkeypatch, capsys):
 
 
 def test_stage_commands_take_dataset_names_as_values_only(tmp_path):
-    """Every stage command the build makes joins a dataset name to its option (``--dataset=NAME``) and
-    puts the files after ``--``: a name starting with ``-`` reaches the stage as the value it is."""
-    from pipeline import build
-    from pipeline.cli import build_parser
+    """The build runs each stage through the Python API (pipeline.api.run): a dataset called ``-dash``,
+    with a run file ``-zz.csv``, reaches the stage as the value it is (no argument list is parsed),
+    and the stage's settings are the command's own (every option a name the command knows)."""
+    from pipeline import api, build
 
     ds = build.Dataset("-dash", tmp_path / "-dash")
     (tmp_path / "-dash").mkdir()
     (tmp_path / "-dash" / "-zz.csv").write_text("time,psi,r,delta\n")
     (tmp_path / "-dash" / "dataset.toml").write_text("[data]\nscale = 1\n")
-    parser = build_parser()
     for stage in build.STAGES:
-        for argv in stage.argv(ds, tmp_path / "proc"):
-            args = parser.parse_args(argv)
-            assert args.dataset == "-dash", (stage.name, argv)
+        for options in stage.calls(ds, tmp_path / "proc"):
+            ns = api._namespace(stage.name, ds.name, tmp_path / "proc", options)
+            assert ns.dataset == "-dash" and ns.stage == stage.name, (stage.name, options)
             if stage.name == "ingest":
-                assert [p.name for p in args.files] == ["-zz.csv"]
+                assert [p.name for p in ns.files] == ["-zz.csv"]
 
 
 def test_diagnosis_plots_take_dollar_names_as_text(tmp_path):
@@ -384,8 +383,7 @@ def _stage_writer(root, ran: list[str]):
 
     outputs = {s.name: s.outputs for s in build.STAGES}
 
-    def fake(argv):
-        stage = argv[0]
+    def fake(stage, dataset, options):
         ran.append(stage)
         files = list(outputs[stage]) + (["indices/zigzag.json"] if stage == "indices" else [])
         for o in files:

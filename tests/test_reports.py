@@ -31,7 +31,7 @@ IMG = re.compile(r"<img[^>]+src=\"data:image/png;base64,")
 
 CONTENT = {   # notebook: (least number of embedded PNG figures, texts the page must hold)
     "identification": (6, ["paper MSE v", "MAE psi", "Table 5", "Table 6", "paper Table 4",
-                           "per step (us)", "forgetting factor", "residual", "Conclusion"]),
+                           "timing.json", "forgetting factor", "residual", "Conclusion"]),
     "indices": (2, ["K (1/s)", "T1 (s)", "K' (-)", "T' (-)", "1st overshoot (deg)", "period (s)",
                     "first overshoot", "Autopilot designed from", "Conclusion"]),
     "control": (1, ["Kp", "rise time (s)", "paper", "wave seed", "Designed from", "Conclusion"]),

@@ -55,12 +55,14 @@ def load_run(path: Path, scale: float | None = None) -> Run:
 
 def _write(out_dir: Path, ident, meta: dict, cfg: FilterConfig, dataset: str | None) -> None:
     from pipeline.identify import estimates_json
+    from pipeline.identify.core import TIMING_FILE
 
     with atomic_dir(out_dir, writer="identify") as tmp:
         write_frame(tmp / "trace.parquet", ident.trace, {"run_id": meta.get("run_id"),
                                                          "algorithm": ident.algorithm,
                                                          "provenance": meta.get("provenance")})
         write_json(tmp / "estimates.json", estimates_json(ident, meta, cfg, dataset))
+        write_json(tmp / TIMING_FILE, ident.timing)     # seconds: kept out of the compared results
 
 
 def _summary(ident, where: Path) -> str:
