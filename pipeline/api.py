@@ -19,7 +19,10 @@ input), with the one-line message the command line prints.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -52,6 +55,8 @@ class StageResult:
         Every result file in ``folder`` (sorted; hidden files and ``timing.json`` left out).
     seconds : float
         Wall time of the stage in this process (s); not part of any result file.
+    log : tuple of str
+        The lines the stage said (what its command prints on stdout), in order.
     """
 
     stage: str
@@ -59,6 +64,7 @@ class StageResult:
     folder: Path
     files: tuple[Path, ...]
     seconds: float
+    log: tuple[str, ...] = ()
 
     def path(self, name: str) -> Path:
         """The result file ``name`` (relative to :attr:`folder`, e.g. ``"srukf-ffm/estimates.json"``);
@@ -162,7 +168,28 @@ def result_files(folder: Path) -> tuple[Path, ...]:
                         and not any(q.startswith(".") for q in p.relative_to(folder).parts)))
 
 
-def run(stage: str, dataset: str | None = None, *, root: str | Path | None = None,
+class _Said(io.TextIOBase):
+    """stdout while a stage runs: kept (for :attr:`StageResult.log`) and, with ``echo``, passed on."""
+
+    def __init__(self, echo):
+        self.kept = io.StringIO()
+        self.echo = echo
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, text: str) -> int:
+        self.kept.write(text)
+        if self.echo is not None:
+            self.echo.write(text)
+        return len(text)
+
+    def flush(self) -> None:
+        if self.echo is not None:
+            self.echo.flush()
+
+
+def run(stage: str, dataset: str | None = None, *, root: str | Path | None = None, echo: bool = False,
         **options: Any) -> StageResult:
     """Run one stage in this process, as ``python -m pipeline STAGE`` would.
 
@@ -176,6 +203,9 @@ def run(stage: str, dataset: str | None = None, *, root: str | Path | None = Non
         ``ROOT/DATASET/<stage>/``.  None for ``tank``, or for a stage given files and ``out``.
     root : str or pathlib.Path, optional
         The processed-data root (default ``data/processed``, relative to the working folder).
+    echo : bool
+        Also print what the stage says (as the command line does); always kept in
+        :attr:`StageResult.log`.  Warnings and notices go to stderr either way.
     **options
         The command's options by name (``python -m pipeline STAGE --help``, ``-`` as ``_``):
         e.g. ``algorithm="srukf-ffm"`` for identify, ``no_plots=True`` for diagnose, ``out=...``
@@ -197,11 +227,14 @@ def run(stage: str, dataset: str | None = None, *, root: str | Path | None = Non
 
     ns = _namespace(stage, dataset, Path(root) if root is not None else None, options)
     check_args_outputs(ns)
+    said = _Said(sys.stdout if echo else None)
     t0 = time.perf_counter()
-    code = int(ns.func(ns) or 0)
+    with contextlib.redirect_stdout(said):
+        code = int(ns.func(ns) or 0)
     seconds = time.perf_counter() - t0
     if code != 0:
         raise PipelineError(f"stage {stage}" + (f" of dataset {dataset!r}" if dataset else "")
                             + f" failed (exit {code})")
     folder = _folder(stage, ns)
-    return StageResult(stage, getattr(ns, "dataset", None), folder, result_files(folder), seconds)
+    return StageResult(stage, getattr(ns, "dataset", None), folder, result_files(folder), seconds,
+                       tuple(said.kept.getvalue().splitlines()))

@@ -316,7 +316,7 @@ def run_stage(stage: str, dataset: str | None, options: Options) -> int:
     from pipeline.errors import PipelineError
 
     try:
-        run(stage, dataset, **options)
+        run(stage, dataset, echo=True, **options)
     except (PipelineError, OSError) as exc:
         return error_status(exc)
     return 0
