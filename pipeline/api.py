@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pipeline.catalog import TIMING_FILE
 from pipeline.errors import InputError, PipelineError
 
 #: the folder (under ``ROOT/DATASET/``) each stage of a dataset writes, as one set
@@ -35,8 +36,6 @@ STAGE_DIRS: dict[str, str] = {"ingest": "runs", "identify": "identify", "validat
                               "indices": "indices", "control": "control", "diagnose": "diagnose"}
 #: the stages, in the order a dataset is built; ``tank`` (the virtual tank's raw files) comes first
 STAGES: tuple[str, ...] = ("tank", *STAGE_DIRS)
-#: files beside the results that say how long something took; no result, never compared or hashed
-TIMING_FILE = "timing.json"
 
 
 @dataclass(frozen=True)

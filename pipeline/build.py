@@ -30,7 +30,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pipeline.api import STAGE_DIRS, TIMING_FILE
+from pipeline.api import STAGE_DIRS, result_files
+from pipeline.catalog import TIMING_FILE
 from pipeline.progress import heartbeat
 
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -251,11 +252,7 @@ def output_key(stage: Stage, ds: Dataset, root: Path) -> str:
 def _stage_files(d: Path) -> list[tuple[str, Path]]:
     """(name under the dataset, path) of a stage folder's result files, sorted; the stage's
     ``timing.json`` (how long it took, not what it found: docs/operations.md) is not one of them."""
-    if not d.is_dir():
-        return []
-    files = sorted(p for p in d.rglob("*") if p.is_file() and not p.name.startswith(".")
-                   and p.name != TIMING_FILE and not any(q.startswith(".") for q in p.relative_to(d).parts))
-    return [(str(p.relative_to(d.parent)), p) for p in files]
+    return [(str(p.relative_to(d.parent)), p) for p in result_files(d)]
 
 
 def up_to_date(stage: Stage, ds: Dataset, root: Path) -> bool:

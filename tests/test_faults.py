@@ -523,3 +523,67 @@ def test_a_hidden_bar_starts_no_thread(monkeypatch):
     b.close()
     assert list(progress.bar(range(3))) == [0, 1, 2]
     assert threading.active_count() == before
+
+
+# ---------------------------------------------------------------- the whole build, twice (make test-long)
+
+
+@pytest.fixture(scope="module")
+def two_full_builds(tmp_path_factory):
+    """What ``make pipeline`` does, done twice from nothing: ``run`` of a dataset whose dataset.toml has
+    the wrong shape (``runs = 5``) beside a good one of four short virtual-tank zigzags, then ``report
+    --all --changed --keep-going``.  Returns (raw, [(status of run, status of report, every file's bytes
+    of data/processed and reports but timing.json)] for each build)."""
+    import shutil
+
+    from pipeline import tank
+    from pipeline.cli import main
+
+    tmp = tmp_path_factory.mktemp("twice")
+    raw = tmp / "raw"
+    (raw / "a-bad").mkdir(parents=True)
+    (raw / "good").mkdir()
+    shutil.copy(os.path.join(ROOT, "tests", "data", "probes", "clean.csv"), raw / "a-bad" / "zz.csv")
+    (raw / "a-bad" / "dataset.toml").write_text("runs = 5\n[data]\nscale = 1\n")
+    for a, side in ((20, "starboard"), (20, "port"), (10, "starboard"), (10, "port")):
+        run = tank.simulate(tank.zigzag(a, a, side, duration=60.0))
+        tank.write_csv(raw / "good" / f"zz{a}_{side[0]}.csv", run)
+    (raw / "good" / "dataset.toml").write_text("[data]\nscale = 1\n")
+    builds = []
+    for _ in range(2):
+        root, reports = tmp / "proc", tmp / "reports"
+        shutil.rmtree(root, ignore_errors=True)             # what make clean removes
+        shutil.rmtree(reports, ignore_errors=True)
+        rc_run = main(["run", "--dataset", "a-bad", "good", f"--raw={raw}", f"--root={root}",
+                       f"--shared={tmp / 'none'}"])
+        rc_rep = main(["report", "--all", "--changed", "--keep-going", f"--root={root}", f"--out={reports}"])
+        files = {}
+        for base in (root, reports):
+            files.update({str(p.relative_to(tmp)): p.read_bytes() for p in sorted(base.rglob("*"))
+                          if p.is_file() and p.name != "timing.json"})
+        builds.append((rc_run, rc_rep, files))
+    return raw, builds
+
+
+@pytest.mark.long
+def test_a_bad_dataset_leaves_the_good_ones_reports(two_full_builds):
+    """The bad dataset is one error and exit 2; the good one is built to the end and its four reports
+    are rendered and linked from the index."""
+    _, builds = two_full_builds
+    rc_run, rc_rep, files = builds[0]
+    assert rc_run == 2 and rc_rep == 0
+    for nb in ("identification", "indices", "control", "diagnosis"):
+        assert f"reports/{nb}-good.html" in files, nb
+        assert f"href='{nb}-good.html'".encode() in files["reports/index.html"], nb
+    assert "proc/good/diagnose/diagnosis.json" in files and "proc/good/control/metrics.json" in files
+    assert not [f for f in files if f.startswith(("proc/a-bad/runs", "reports/identification-a-bad"))]
+
+
+@pytest.mark.long
+def test_a_full_rebuild_gives_the_same_bytes(two_full_builds):
+    """Everything removed and built again (stages and reports): every file the same bytes but
+    timing.json (the stages' and the reports' times), the identification's estimates included."""
+    _, (first, second) = two_full_builds
+    assert first[2].keys() == second[2].keys()
+    assert len(first[2]) >= 20
+    assert [f for f in first[2] if first[2][f] != second[2][f]] == []

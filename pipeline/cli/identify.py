@@ -54,8 +54,8 @@ def load_run(path: Path, scale: float | None = None) -> Run:
 
 
 def _write(out_dir: Path, ident, meta: dict, cfg: FilterConfig, dataset: str | None) -> None:
+    from pipeline.catalog import TIMING_FILE
     from pipeline.identify import estimates_json
-    from pipeline.identify.core import TIMING_FILE
 
     with atomic_dir(out_dir, writer="identify") as tmp:
         write_frame(tmp / "trace.parquet", ident.trace, {"run_id": meta.get("run_id"),

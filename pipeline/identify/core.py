@@ -412,11 +412,6 @@ def identify_run(run: Run, cfg: FilterConfig | None = None, algorithm: str | Non
     return ident
 
 
-#: file beside estimates.json holding the filter loop's wall time (``seconds_total``, ``seconds_per_step``,
-#: s); estimates.json's ``timing`` key names it
-TIMING_FILE = "timing.json"
-
-
 def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfig,
                    dataset: str | None = None) -> dict[str, Any]:
     """estimates.json content (docs/contract.md#identifyalgorithm-identify)."""
@@ -427,9 +422,9 @@ def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfi
         "parameters": ident.parameters,
         "covariance": ident.covariance.tolist(),
         "indices": ident.indices,
-        # the filter loop's seconds differ run to run: they go to timing.json beside this file
-        # (TIMING_FILE, written by the identify command), so the result's bytes do not (docs/operations.md)
-        "timing": {"file": TIMING_FILE},
+        # the filter loop's seconds differ run to run: they go to timing.json beside this file (written
+        # by the identify command), so the result's bytes do not (docs/operations.md)
+        "timing": {"file": "timing.json"},
         "run_id": meta.get("run_id"),
         "dataset": dataset,
         "provenance": meta.get("provenance", "measured"),

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import quote
 
-from pipeline.catalog import Catalog, is_builtin_tank
+from pipeline.catalog import TIMING_FILE, Catalog, is_builtin_tank
 from pipeline.errors import InputError, PipelineError
 from pipeline.io import atomic_path, read_json, write_json
 from pipeline.report import particulars
@@ -405,15 +405,11 @@ def _manifest(out_dir: Path) -> dict[str, dict]:
         return {}
 
 
-#: ``out_dir/timing.json``: when each page was rendered and how long it took, ``{"reports": {FILE:
-#: {"seconds" (s), "rendered" (local time, YYYY-MM-DD HH:MM:SS)}}}``; the pages, reports.json and
-#: index.html hold no clock, so the same inputs give the same bytes (docs/reports.md)
-TIMING_FILE = "timing.json"
-
-
 def _write_timing(out_dir: Path, reports: Sequence[Report], stamp: str, files: set[str]) -> None:
-    """Record the render time (s) and wall clock of every page rendered now in ``out_dir/timing.json``
-    (entries of pages kept unchanged stay; entries of pages gone are dropped)."""
+    """Record the render time (s) and wall clock of every page rendered now in ``out_dir/timing.json``:
+    ``{"reports": {FILE: {"seconds", "rendered" (local time, YYYY-MM-DD HH:MM:SS)}}}`` (entries of pages
+    kept unchanged stay; entries of pages gone are dropped).  The pages, reports.json and index.html
+    hold no clock, so the same inputs give the same bytes (docs/reports.md)."""
     path = Path(out_dir) / TIMING_FILE
     try:
         doc = json.loads(path.read_text())
