@@ -454,6 +454,31 @@ def test_a_heartbeat_line_in_a_log_and_none_on_a_terminal(capfd, monkeypatch):
     assert "still running" not in capfd.readouterr().err
 
 
+def test_a_stage_run_alone_beats_in_a_log(capfd, monkeypatch):
+    """``python -m pipeline diagnose --dataset NAME > log``: the stage command run alone says it still
+    runs every HEARTBEAT_S seconds, as the build says of each stage; ``run`` itself does not (the build
+    beats per stage) and the timer is gone afterwards."""
+    import signal
+    import time
+
+    import pipeline.cli.diagnose as cli_diagnose
+    from pipeline import progress
+    from pipeline.cli import main
+
+    def busy(args):                          # a stand-in diagnosis: busy in Python for 0.45 s
+        t_end = time.monotonic() + 0.45
+        while time.monotonic() < t_end:
+            sum(range(1000))
+        return 0
+
+    monkeypatch.setattr(progress, "HEARTBEAT_S", 0.1)
+    monkeypatch.setattr(cli_diagnose, "run", busy)
+    assert main(["diagnose", "--dataset=-x $y"]) == 0
+    beats = [s for s in capfd.readouterr().err.splitlines() if s.startswith("[-x $y] diagnose still running")]
+    assert 3 <= len(beats) <= 5, beats
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+
+
 def test_a_bar_refreshes_on_a_terminal_only(capfd, monkeypatch):
     from pipeline import progress
 

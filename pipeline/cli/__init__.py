@@ -103,7 +103,7 @@ BEATING = ("tank", "ingest", "identify", "validate", "indices", "control", "diag
 
 
 def main(argv: list[str] | None = None) -> int:
-    from pipeline.progress import heartbeat
+    from pipeline import progress
 
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
         check_args_outputs(args)
         if args.stage not in BEATING:
             return int(args.func(args) or 0)
-        with heartbeat(label):
+        with progress.heartbeat(label, every_s=progress.HEARTBEAT_S):
             return int(args.func(args) or 0)
     except (PipelineError, OSError, KeyboardInterrupt) as exc:
         return error_status(exc)
