@@ -50,18 +50,21 @@ class _Tags(HTMLParser):
             self.scripts.append(data)
 
 
+def _render_evil(tmp: Path, k: int) -> Path:
+    """Every report of the hostile catalog under ``tmp/proc``, rendered into ``tmp/reports<k>``."""
+    out = tmp / f"reports{k}"
+    assert main(["report", "--datasets", "evil", "--root", str(tmp / "proc"), "--out", str(out)]) == 0
+    return out
+
+
 @pytest.fixture(scope="module")
-def rendered(tmp_path_factory):
+def rendered(tmp_path_factory) -> list[Path]:
+    """The hostile catalog's reports rendered once (a second render is made by the test that needs
+    it: make test-long)."""
     tmp = tmp_path_factory.mktemp("evil")
-    root = tmp / "proc"
-    make_catalog(root, "evil", "virtual", ids=EVIL_IDS, ship=EVIL_SHIP, test_names=EVIL_TESTS,
+    make_catalog(tmp / "proc", "evil", "virtual", ids=EVIL_IDS, ship=EVIL_SHIP, test_names=EVIL_TESTS,
                  rich_diagnosis=True)   # every section of the diagnosis report, hostile run ids in it
-    outs = []
-    for k in range(2):
-        out = tmp / f"reports{k}"
-        assert main(["report", "--datasets", "evil", "--root", str(root), "--out", str(out)]) == 0
-        outs.append(out)
-    return outs
+    return [_render_evil(tmp, 0)]
 
 
 @pytest.mark.slow
@@ -88,11 +91,12 @@ def test_no_payload_is_live_markup(rendered):
             assert "$x$zz20" in page and "$\\macro$" in page, name     # mathtext shown as typed
 
 
-@pytest.mark.slow
+@pytest.mark.long     # CI cut: tests/test_faults.py's make_pipeline_log (a rebuild's bytes, to ingest)
 def test_same_inputs_same_bytes(rendered):
     import json
 
-    a, b = rendered
+    a = rendered[0]
+    b = _render_evil(a.parent, 1)
     for name in [f"{n}-evil.html" for n in NOTEBOOKS] + ["index.html", "reports.json"]:
         pa = (a / name).read_text(encoding="utf-8")
         assert not TIME_LINE.findall(pa), name             # no wall-clock line
@@ -211,7 +215,7 @@ def _processes_using(path: Path) -> list[int]:
     return pids
 
 
-@pytest.mark.slow
+@pytest.mark.long     # CI cut: test_stale_scratch_is_removed_by_a_safe_rule (the rule, no kill)
 def test_a_killed_render_leaves_nothing_after_the_next(tmp_path):
     """A render killed (SIGKILL) while its kernel runs leaves its scratch folder with the kernel's
     connection file (signing key) in the temporary folder; the next render removes it and leaves
