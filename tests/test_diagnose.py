@@ -164,7 +164,11 @@ def hsva_design(hsva_dir):
     return runs, tr, va, te, rep
 
 
-@pytest.mark.slow
+# long: the 13 measured HSVA zigzags diagnosed (minutes); CI cut: the design on HSVA's index
+# (test_catalog_rule_spans_hsva_amplitudes) and the measured KVLCC2 side swap of make test's
+# generalisation cut.  One xdist group: the module fixture is built once, on one worker
+@pytest.mark.long
+@pytest.mark.xdist_group("hsva_design")
 def test_hsva_measured_kvlcc2(hsva_design):
     """All 13 measured HSVA zigzags, roles by the stated rule of the catalog mode (issue 11, item 5).
 
@@ -227,7 +231,8 @@ def test_hsva_measured_kvlcc2(hsva_design):
         assert f["short_horizon_gain"] < 0 and f["short_horizon_block_t"] < 0, f
 
 
-@pytest.mark.slow
+@pytest.mark.long
+@pytest.mark.xdist_group("hsva_design")
 def test_hsva_same_cause_in_every_fold(hsva_design):
     """Issue 11, item 7: HSVA gives the same cause in every fold of the chosen design.
 
@@ -832,7 +837,8 @@ def test_report_verdict_of_an_effect_carried_by_one_held_out_run():
     assert why.endswith("kcs_zigzag_20_20_P (without it block t = 1.24 below 1.67)")
 
 
-@pytest.mark.slow
+@pytest.mark.long     # CI cut: test_nested_workers_stay_in_process_where_a_fork_is_unsafe, and the
+# workers started and killed by tests/test_faults.py's pool test
 def test_nested_workers_give_the_same_report_bytes():
     """The nested leave-one-run-out in 2 worker processes (forked while the parent makes the main
     selection) gives the report of the in-process run byte for byte, in a fresh single-threaded
