@@ -259,7 +259,7 @@ nb.paper_note(data)
 # %%
 nb.note("The filter loop's wall time of each algorithm is kept beside its estimates, in "
         "identify/<algorithm>/timing.json (seconds_total, seconds_per_step), not on this page: a computer "
-        "time differs from run to run, and the same data give the same page. `python -m pipeline bench` "
+        "time differs from run to run, and the same data give the same page. python -m pipeline bench "
         f"compares the two filters on one machine as a ratio; the paper's {nb.PAPER_IDENT_SECONDS} s is "
         "for 585 samples on its hardware.")
 
