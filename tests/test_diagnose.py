@@ -98,6 +98,8 @@ def _write(tmp_path, name, run):
     return str(p)
 
 
+@pytest.mark.long     # CI cut: the diagnosis through the command line in tests/test_dataset.py's every-stage
+# build, the gates of a found effect (tests/test_diagnose_gates.py), the refusals below
 def test_cli_writes_contract_and_leaves_nothing_on_failure(tmp_path, capsys):
     cfg = TruthConfig(rudder_offset=2.0, seed=3)
     legs = [(20, "starboard"), (10, "port"), (20, "port"), (10, "starboard")]
@@ -339,7 +341,7 @@ def test_robustness_refusals_are_one_line_input_errors(tmp_path, capsys):
     assert err.count("\n") == 0 and "astern" in err and "complex" not in err and not out.exists()
 
 
-@pytest.mark.slow
+@pytest.mark.long     # CI cut: tests/test_trust.py's primed indices at model and full scale
 def test_verdict_does_not_depend_on_the_scale_of_the_data():
     """The same runs seen at model scale and as if at full scale without --scale (time stretched by
     sqrt(4), speeds by sqrt(4), yaw rate divided by it; resampled to the same 0.08 s step) give the

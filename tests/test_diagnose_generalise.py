@@ -381,7 +381,7 @@ def _kv_report(files, fold: int) -> dict:
     return _KV[key]
 
 
-@pytest.mark.parametrize("fold", [1, 2])
+@pytest.mark.parametrize("fold", [1, pytest.param(2, marks=pytest.mark.long)])   # long: the mirror fold
 def test_kvlcc2_marin_side_swap(kv_files, fold):
     """Issue #11 item 7: each side-swap fold names a cause, and the extended model cuts the held-out
     heading MAE of that fold (the runs of the other side, never trained on) by at least half.
@@ -659,7 +659,7 @@ def _mr_seed_param(seed):
 
 
 @pytest.mark.parametrize("seed", [_mr_seed_param(s) for s in (MR_SEED, *(MR_SEEDS if FULL else ()))])
-@pytest.mark.parametrize("fold", [1, 2])
+@pytest.mark.parametrize("fold", [1, pytest.param(2, marks=pytest.mark.long)])   # long: the mirror fold
 def test_mariner_side_swap(mr_root, fold, seed):
     """The published Mariner, as the MARIN KVLCC2 folds (issue #11 item 7): each side-swap fold names
     a cause and cuts the held-out heading MAE by at least half; every named effect is one the truth
