@@ -63,7 +63,7 @@ reports: $(STAMP)
 # make test       every area, CI-sized (under 10 minutes on 2 cores); the tests marked `long` are left
 #                 out (pyproject.toml's addopts): whole-pipeline builds and rebuilds, every report
 #                 rendered, process kills, long selections (docs/operations.md, "Tests")
-# make test-long  only those long tests (about N min on 2 cores)
+# make test-long  only those long tests (tens of minutes on 2 cores)
 # make test-all   both
 # --dist loadgroup: tests that share an expensive module fixture carry one xdist_group mark, so it is
 # built once, on one worker
