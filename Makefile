@@ -23,7 +23,7 @@ PROC   := data/processed
 .PHONY: pipeline test bench reports venv clean dataset datasets help lint
 
 help:
-	@echo "make pipeline | make test | make bench | make reports | make clean"
+	@echo "make pipeline | make test | make test-long | make bench | make reports | make clean"
 	@echo "make dataset D=NAME (one dataset) | make datasets (list the names) | make lab [D=NAME] (notebooks)"
 
 $(STAMP): pyproject.toml
@@ -60,8 +60,23 @@ dataset: $(STAMP)
 reports: $(STAMP)
 	$(PY) -m pipeline report --all --changed --out reports
 
+# make test       every area, CI-sized (under 10 minutes on 2 cores); the tests marked `long` are left
+#                 out (pyproject.toml's addopts): whole-pipeline builds and rebuilds, every report
+#                 rendered, process kills, long selections (docs/operations.md, "Tests")
+# make test-long  only those long tests (tens of minutes on 2 cores)
+# make test-all   both
+# --dist loadgroup: tests that share an expensive module fixture carry one xdist_group mark, so it is
+# built once, on one worker
+PYTEST := $(PY) -m pytest -n 2 --dist loadgroup
+.PHONY: test-long test-all
 test: $(STAMP)
-	$(PY) -m pytest -n 2 --durations=15
+	$(PYTEST) --durations=15
+
+test-long: $(STAMP)
+	$(PYTEST) -m long --durations=15
+
+test-all: $(STAMP)
+	$(PYTEST) -m "" --durations=15
 
 # make lab: JupyterLab on this project, notebooks/*.py opening as notebooks (docs/reports.md);
 #           make lab D=hsva opens them on that dataset (its stages run first: make dataset D=hsva).

@@ -11,3 +11,16 @@ convert with :mod:`pipeline.units`.
 """
 
 __version__ = "0.1.0"
+
+__all__ = ["StageResult", "run", "stages"]
+
+
+def __getattr__(name: str):
+    """``pipeline.run``, ``pipeline.stages``, ``pipeline.StageResult``: the Python API
+    (:mod:`pipeline.api`, docs/api.md), imported when first used, so that importing one stage's
+    package does not import the command line."""
+    if name in __all__:
+        import importlib
+
+        return getattr(importlib.import_module("pipeline.api"), name)
+    raise AttributeError(f"module 'pipeline' has no attribute {name!r}")

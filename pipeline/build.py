@@ -2,18 +2,20 @@
 
 Why in Python and not in make: dataset and file names come from the user's folders, and a name
 such as ``x$(touch X)`` or ``my runs`` must never become a word of a shell recipe.  Here names are
-only ever list items (argv lists of :func:`pipeline.cli.main`), never shell text.
+only ever values: each stage runs in this process through the Python API (:func:`pipeline.api.run`),
+its settings given as keyword values, never as words of a command line or a shell.
 
 Datasets (:func:`discover`): ``virtual`` (the built-in tank, always), ``hsva`` (the measured KVLCC2
 zigzags, when ``<shared>/data/kvlcc2_hsva/*.dat`` exists), every folder ``data/raw/<name>/``, and
 ``local`` for tank files dropped straight into ``data/raw/``.
 
-Staleness (:func:`plan`): each stage of a dataset has a stamp ``data/processed/<name>/.stamps/<stage>``
+Staleness (:func:`up_to_date`): each stage of a dataset has a stamp ``data/processed/<name>/.stamps/<stage>``
 holding the SHA-256 of (a) the content of every input file (raw files, or the upstream stages'
 output folders) and (b) the source of every ``pipeline`` module the stage's command imports,
-directly or indirectly, found by reading the imports of the code (:func:`import_closure`; function-
-level imports count).  So a change to ``pipeline/config.py``, ``model.py``, ``io.py``, ``cli/`` or any
-module a stage uses reruns that stage and everything downstream; nothing else reruns.  The stamp's
+directly or indirectly, and of the API that calls it (pipeline/api.py), found by reading the imports
+of the code (:func:`import_closure`; function-level imports count).  So a change to
+``pipeline/config.py``, ``model.py``, ``io.py``, ``cli/`` or any module a stage uses reruns that stage
+and everything downstream; nothing else reruns.  The stamp's
 second line is the SHA-256 of the stage's own outputs as it left them (:func:`output_key`): an output
 deleted, truncated or edited since reruns the stage.  A stage's ``timing.json`` is in neither hash.
 """
@@ -22,16 +24,18 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import json
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pipeline.api import STAGE_DIRS, result_files
+from pipeline.catalog import TIMING_FILE
 from pipeline.progress import heartbeat
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 VIRTUAL, HSVA, LOCAL = "virtual", "hsva", "local"
-NOT_TANK_SUFFIXES = {".md", ".stamp", ".gitkeep", ".txt", ".json", ".pdf", ".png", ".toml"}
 
 
 # ------------------------------------------------------------------------------------ datasets
@@ -43,8 +47,11 @@ class Dataset:
 
 
 def is_tank_file(path: Path) -> bool:
-    """False for files that are not tank data (README.md, dataset.toml, stamps, hidden files)."""
-    return path.is_file() and not (path.name.startswith(".") or path.suffix.lower() in NOT_TANK_SUFFIXES)
+    """A file that may be tank data: a regular file that ingest would not skip
+    (:func:`pipeline.dataset.is_tank_file`: not README.md, dataset.toml, stamps, notebooks, hidden files)."""
+    from pipeline.dataset import is_tank_file as named_like_tank_data
+
+    return path.is_file() and named_like_tank_data(path)
 
 
 def raw_root(ds: Dataset) -> Path:
@@ -144,49 +151,41 @@ def import_closure(*modules: str) -> list[Path]:
 
 
 # ------------------------------------------------------------------------------------- stages
+#: the options of one call of a stage through :func:`pipeline.api.run` (besides dataset and root)
+Options = dict[str, object]
+
+
+def _once(ds: Dataset, root: Path) -> list[Options]:
+    return [{}]
+
+
 @dataclass(frozen=True)
 class Stage:
     name: str
     module: str                      # the CLI module whose import closure the stage depends on
     after: tuple[str, ...]           # stages whose outputs it reads
     outputs: tuple[str, ...]         # files (under data/processed/<name>/) that must exist afterwards
-    argv: Callable[[Dataset, Path], list[list[str]]] = field(compare=False)
+    # the calls of the stage for a dataset: one :func:`pipeline.api.run` per options set
+    calls: Callable[[Dataset, Path], list[Options]] = field(default=_once, compare=False)
 
 
-def _ingest_argv(ds: Dataset, root: Path) -> list[list[str]]:
+def _ingest_calls(ds: Dataset, root: Path) -> list[Options]:
     """The ingest call of a dataset: its files, and the raw root its dataset.toml is found under (the
-    folder itself for 'local', else its parent; without it a ``run --raw DIR`` read the description
-    under data/raw, so a full-scale folder's scale was not applied and ingest refused its files)."""
-    files = [str(p) for p in raw_files(ds)]
-    return [["ingest", f"--out={root / ds.name / 'runs'}", f"--dataset={ds.name}", f"--raw={raw_root(ds)}",
-             "--", *files]]
-
-
-def _dataset_args(ds: Dataset, root: Path) -> list[str]:
-    """``--dataset=NAME --root=ROOT``: a value joined to its option is never read as an option itself,
-    whatever it starts with (a folder called ``-x`` or ``--help``)."""
-    return [f"--dataset={ds.name}", f"--root={root}"]
+    folder itself for 'local', else its parent, so that a ``run --raw DIR`` applies the description
+    under DIR, its scale included)."""
+    return [{"files": raw_files(ds), "out": Path(root) / ds.name / "runs", "raw": raw_root(ds)}]
 
 
 STAGES: tuple[Stage, ...] = (
-    Stage("ingest", "pipeline.cli.ingest", (), ("runs/index.json",), _ingest_argv),
+    Stage("ingest", "pipeline.cli.ingest", (), ("runs/index.json",), _ingest_calls),
     Stage("identify", "pipeline.cli.identify", ("ingest",),
           ("identify/srukf-ffm/estimates.json", "identify/ffm-ukf/estimates.json"),
-          lambda ds, root: [["identify", *_dataset_args(ds, root), "--algorithm", a]
-                            for a in ("srukf-ffm", "ffm-ukf")]),
-    Stage("validate", "pipeline.cli.validate", ("ingest", "identify"), ("validate/metrics.json",),
-          lambda ds, root: [["validate", *_dataset_args(ds, root)]]),
-    Stage("indices", "pipeline.cli.indices", ("ingest", "identify"), ("indices/indices.json",),
-          lambda ds, root: [["indices", *_dataset_args(ds, root)]]),
-    Stage("control", "pipeline.cli.control", ("ingest", "identify", "indices"), ("control/metrics.json",),
-          lambda ds, root: [["control", *_dataset_args(ds, root)]]),
-    Stage("diagnose", "pipeline.cli.diagnose", ("ingest",), ("diagnose/diagnosis.json",),
-          lambda ds, root: [["diagnose", *_dataset_args(ds, root)]]),
+          lambda ds, root: [{"algorithm": a} for a in ("srukf-ffm", "ffm-ukf")]),
+    Stage("validate", "pipeline.cli.validate", ("ingest", "identify"), ("validate/metrics.json",)),
+    Stage("indices", "pipeline.cli.indices", ("ingest", "identify"), ("indices/indices.json",)),
+    Stage("control", "pipeline.cli.control", ("ingest", "identify", "indices"), ("control/metrics.json",)),
+    Stage("diagnose", "pipeline.cli.diagnose", ("ingest",), ("diagnose/diagnosis.json",)),
 )
-#: a stage's run times, beside its results but never hashed or compared (docs/operations.md)
-TIMING_FILE = "timing.json"
-STAGE_DIRS = {"ingest": "runs", "identify": "identify", "validate": "validate", "indices": "indices",
-              "control": "control", "diagnose": "diagnose"}
 
 
 def _hash_files(h, files: Sequence[tuple[str, Path]]) -> None:
@@ -205,7 +204,7 @@ def _code(paths: Sequence[Path]) -> list[tuple[str, Path]]:
 def stage_key(stage: Stage, ds: Dataset, root: Path) -> str:
     """SHA-256 of everything the stage's output depends on (inputs' content, code, argv)."""
     h = hashlib.sha256()
-    code = import_closure(stage.module, "pipeline.cli")
+    code = import_closure(stage.module, "pipeline.cli", "pipeline.api")
     _hash_files(h, _code(code))
     if stage.name == "ingest":
         _hash_files(h, [(p.name, p) for p in raw_files(ds)])
@@ -214,9 +213,17 @@ def stage_key(stage: Stage, ds: Dataset, root: Path) -> str:
         h.update(b"dataset.toml\0" + _description(ds) + b"\0")
     for up in stage.after:
         _hash_files(h, _stage_files(Path(root) / ds.name / STAGE_DIRS[up]))
-    for argv in stage.argv(ds, root):
-        h.update("\0".join(argv).encode("utf-8", "surrogateescape") + b"\n")
+    for options in stage.calls(ds, root):
+        h.update(_canonical(options).encode("utf-8", "surrogateescape") + b"\n")
     return h.hexdigest()
+
+
+def _canonical(options: Options) -> str:
+    """One text for a call's options (keys sorted, paths and lists of paths as strings)."""
+    def plain(v):
+        return [plain(x) for x in v] if isinstance(v, (list, tuple)) else str(v) if isinstance(v, Path) else v
+
+    return json.dumps({k: plain(v) for k, v in sorted(options.items())}, ensure_ascii=False)
 
 
 def _description(ds: Dataset) -> bytes:
@@ -245,11 +252,7 @@ def output_key(stage: Stage, ds: Dataset, root: Path) -> str:
 def _stage_files(d: Path) -> list[tuple[str, Path]]:
     """(name under the dataset, path) of a stage folder's result files, sorted; the stage's
     ``timing.json`` (how long it took, not what it found: docs/operations.md) is not one of them."""
-    if not d.is_dir():
-        return []
-    files = sorted(p for p in d.rglob("*") if p.is_file() and not p.name.startswith(".")
-                   and p.name != TIMING_FILE and not any(q.startswith(".") for q in p.relative_to(d).parts))
-    return [(str(p.relative_to(d.parent)), p) for p in files]
+    return [(str(p.relative_to(d.parent)), p) for p in result_files(d)]
 
 
 def up_to_date(stage: Stage, ds: Dataset, root: Path) -> bool:
@@ -284,8 +287,6 @@ def _write_timing(ds: Dataset, root: Path, stage: str, seconds: float, status: s
     """Record a stage's wall time (s) in ``ROOT/NAME/timing.json`` (``{"dataset", "stages": {stage:
     {"seconds", "status"}}}``, the other stages' entries kept): the one place a build's timings go,
     outside every folder that is hashed or compared (docs/operations.md)."""
-    import json
-
     from pipeline.io import write_json
 
     path = Path(root) / ds.name / TIMING_FILE
@@ -300,17 +301,26 @@ def _write_timing(ds: Dataset, root: Path, stage: str, seconds: float, status: s
                       "stages": dict(sorted(stages.items(), key=lambda kv: order.get(kv[0], 99)))})
 
 
-def _exit_code(run: Callable[[list[str]], int], argv: list[str]) -> int:
-    """``run(argv)``'s exit status; an argparse refusal (SystemExit) is a status too, not the end of the
-    build."""
+#: runs one call of a stage: ``(stage, dataset or None, options) -> exit status`` (0 = done)
+Runner = Callable[[str, "str | None", Options], int]
+
+
+def run_stage(stage: str, dataset: str | None, options: Options) -> int:
+    """One stage call through :func:`pipeline.api.run`, in this process: 0 when done; a refusal or a
+    failure is its one line ``error: ...`` on stderr (as the command line prints it) and status 2."""
+    from pipeline.api import run
+    from pipeline.cli import error_status
+    from pipeline.errors import PipelineError
+
     try:
-        return run(argv)
-    except SystemExit as exc:
-        return exc.code if isinstance(exc.code, int) else 2
+        run(stage, dataset, echo=True, **options)
+    except (PipelineError, OSError) as exc:
+        return error_status(exc)
+    return 0
 
 
 def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str | None = None,
-                  run: Callable[[list[str]], int] | None = None,
+                  run: Runner = run_stage,
                   say: Callable[[str], None] = print,
                   on_stage: Callable[[str, str, str, float], None] | None = None) -> list[str]:
     """Bring every stage of ``ds`` up to date (up to and including ``until``); returns the stages run.
@@ -320,23 +330,22 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
     ``ROOT/NAME/timing.json`` (:func:`_write_timing`) and handed to ``on_stage(dataset, stage, status,
     seconds)``.
 
-    ``run`` executes one argv list (default :func:`pipeline.cli.main`).  A stage whose command exits
-    non-zero stops only the stages that read its outputs (directly or not, ``Stage.after``): the others
+    ``run`` executes one call of a stage (default :func:`run_stage`, the Python API in this process:
+    ``(stage, dataset, options)``, the dataset's name only ever a value).  A stage whose call fails
+    stops only the stages that read its outputs (directly or not, ``Stage.after``): the others
     still run, as ``make -k`` would (a campaign of turning circles alone has no zigzag to identify
     from, and its diagnosis needs none).  Then :class:`pipeline.errors.PipelineError` names the
     dataset, the failed stage, the stages not run and those that ran.
     """
     from pipeline.errors import InputError, PipelineError
 
-    if run is None:
-        from pipeline.cli import main as run
     names = [s.name for s in STAGES]
     if until is not None and until not in names:
         raise InputError(f"unknown stage {until!r} (known: {', '.join(names)})")
     stages = STAGES[: names.index(until) + 1] if until else STAGES
     if ds.name == VIRTUAL and not tank_up_to_date(ds.raw):
         say(f"[{ds.name}] tank")
-        if _exit_code(run, ["tank", f"--out={ds.raw}"]) != 0:
+        if run("tank", None, {"out": ds.raw}) != 0:
             raise PipelineError(f"dataset {ds.name!r}: stage tank failed (see above)")
         from pipeline.io import atomic_path
 
@@ -364,8 +373,8 @@ def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str |
         code = 0
         t0 = time.perf_counter()
         with heartbeat(f"[{ds.name}] {stage.name}"):
-            for argv in stage.argv(ds, root):
-                code = _exit_code(run, argv)
+            for options in stage.calls(ds, root):
+                code = run(stage.name, ds.name, {"root": Path(root), **options})
                 if code != 0:
                     break
         secs = time.perf_counter() - t0

@@ -48,6 +48,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+#: a file beside results saying how long something took (never a result: no stamp hashes it, no
+#: report shows it, no rebuild compares it; docs/operations.md, "Timings and byte-identical rebuilds")
+TIMING_FILE = "timing.json"
+
 
 @dataclass(frozen=True)
 class Catalog:

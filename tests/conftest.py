@@ -38,3 +38,20 @@ def study_client():
 
     with local_client(2) as client:
         yield client
+
+
+#: tests that share a costly result made once per process (a module fixture, or a module cache keyed
+#: by what the fixture gives) run on one xdist worker under ``--dist loadgroup`` (make test): the
+#: fixture's name -> the group.  Without it each worker that ran one of them made the result again
+#: (the MARIN KVLCC2 fold 1 diagnosis, reused by its model-scale twin: tests/test_diagnose_generalise.py)
+SHARED_WORK_GROUPS = {"kv_files": "kvlcc2", "hsva_design": "hsva_design", "rendered": "report_security"}
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """An ``xdist_group`` mark on every test that uses a fixture of :data:`SHARED_WORK_GROUPS` (before
+    xdist reads the marks)."""
+    for item in items:
+        for name, group in SHARED_WORK_GROUPS.items():
+            if name in getattr(item, "fixturenames", ()):
+                item.add_marker(pytest.mark.xdist_group(group))

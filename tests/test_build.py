@@ -107,8 +107,8 @@ def _fake_stages(root: Path, ran: list[str], fail: tuple[str, ...] = ()):
     the stages in ``fail``, else writes the stage's outputs (its name and a counter)."""
     outputs = {s.name: s.outputs for s in build.STAGES}
 
-    def fake(argv):
-        stage = argv[0]
+    def fake(stage, dataset, options):
+        assert dataset == "mine" and options["root"] == root     # names and paths as values
         ran.append(stage)
         if stage in fail:
             return 2
@@ -173,9 +173,28 @@ def test_the_build_reads_the_files_the_description_names(tmp_path):
     names = [p.name for p in build.raw_files(ds)]
     assert names == ["zz10_s.csv", "zz20_s.csv"]
     assert names == [p.name for p in load_dataset("mine", raw, write_missing=False).raw_files()]
-    argv = build._ingest_argv(ds, tmp_path / "proc")[0]
-    handed = [Path(a).resolve() for a in argv if a.endswith(".csv")]
-    assert handed == [(elsewhere / n).resolve() for n in names]
+    (call,) = build._ingest_calls(ds, tmp_path / "proc")
+    assert [Path(a).resolve() for a in call["files"]] == [(elsewhere / n).resolve() for n in names]
+
+
+def test_the_build_and_ingest_skip_the_same_files(tmp_path):
+    """One list of what is not tank data (pipeline.dataset.NOT_TANK_SUFFIXES): a notebook, a script,
+    a spreadsheet, a page or a document beside the runs is neither listed by the build nor read by
+    ingest, in a user's folder and among files dropped straight into data/raw ('local')."""
+    from pipeline.dataset import NOT_TANK_SUFFIXES, is_tank_file
+
+    raw = tmp_path / "raw"
+    (raw / "mine").mkdir(parents=True)
+    others = ["analysis.ipynb", "plot.py", "log.xlsx", "old.xls", "report.html", "notes.docx", "README.md",
+              ".hidden.csv"]
+    for folder in (raw / "mine", raw):
+        for name in ["zz20_s.csv", *others]:
+            (folder / name).write_text("time,psi,r,delta\n0,0,0,0\n")
+    assert {Path(n).suffix for n in others if not n.startswith(".")} <= NOT_TANK_SUFFIXES
+    for ds in (build.Dataset("mine", raw / "mine"), build.Dataset(build.LOCAL, raw)):
+        assert [p.name for p in build.raw_files(ds)] == ["zz20_s.csv"], ds.name
+        assert [p.name for p in sorted(ds.raw.iterdir()) if p.is_file() and is_tank_file(p)] == ["zz20_s.csv"]
+    assert [d.name for d in build.discover(raw, tmp_path / "none")] == ["virtual", "mine", build.LOCAL]
 
 
 def test_a_failing_stage_stops_only_what_reads_its_outputs(tmp_path):

@@ -256,7 +256,7 @@ def _toml(files_dir: str, extra: str) -> str:
             f'[roles]\ntrain = [{train}]\nvalidate = [{val}]\n\n{extra}')
 
 
-@pytest.mark.slow
+@pytest.mark.long     # two builds of four runs, ingest to diagnose; CI cut: the mapping's own tests above
 def test_a_loggers_folder_gives_the_canonical_files_results(tmp_path, monkeypatch, capsys):
     """Four virtual-tank zigzags written twice: as canonical CSV at 0.08 s from the steady approach,
     and in another logger's layout (logger_layout.py: rad, wrapped heading, rudder positive to port,

@@ -548,7 +548,7 @@ def test_runnable_examples(doc, k, folder, text, tmp_path, capsys):
     """The block, saved as data/raw/<name>/dataset.toml of a project beside the folder's own parent
     (so that its files_dir, written for data/raw/<name>/ of this project, finds the same files),
     ingests the folder and its roles resolve as identify and diagnose resolve them."""
-    from pipeline.cli.diagnose import roles_design
+    from pipeline.diagnose.design import roles_design
     from pipeline.runinfo import choose_runs
 
     source = (ROOT / folder).resolve()

@@ -98,6 +98,8 @@ def _write(tmp_path, name, run):
     return str(p)
 
 
+@pytest.mark.long     # CI cut: the diagnosis through the command line in tests/test_dataset.py's every-stage
+# build, the gates of a found effect (tests/test_diagnose_gates.py), the refusals below
 def test_cli_writes_contract_and_leaves_nothing_on_failure(tmp_path, capsys):
     cfg = TruthConfig(rudder_offset=2.0, seed=3)
     legs = [(20, "starboard"), (10, "port"), (20, "port"), (10, "starboard")]
@@ -151,7 +153,8 @@ def test_cli_writes_contract_and_leaves_nothing_on_failure(tmp_path, capsys):
 def hsva_design(hsva_dir):
     """All 13 measured HSVA zigzags, roles by the catalog rule, diagnosed once for the tests below."""
     pytest.importorskip("pipeline.ingest")
-    from pipeline.cli.diagnose import load_run, pick_catalog_runs
+    from pipeline.cli.diagnose import load_run
+    from pipeline.diagnose.design import pick_catalog_runs
 
     runs = {p.stem: load_run(p) for p in sorted(hsva_dir.glob("*.dat"))}
     entries = [
@@ -163,7 +166,11 @@ def hsva_design(hsva_dir):
     return runs, tr, va, te, rep
 
 
-@pytest.mark.slow
+# long: the 13 measured HSVA zigzags diagnosed (minutes); CI cut: the design on HSVA's index
+# (test_catalog_rule_spans_hsva_amplitudes) and the measured KVLCC2 side swap of make test's
+# generalisation cut.  One xdist group: the module fixture is built once, on one worker
+@pytest.mark.long
+@pytest.mark.xdist_group("hsva_design")
 def test_hsva_measured_kvlcc2(hsva_design):
     """All 13 measured HSVA zigzags, roles by the stated rule of the catalog mode.
 
@@ -226,7 +233,8 @@ def test_hsva_measured_kvlcc2(hsva_design):
         assert f["short_horizon_gain"] < 0 and f["short_horizon_block_t"] < 0, f
 
 
-@pytest.mark.slow
+@pytest.mark.long
+@pytest.mark.xdist_group("hsva_design")
 def test_hsva_same_cause_in_every_fold(hsva_design):
     """HSVA gives the same cause in every fold of the chosen design.
 
@@ -334,7 +342,7 @@ def test_robustness_refusals_are_one_line_input_errors(tmp_path, capsys):
     assert err.count("\n") == 0 and "astern" in err and "complex" not in err and not out.exists()
 
 
-@pytest.mark.slow
+@pytest.mark.long     # CI cut: tests/test_trust.py's primed indices at model and full scale
 def test_verdict_does_not_depend_on_the_scale_of_the_data():
     """The same runs seen at model scale and as if at full scale without --scale (time stretched by
     sqrt(4), speeds by sqrt(4), yaw rate divided by it; resampled to the same 0.08 s step) give the
@@ -376,7 +384,7 @@ def test_catalog_rule_uses_every_run():
     """Catalog mode: two runs of one rudder amplitude (a pair first) are twins, one trains and one
     validates; with two pairs, the pairs of the smallest and largest amplitude are crossed (each side has
     both sides and both amplitudes); every other zigzag is a test run; one pair: it is the selection."""
-    from pipeline.cli.diagnose import pick_catalog_runs
+    from pipeline.diagnose.design import pick_catalog_runs
 
     e = _entry
     runs = [e("z10s", 10, 10, "starboard"), e("z10p", 10, 10, "port"), e("z20s", 20, 10, "starboard"),
@@ -405,8 +413,10 @@ def _check_design(runs, train, val, test):
     amplitudes within the twin tolerance (so the diagnosis can swap them); the extremes of rudder and
     heading amplitude among twinned runs are in the selection unless no twin of unused runs holds them;
     a test run outside the selection's range then has no free twin."""
-    from pipeline.cli.diagnose import TWIN_TOL, extrapolated
+    from pipeline.config import DiagnoseConfig
+    from pipeline.diagnose.design import extrapolated
 
+    TWIN_TOL = DiagnoseConfig().twin_tolerance
     ids = [r["run_id"] for r in runs]
     assert sorted(train + val + test) == sorted(ids) and len(set(train + val + test)) == len(ids)
     a_tr, a_va = _amp(runs, train, "rudder_deg"), _amp(runs, val, "rudder_deg")
@@ -439,7 +449,7 @@ def test_catalog_rule_spans_hsva_amplitudes():
     and two smallest-heading twins 10/1 + 10/5 and 15/1 + 15/5 (a 1 deg zigzag on each side) are the
     selection; the other three are test runs between them in amplitude, except 5/1 (the only 5 deg
     run: no twin, extrapolated, stated)."""
-    from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
+    from pipeline.diagnose.design import extrapolated, pick_catalog_runs
 
     runs = [_entry(f"HSVA_CPMC_KVLCC2_{n}", a, h, s) for n, a, h, s in HSVA_INDEX]
     train, val, test = pick_catalog_runs(runs)
@@ -464,7 +474,7 @@ def test_catalog_rule_without_pairs():
     twins 30/10 + 30/20 and 10/5 + 10/10 span 10 and 30 deg rudder; the 5 deg heading needs a second
     twin (20/5 + 20/10) to be on both sides; the 20 deg heading has no free twin left, so it is on the
     validation side only; 15/10 and 20/20 are test runs."""
-    from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
+    from pipeline.diagnose.design import extrapolated, pick_catalog_runs
 
     runs = [_entry(f"z{a}_{h}", a, h) for a, h in
             [(10, 5), (10, 10), (15, 10), (20, 5), (20, 10), (20, 20), (30, 10), (30, 20)]]
@@ -479,7 +489,7 @@ def test_catalog_rule_without_pairs():
 def test_catalog_rule_without_twins():
     """No two runs share a rudder amplitude (within 15 %): one fold, the runs at the ends of both
     amplitudes train, the inner runs are dealt validate, test in turn; two runs: larger trains."""
-    from pipeline.cli.diagnose import pick_catalog_runs
+    from pipeline.diagnose.design import pick_catalog_runs
 
     runs = [_entry(f"z{a}", a, h) for a, h in [(5, 1), (10, 5), (15, 10), (20, 5), (25, 5), (35, 20)]]
     train, val, test = pick_catalog_runs(runs)
@@ -496,7 +506,7 @@ def test_catalog_rule_uses_turning_circles():
     crossed (starboard trains in the first twin, then alternately); one without a twin is a test run,
     extrapolated unless the selection holds a turning circle; the zigzags' design is unchanged; an
     index of turning circles alone still gets a design."""
-    from pipeline.cli.diagnose import extrapolated, pick_catalog_runs
+    from pipeline.diagnose.design import extrapolated, pick_catalog_runs
 
     zz = [_entry("z20s", 20, 20), _entry("z20p", 20, 20, "port"), _entry("z10s", 10, 10),
           _entry("z10p", 10, 10, "port")]
@@ -530,7 +540,8 @@ def test_catalog_design_keeps_to_one_approach_speed():
     """A campaign at two speeds: the diagnosis refuses runs more than 15 % apart in
     approach speed (one linear model holds at one speed), so catalog mode designs on the largest set
     that agrees and leaves the others out with the reason, instead of failing on the whole dataset."""
-    from pipeline.cli.diagnose import _other_speed, one_speed
+    from pipeline.cli.diagnose import _other_speed
+    from pipeline.diagnose.design import one_speed
 
     def e(rid, u, kind="zigzag"):
         return {"run_id": rid, "kind": kind, "approach_speed": u}
@@ -619,7 +630,7 @@ def test_catalog_mode_takes_the_descriptions_roles(tmp_path, monkeypatch, capsys
     ({"train": ["z20s"], "validate": ["z20s"]}, "[roles] names run 'z20s' in both train and validate"),
 ])
 def test_descriptions_roles_refused_in_one_line(roles, msg):
-    from pipeline.cli.diagnose import roles_design
+    from pipeline.diagnose.design import roles_design
     from pipeline.errors import InputError
 
     index = {"ship": {"dataset_toml": "data/raw/mine/dataset.toml"}, "roles": roles,
@@ -633,7 +644,7 @@ def test_descriptions_roles_refused_in_one_line(roles, msg):
 def test_catalog_rule_promises_on_any_index():
     """The rule's promises (:func:`_check_design`) on seeded random run indexes: amplitudes from a
     tank's usual grid, sides at random, 2 to 14 runs, some with pairs, some without any twin."""
-    from pipeline.cli.diagnose import pick_catalog_runs
+    from pipeline.diagnose.design import pick_catalog_runs
 
     rng = np.random.default_rng(11)
     for n in range(200):
@@ -829,7 +840,8 @@ def test_report_verdict_of_an_effect_carried_by_one_held_out_run():
     assert why.endswith("kcs_zigzag_20_20_P (without it block t = 1.24 below 1.67)")
 
 
-@pytest.mark.slow
+@pytest.mark.long     # CI cut: test_nested_workers_stay_in_process_where_a_fork_is_unsafe, and the
+# workers started and killed by tests/test_faults.py's pool test
 def test_nested_workers_give_the_same_report_bytes():
     """The nested leave-one-run-out in 2 worker processes (forked while the parent makes the main
     selection) gives the report of the in-process run byte for byte, in a fresh single-threaded

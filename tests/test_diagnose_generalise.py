@@ -382,7 +382,7 @@ def _kv_report(files, fold: int) -> dict:
     return _KV[key]
 
 
-@pytest.mark.parametrize("fold", [1, 2])
+@pytest.mark.parametrize("fold", [1, pytest.param(2, marks=pytest.mark.long)])   # long: the mirror fold
 def test_kvlcc2_marin_side_swap(kv_files, fold):
     """Each side-swap fold names a cause, and the extended model cuts the held-out
     heading MAE of that fold (the runs of the other side, never trained on) by at least half.
@@ -661,7 +661,7 @@ def _mr_seed_param(seed):
 
 
 @pytest.mark.parametrize("seed", [_mr_seed_param(s) for s in (MR_SEED, *(MR_SEEDS if FULL else ()))])
-@pytest.mark.parametrize("fold", [1, 2])
+@pytest.mark.parametrize("fold", [1, pytest.param(2, marks=pytest.mark.long)])   # long: the mirror fold
 def test_mariner_side_swap(mr_root, fold, seed):
     """The published Mariner, as the MARIN KVLCC2 folds: each side-swap fold names
     a cause and cuts the held-out heading MAE by at least half; every named effect is one the truth
@@ -1124,7 +1124,7 @@ def test_tanker_with_turning_circles(tk_root, form, seed):
     published model gives offset + cross terms, 74 % / 70 % (seed 1300).  The same six runs of the
     virtual KCS tank give no honest gain (README).  make test runs the linear form's seed 1300 only
     (CI time)."""
-    from pipeline.cli.diagnose import pick_catalog_runs
+    from pipeline.diagnose.design import pick_catalog_runs
 
     files = write_tanker_circles(tk_root / f"circles_{form}{seed}", form, seed)
     runs = {p.stem: load(p, scale=TK_SCALE) for p in files.values()}

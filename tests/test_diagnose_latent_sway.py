@@ -76,6 +76,7 @@ def test_offset_found_without_sway_and_terms_in_v_not_tried():
     assert "latent" in rep["summary"]
 
 
+@pytest.mark.long     # CI cut: test_offset_found_without_sway_and_terms_in_v_not_tried (the same runs' rule)
 def test_servo_lag_is_not_claimed_where_only_sway_tells_it():
     """A 0.8 s servo lag: with v logged the diagnosis names it (0.86 s, measured); without v the linear
     model's sway path reproduces the lag's yaw response (held-out heading MAE at the noise level,

@@ -191,22 +191,21 @@ def test_one_bad_dataset_never_stops_the_others(tmp_path, monkeypatch, capsys):
 
 
 def test_stage_commands_take_dataset_names_as_values_only(tmp_path):
-    """Every stage command the build makes joins a dataset name to its option (``--dataset=NAME``) and
-    puts the files after ``--``: a name starting with ``-`` reaches the stage as the value it is."""
-    from pipeline import build
-    from pipeline.cli import build_parser
+    """The build runs each stage through the Python API (pipeline.api.run): a dataset called ``-dash``,
+    with a run file ``-zz.csv``, reaches the stage as the value it is (no argument list is parsed),
+    and the stage's settings are the command's own (every option a name the command knows)."""
+    from pipeline import api, build
 
     ds = build.Dataset("-dash", tmp_path / "-dash")
     (tmp_path / "-dash").mkdir()
     (tmp_path / "-dash" / "-zz.csv").write_text("time,psi,r,delta\n")
     (tmp_path / "-dash" / "dataset.toml").write_text("[data]\nscale = 1\n")
-    parser = build_parser()
     for stage in build.STAGES:
-        for argv in stage.argv(ds, tmp_path / "proc"):
-            args = parser.parse_args(argv)
-            assert args.dataset == "-dash", (stage.name, argv)
+        for options in stage.calls(ds, tmp_path / "proc"):
+            ns = api._namespace(stage.name, ds.name, tmp_path / "proc", options)
+            assert ns.dataset == "-dash" and ns.stage == stage.name, (stage.name, options)
             if stage.name == "ingest":
-                assert [p.name for p in args.files] == ["-zz.csv"]
+                assert [p.name for p in ns.files] == ["-zz.csv"]
 
 
 def test_diagnosis_plots_take_dollar_names_as_text(tmp_path):
@@ -384,8 +383,7 @@ def _stage_writer(root, ran: list[str]):
 
     outputs = {s.name: s.outputs for s in build.STAGES}
 
-    def fake(argv):
-        stage = argv[0]
+    def fake(stage, dataset, options):
         ran.append(stage)
         files = list(outputs[stage]) + (["indices/zigzag.json"] if stage == "indices" else [])
         for o in files:
@@ -454,6 +452,31 @@ def test_a_heartbeat_line_in_a_log_and_none_on_a_terminal(capfd, monkeypatch):
     with progress.heartbeat("[x] diagnose", every_s=0.1):
         time.sleep(0.3)
     assert "still running" not in capfd.readouterr().err
+
+
+def test_a_stage_run_alone_beats_in_a_log(capfd, monkeypatch):
+    """``python -m pipeline diagnose --dataset NAME > log``: the stage command run alone says it still
+    runs every HEARTBEAT_S seconds, as the build says of each stage; ``run`` itself does not (the build
+    beats per stage) and the timer is gone afterwards."""
+    import signal
+    import time
+
+    import pipeline.cli.diagnose as cli_diagnose
+    from pipeline import progress
+    from pipeline.cli import main
+
+    def busy(args):                          # a stand-in diagnosis: busy in Python for 0.45 s
+        t_end = time.monotonic() + 0.45
+        while time.monotonic() < t_end:
+            sum(range(1000))
+        return 0
+
+    monkeypatch.setattr(progress, "HEARTBEAT_S", 0.1)
+    monkeypatch.setattr(cli_diagnose, "run", busy)
+    assert main(["diagnose", "--dataset=-x $y"]) == 0
+    beats = [s for s in capfd.readouterr().err.splitlines() if s.startswith("[-x $y] diagnose still running")]
+    assert 3 <= len(beats) <= 5, beats
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
 
 
 def test_a_bar_refreshes_on_a_terminal_only(capfd, monkeypatch):
@@ -525,3 +548,67 @@ def test_a_hidden_bar_starts_no_thread(monkeypatch):
     b.close()
     assert list(progress.bar(range(3))) == [0, 1, 2]
     assert threading.active_count() == before
+
+
+# ---------------------------------------------------------------- the whole build, twice (make test-long)
+
+
+@pytest.fixture(scope="module")
+def two_full_builds(tmp_path_factory):
+    """What ``make pipeline`` does, done twice from nothing: ``run`` of a dataset whose dataset.toml has
+    the wrong shape (``runs = 5``) beside a good one of four short virtual-tank zigzags, then ``report
+    --all --changed --keep-going``.  Returns (raw, [(status of run, status of report, every file's bytes
+    of data/processed and reports but timing.json)] for each build)."""
+    import shutil
+
+    from pipeline import tank
+    from pipeline.cli import main
+
+    tmp = tmp_path_factory.mktemp("twice")
+    raw = tmp / "raw"
+    (raw / "a-bad").mkdir(parents=True)
+    (raw / "good").mkdir()
+    shutil.copy(os.path.join(ROOT, "tests", "data", "probes", "clean.csv"), raw / "a-bad" / "zz.csv")
+    (raw / "a-bad" / "dataset.toml").write_text("runs = 5\n[data]\nscale = 1\n")
+    for a, side in ((20, "starboard"), (20, "port"), (10, "starboard"), (10, "port")):
+        run = tank.simulate(tank.zigzag(a, a, side, duration=60.0))
+        tank.write_csv(raw / "good" / f"zz{a}_{side[0]}.csv", run)
+    (raw / "good" / "dataset.toml").write_text("[data]\nscale = 1\n")
+    builds = []
+    for _ in range(2):
+        root, reports = tmp / "proc", tmp / "reports"
+        shutil.rmtree(root, ignore_errors=True)             # what make clean removes
+        shutil.rmtree(reports, ignore_errors=True)
+        rc_run = main(["run", "--dataset", "a-bad", "good", f"--raw={raw}", f"--root={root}",
+                       f"--shared={tmp / 'none'}"])
+        rc_rep = main(["report", "--all", "--changed", "--keep-going", f"--root={root}", f"--out={reports}"])
+        files = {}
+        for base in (root, reports):
+            files.update({str(p.relative_to(tmp)): p.read_bytes() for p in sorted(base.rglob("*"))
+                          if p.is_file() and p.name != "timing.json"})
+        builds.append((rc_run, rc_rep, files))
+    return raw, builds
+
+
+@pytest.mark.long
+def test_a_bad_dataset_leaves_the_good_ones_reports(two_full_builds):
+    """The bad dataset is one error and exit 2; the good one is built to the end and its four reports
+    are rendered and linked from the index."""
+    _, builds = two_full_builds
+    rc_run, rc_rep, files = builds[0]
+    assert rc_run == 2 and rc_rep == 0
+    for nb in ("identification", "indices", "control", "diagnosis"):
+        assert f"reports/{nb}-good.html" in files, nb
+        assert f"href='{nb}-good.html'".encode() in files["reports/index.html"], nb
+    assert "proc/good/diagnose/diagnosis.json" in files and "proc/good/control/metrics.json" in files
+    assert not [f for f in files if f.startswith(("proc/a-bad/runs", "reports/identification-a-bad"))]
+
+
+@pytest.mark.long
+def test_a_full_rebuild_gives_the_same_bytes(two_full_builds):
+    """Everything removed and built again (stages and reports): every file the same bytes but
+    timing.json (the stages' and the reports' times), the identification's estimates included."""
+    _, (first, second) = two_full_builds
+    assert first[2].keys() == second[2].keys()
+    assert len(first[2]) >= 20
+    assert [f for f in first[2] if first[2][f] != second[2][f]] == []

@@ -58,7 +58,7 @@ def test_readme_dataset_toml_example_ingests_the_files_it_names(tmp_path, hsva_d
     """The README's dataset.toml, placed as a user would, reads the HSVA files and its [roles] name
     runs exactly as ingest names them (the diagnosis's role design accepts them)."""
     from pipeline.cli import main
-    from pipeline.cli.diagnose import roles_design
+    from pipeline.diagnose.design import roles_design
 
     (text,) = [b for b in _blocks("toml") if b.startswith(TOML_MARK)]
     doc = tomllib.loads(text)

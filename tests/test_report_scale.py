@@ -100,7 +100,7 @@ def test_index_tells_two_datasets_of_one_ship_apart(tmp_path):
                                                                 "model tests, 2024")
 
 
-@pytest.mark.slow
+@pytest.mark.long     # CI cut: test_full_scale_labels_known_answers (the labels without a render)
 def test_full_scale_pages_say_tank_source_and_full_scale_times(tmp_path):
     """The stage outputs of the report catalogue (known model-scale values), described as the full-scale
     dataset's ingest describes it: every page names tank, source and provenance, gives times at model

@@ -31,7 +31,7 @@ IMG = re.compile(r"<img[^>]+src=\"data:image/png;base64,")
 
 CONTENT = {   # notebook: (least number of embedded PNG figures, texts the page must hold)
     "identification": (6, ["paper MSE v", "MAE psi", "Table 5", "Table 6", "paper Table 4",
-                           "per step (us)", "forgetting factor", "residual", "Conclusion"]),
+                           "timing.json", "forgetting factor", "residual", "Conclusion"]),
     "indices": (2, ["K (1/s)", "T1 (s)", "K' (-)", "T' (-)", "1st overshoot (deg)", "period (s)",
                     "first overshoot", "Autopilot designed from", "Conclusion"]),
     "control": (1, ["Kp", "rise time (s)", "paper", "wave seed", "Designed from", "Conclusion"]),
@@ -152,7 +152,7 @@ def test_missing_kernel_is_installed_from_this_python():
     assert cmd[1:4] == ["-m", "ipykernel", "install"] and "--sys-prefix" in cmd
 
 
-@pytest.mark.slow
+@pytest.mark.long     # CI cut: test_reports_render_with_figures_tables_banner (every page, a tiny catalog)
 def test_reports_from_the_real_stages(tmp_path):
     """End to end on a tiny virtual-tank dataset: the real stage commands, then three reports.
 
@@ -262,7 +262,7 @@ def _render_diagnosis(root, out):
     return page, v, " ".join(" ".join(v.text).split())
 
 
-@pytest.mark.slow
+@pytest.mark.long     # CI cut: test_reports_render_with_figures_tables_banner's diagnosis page
 def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     """The full diagnosis.json of the stage (report_catalog.rich_diagnosis_doc): the ladder table holds
     the stage's ladder row by row, in order; the named effects are read physically with units; every

@@ -125,7 +125,7 @@ def ci_sized(spec):
                                                 magnitudes=mags))
 
 
-@pytest.mark.slow
+@pytest.mark.long     # the CI spec's whole study; CI cut: the engine's studies in tests/test_study.py
 def test_power_ci_study(tmp_path, study_client):
     full = load_spec(ROOT / "studies" / "power-ci.toml")
     assert full.settings.magnitudes["rudder_offset"] == (0.1, 1.0)

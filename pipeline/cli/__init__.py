@@ -80,19 +80,39 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def error_status(exc: BaseException) -> int:
+    """Print ``exc`` as the one line ``error: ...`` on stderr and return its exit status: 2 for a
+    refusal (:class:`pipeline.errors.PipelineError`) or an operating-system error (the file named),
+    130 for an interrupt.  Any other exception is raised again (a bug: its traceback is wanted)."""
+    if isinstance(exc, PipelineError):
+        print(f"error: {exc}", file=sys.stderr, flush=True)
+        return 2
+    if isinstance(exc, OSError):
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"error: {where}cannot write or read ({exc.strerror or exc})", file=sys.stderr, flush=True)
+        return 2
+    if isinstance(exc, KeyboardInterrupt):
+        print("error: interrupted", file=sys.stderr, flush=True)
+        return 130
+    raise exc
+
+
+#: commands that say they still run every 30 s in a log, as the build says of each stage
+#: (pipeline.progress.heartbeat; docs/operations.md, "Logs"); ``run`` beats per stage itself
+BEATING = ("tank", "ingest", "identify", "validate", "indices", "control", "diagnose")
+
+
 def main(argv: list[str] | None = None) -> int:
+    from pipeline import progress
+
     parser = build_parser()
     args = parser.parse_args(argv)
+    label = (f"[{args.dataset}] " if getattr(args, "dataset", None) else "") + args.stage
     try:
         check_args_outputs(args)
-        return int(args.func(args) or 0)
-    except PipelineError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:
-        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        print(f"error: {where}cannot write or read ({exc.strerror or exc})", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
+        if args.stage not in BEATING:
+            return int(args.func(args) or 0)
+        with progress.heartbeat(label, every_s=progress.HEARTBEAT_S):
+            return int(args.func(args) or 0)
+    except (PipelineError, OSError, KeyboardInterrupt) as exc:
+        return error_status(exc)

@@ -57,6 +57,7 @@ def load_run(path: Path, scale: float | None = None) -> Run:
 
 
 def _write(out_dir: Path, ident, meta: dict, cfg: FilterConfig, dataset: str | None) -> None:
+    from pipeline.catalog import TIMING_FILE
     from pipeline.identify import estimates_json
 
     with atomic_dir(out_dir, writer="identify") as tmp:
@@ -64,6 +65,7 @@ def _write(out_dir: Path, ident, meta: dict, cfg: FilterConfig, dataset: str | N
                                                          "algorithm": ident.algorithm,
                                                          "provenance": meta.get("provenance")})
         write_json(tmp / "estimates.json", estimates_json(ident, meta, cfg, dataset))
+        write_json(tmp / TIMING_FILE, ident.timing)     # seconds: kept out of the compared results
 
 
 def _summary(ident, where: Path) -> str:

@@ -9,7 +9,6 @@ Units in every table and axis are those of docs/contract.md#run-data (s, m, m/s,
 
 from __future__ import annotations
 
-import datetime as _dt
 import hashlib
 import html as _html
 import math
@@ -280,9 +279,8 @@ def banner(data: Data, title: str, settings: dict[str, Any] | None = None):
     file_rows = "".join(f"<tr><td style='text-align:left'>{esc(f)}</td>"
                         f"<td style='text-align:left'><code>{esc(s)}</code></td></tr>" for f, s in files)
     flat = flatten(settings or {})
-    # The one wall-clock value in a report (its own line, class provenance-time): everything else
-    # is a function of the inputs, so two renders differ only here.
-    now = _dt.datetime.now().strftime("%Y-%m-%d %H:%M")
+    # No wall clock on the page: it is a function of its inputs alone (the same inputs give the same
+    # bytes); when it was rendered and how long it took are in reports/timing.json (docs/reports.md)
     ship = esc(particulars.summary(data.index))
     ship_rows = _kv_table(particulars.rows(data.index))
     ident = particulars.identity(data.index)
@@ -294,7 +292,6 @@ def banner(data: Data, title: str, settings: dict[str, Any] | None = None):
 <div style="margin:4px 0 8px 0">{esc(box[2])}</div>
 <div><b>{esc(title)}</b> &middot; dataset <code>{esc(data.dataset)}</code> &middot;
 {len(runs)} runs &middot; reproduces and extends Meng et al., Ocean Engineering 294 (2024) 116853</div>
-<div class="provenance-time">rendered {now}</div>
 <div style="margin:6px 0 2px 0;font-size:1.1em"><b>Ship and scale:</b> {ship}</div>
 <div class="dataset-identity">{said}</div>
 <div class="scale-note" style="margin:2px 0"><b>Scale:</b> {esc(particulars.scale_sentence(data.index))}</div>

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import quote
 
-from pipeline.catalog import Catalog, is_builtin_tank
+from pipeline.catalog import TIMING_FILE, Catalog, is_builtin_tank
 from pipeline.errors import InputError, PipelineError
 from pipeline.io import atomic_path, read_json, write_json
 from pipeline.report import particulars
@@ -241,7 +241,8 @@ READS = {"identification": ("runs", "identify", "validate"), "indices": ("runs",
 
 def fingerprint(notebook: str, cat: Catalog) -> str:
     """SHA-256 over the notebook source, the report code and every file of the stage folders the
-    notebook reads (relative path and content).  Same fingerprint = same page (byte-reproducible)."""
+    notebook reads (relative path and content; a stage's ``timing.json``, which no page shows, left
+    out).  Same fingerprint = same page (byte-reproducible)."""
     h = hashlib.sha256()
     code = [notebook_source(notebook)] + sorted(Path(__file__).parent.glob("*.py"))
     files = [(f"code/{p.name}", p) for p in code]
@@ -249,7 +250,7 @@ def fingerprint(notebook: str, cat: Catalog) -> str:
         d = cat.base / stage
         if d.is_dir():
             files += [(str(p.relative_to(cat.base)), p) for p in sorted(d.rglob("*"))
-                      if p.is_file() and not p.name.startswith(".")]
+                      if p.is_file() and not p.name.startswith(".") and p.name != TIMING_FILE]
     for rel, path in files:
         h.update(rel.encode() + b"\0")
         with open(path, "rb") as fh:
@@ -404,6 +405,23 @@ def _manifest(out_dir: Path) -> dict[str, dict]:
         return {}
 
 
+def _write_timing(out_dir: Path, reports: Sequence[Report], stamp: str, files: set[str]) -> None:
+    """Record the render time (s) and wall clock of every page rendered now in ``out_dir/timing.json``:
+    ``{"reports": {FILE: {"seconds", "rendered" (local time, YYYY-MM-DD HH:MM:SS)}}}`` (entries of pages
+    kept unchanged stay; entries of pages gone are dropped).  The pages, reports.json and index.html
+    hold no clock, so the same inputs give the same bytes (docs/reports.md)."""
+    path = Path(out_dir) / TIMING_FILE
+    try:
+        doc = json.loads(path.read_text())
+        known = doc["reports"] if isinstance(doc, dict) and isinstance(doc.get("reports"), dict) else {}
+    except (OSError, ValueError):
+        known = {}                                   # none yet, or torn: timings are not results
+    for r in reports:
+        if not r.skipped:
+            known[r.html.name] = {"seconds": round(r.seconds, 2), "rendered": stamp}
+    write_json(path, {"reports": {k: known[k] for k in sorted(known) if k in files}})
+
+
 def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
     """Merge ``reports`` into ``out_dir/reports.json`` and (re)write ``out_dir/index.html``.
 
@@ -411,12 +429,14 @@ def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
     dataset.toml says of it (ship, scale, tank, source, provenance, the file: Report.identity), which
     tells two datasets of one ship apart, then one link per report (URL-quoted file name).  Entries
     whose HTML file no longer exists are dropped.
-    The page holds one wall-clock line (class ``provenance-time``); the rest depends only on the
-    manifest, so the same reports give the same bytes.  Render times stay in reports.json.
+    Neither holds a clock: the page depends only on the manifest, so the same reports give the same
+    bytes; render times and wall clocks go to ``out_dir/timing.json`` (:data:`TIMING_FILE`).
     """
     out_dir = Path(out_dir)
     manifest_path = out_dir / "reports.json"
-    entries = _manifest(out_dir)
+    # an older manifest's clock fields are not carried over (they now live in timing.json)
+    entries = {k: {f: v for f, v in e.items() if f not in ("seconds", "rendered")}
+               for k, e in _manifest(out_dir).items()}
     stamp = time.strftime("%Y-%m-%d %H:%M:%S")
     for r in reports:
         if r.skipped and r.html.name in entries:
@@ -424,12 +444,12 @@ def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
         entries[r.html.name] = {"file": r.html.name, "notebook": r.notebook, "dataset": r.dataset,
                                 "provenance": r.provenance, "runs": r.runs, "ship": r.ship,
                                 "fingerprint": r.fingerprint, "builtin_tank": r.builtin_tank,
-                                "identity": r.identity,
-                                "seconds": round(r.seconds, 2), "rendered": stamp}
+                                "identity": r.identity}
     order = {n: i for i, n in enumerate(NOTEBOOKS)}
     rows = sorted((e for e in entries.values() if (out_dir / e["file"]).is_file()),
                   key=lambda e: (e["dataset"], order.get(e["notebook"], 99), e["notebook"]))
     write_json(manifest_path, {"reports": rows})
+    _write_timing(out_dir, reports, stamp, {e["file"] for e in rows})
     esc = html.escape
     sections = []
     for ds in dict.fromkeys(e["dataset"] for e in rows):
@@ -463,7 +483,6 @@ table.identity th{{text-align:left;padding-right:1em;font-weight:normal;color:#5
 KCS). One section per dataset: where its data come from, the ship, its scale, tank and source as its
 dataset.toml gives them, then its reports.</p>
 {chr(10).join(sections) if sections else "<p>no reports rendered yet</p>"}
-<div class="provenance-time">generated {esc(stamp)}</div>
 </body></html>
 """
     dest = out_dir / "index.html"
