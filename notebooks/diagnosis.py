@@ -1,9 +1,9 @@
 # %% [markdown]
 # # Diagnosis: what the linear model gets wrong
-# The linear sway-yaw model (SPEC section 5), fitted on training runs, is simulated free-run on runs it
-# has not seen. Effects of the catalogue (SPEC section 7) are added one at a time, each kept only when
-# it cuts the held-out heading error materially, significantly and in every fold. The effects are
-# chosen on the validation runs; the gain is reported on runs no choice has seen.
+# The linear sway-yaw model (docs/contract.md#the-identification-model), fitted on training runs, is simulated
+# free-run on runs it has not seen. Effects of the catalogue (docs/diagnosis.md) are added one at a time, each
+# kept only when it cuts the held-out heading error materially, significantly and in every fold. The effects
+# are chosen on the validation runs; the gain is reported on runs no choice has seen.
 
 # %% tags=["parameters"]
 # Parameters (papermill injects the real values after this cell). In JupyterLab: `make lab D=NAME`,
@@ -116,7 +116,8 @@ if bp:
     ptab = pd.DataFrame(rows)
     nb.table(ptab.set_index("parameter"),
              "Linear parameters of the baseline (with one standard error) and of the extended model, in "
-             "the order of SPEC section 5 (v in m/s, r in deg/s, delta in deg, time in s); the last "
+             "the order of docs/contract.md#the-identification-model (v in m/s, r in deg/s, delta in deg, "
+             "time in s); the last "
              "column names the fits that hold the parameter at its ship-sign bound 0 (there the standard "
              "error describes the unconstrained curvature, not a two-sided interval).")
     if held:

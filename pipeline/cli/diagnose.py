@@ -1,14 +1,14 @@
-"""``python -m pipeline diagnose``: SPEC section 7.
+"""``python -m pipeline diagnose``: docs/diagnosis.md.
 
 Explicit mode:  ``--train RUN [RUN ...] --validate RUN [RUN ...] --out DIR [--scale S]``, RUN a raw
-file of any SPEC section 3 format or a processed Parquet run.
+file of any docs/contract.md#raw-formats format or a processed Parquet run.
            ``[--test RUN ...]``: the gain is reported on the test runs (else nested cross-validation).
 Catalog mode:   ``--dataset D`` uses every zigzag and turning circle of data/processed/D/runs/index.json
 by the rule of the diagnose package (pipeline.diagnose.design: selection runs in twins spanning the
 rudder and heading amplitudes, crossed by side; turning circles in twins crossed the same way; every
 other run a test run; runs at another approach speed than the largest set that agrees within 15 % left
 out, with the reason, in ``runs_not_used`` of diagnosis.json), or, when the dataset's description
-gives ``[roles]`` train and validate (SPEC section 9), by those roles (pick_catalog_runs, one_speed,
+gives ``[roles]`` train and validate (docs/dataset.md), by those roles (pick_catalog_runs, one_speed,
 roles_design);
 writes data/processed/D/diagnose/.
 """
@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
         index = read_json(cat.runs_index)
         roles = roles_design(index)
         if roles is not None:
-            # the user's own design (SPEC section 9 [roles]): taken as given; the diagnosis itself
+            # the user's own design (docs/dataset.md [roles]): taken as given; the diagnosis itself
             # refuses runs of different approach speeds
             entries = index.get("runs", [])
             train_ids, val_ids, test_ids = roles
@@ -133,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
 def register(sub) -> None:
     p = sub.add_parser(
         "diagnose",
-        help="what the linear model gets wrong, the cause, the extended model (SPEC 7)",
+        help="what the linear model gets wrong, the cause, the extended model (docs/diagnosis.md)",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

@@ -1,4 +1,4 @@
-"""Diagnosis stage (SPEC section 7): what the linear model gets wrong, the named cause, the gain.
+"""Diagnosis stage (docs/diagnosis.md): what the linear model gets wrong, the named cause, the gain.
 
 Public API: :func:`diagnose` (pure: runs in, :class:`Diagnosis` out), the open effect catalogue
 :data:`CATALOGUE` (pipeline.diagnose.effects), :func:`simulate_extended`, :func:`fit_structure`,

@@ -1,4 +1,4 @@
-"""Diagnosis (SPEC section 7): what the linear model gets wrong, the cause, the extended model, the gain.
+"""Diagnosis (docs/diagnosis.md): what the linear model gets wrong, the cause, the extended model, the gain.
 
 Method (each step in its own module):
 
@@ -96,7 +96,7 @@ class _Outcome:
 
 @dataclass
 class Diagnosis:
-    """Result of :func:`diagnose`: ``report`` is diagnosis.json (SPEC section 7), ``series`` the
+    """Result of :func:`diagnose`: ``report`` is diagnosis.json (docs/diagnosis.md), ``series`` the
     measured / baseline / extended free-run series per validation run (long format)."""
 
     report: dict
@@ -303,7 +303,7 @@ def diagnose(
     progress: bool = False,
     test: list[Run] | None = None,
 ) -> Diagnosis:
-    """Run the diagnosis of SPEC section 7 on processed runs; pure (no files).
+    """Run the diagnosis of docs/diagnosis.md on processed runs; pure (no files).
 
     BLAS runs on one thread here (threadpoolctl): the least-squares steps are products of a Jacobian
     a few thousand rows by a dozen columns, too small for threads, whose start-up and spinning cost

@@ -11,9 +11,9 @@ Van Berlekom tanker (tests/test_diagnose_generalise.py, ``test_tanker_heading_mi
 bias and is named when that predicts the held-out runs better; the check says what the straight
 runs show whatever the selection does (a search can miss the effect beside a large hull misfit).
 
-:func:`rate_bias`: the yaw rate against the heading's own derivative.  SPEC defines r = d(psi)/dt, so
-over a run the integral of r must equal the heading's change; a rate gyro's constant bias (a MEMS
-sensor's is 0.003-0.1 deg/s) breaks that in every sample.  The heading is taken as the reference: a
+:func:`rate_bias`: the yaw rate against the heading's own derivative.  docs/contract.md#run-data defines r =
+d(psi)/dt, so over a run the integral of r must equal the heading's change; a rate gyro's constant bias (a
+MEMS sensor's is 0.003-0.1 deg/s) breaks that in every sample.  The heading is taken as the reference: a
 tank's heading comes from an optical tracking system or a compass, absolute, which does not drift,
 and it is what the diagnosis predicts and judges.  Measured on the KVLCC2 stand-in of MARIN's files
 (tests/test_diagnose_generalise.py, test_kvlcc2_rate_gyro_bias_beside_a_misalignment, 2026-11-25;

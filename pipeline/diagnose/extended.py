@@ -1,6 +1,7 @@
 """The extended sway-yaw model in continuous time and its simulation without error of its own.
 
-Right-hand side (units of SPEC section 5: v m/s, r deg/s, psi deg, delta deg, t s, u m/s):
+Right-hand side (units of docs/contract.md#the-identification-model: v m/s, r deg/s, psi deg, delta deg, t s,
+u m/s):
 
     a(t)     = delta(t - delay_s)                          logged rudder, linearly interpolated
     e        = lag state (lag_s de/dt = a - e) if lag_s > 0, else a

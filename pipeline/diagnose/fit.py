@@ -307,8 +307,8 @@ MIN_RUDDER_EXCITATION_DEG = 1.0
 
 
 def series_from_run(run: Run, min_samples: int = 50) -> Series:
-    """Take the columns the diagnosis needs from a processed run (SPEC section 2 units); refuse runs
-    the diagnosis cannot use (one line naming the run and the column)."""
+    """Take the columns the diagnosis needs from a processed run (docs/contract.md#run-data units); refuse
+    runs the diagnosis cannot use (one line naming the run and the column)."""
     f = run.frame
     for c in ("time", "psi", "r", "delta"):
         if c not in f.columns:
@@ -400,8 +400,8 @@ class Layout:
 
     def bounds(self):
         lo, hi = [-np.inf] * 6, [np.inf] * 6
-        # Sign bounds that hold on every displacement ship (SPEC signs: v and r positive to starboard,
-        # positive delta makes r positive):
+        # Sign bounds that hold on every displacement ship (contract signs (docs/contract.md#run-data): v and
+        # r positive to starboard, positive delta makes r positive):
         # - sway and yaw damping: a11 = Y_v/(m - Y_vdot) <= 0, a22 = N_r/(I_z - N_rdot) <= 0;
         # - the coupling: a12 ~ (Y_r - m u)/(m - Y_vdot) <= 0 (the centripetal m u exceeds Y_r on
         #   every hull: in a starboard turn the ship drifts to port, v < 0), and a21 ~ N_v/(I_z - N_rdot)
@@ -409,7 +409,7 @@ class Layout:
         #   N_vdot Y_v is an order smaller).  With a12 a21 >= 0 the linear part's poles are real, as
         #   the Nomoto model's T1 and T2 assume: a sway-yaw pair of complex poles is no ship.
         # Course instability is a12 a21 > a11 a22 (D < 0), which these bounds leave free.  Measured
-        # (issue 11): without the coupling bounds the output-error fit absorbed an unmodelled rudder
+        #: without the coupling bounds the output-error fit absorbed an unmodelled rudder
         # dynamics by turning a21 positive (truth cases 12/13: a 0.93 s servo lag estimated 0.26 s
         # at a21 = +9.9 against the truth's -15.9; HSVA's linear baseline has complex poles,
         # a21 = +0.56 where equation error gives -3).  A parameter held at a bound is reported by

@@ -1,9 +1,9 @@
 """A simple linear truth model with injectable effects: the clean reference for testing the diagnosis.
 
-The truth is SPEC section 5's sway-yaw model in continuous time (integrated with 8 Euler sub-steps per
-logged sample, so the fitted discrete model is not the generating one), run as a zigzag with a
-rate-limited rudder servo and counter-rudder triggered by the *measured* heading, as a tank would.
-Effects (each off by default) act as SPEC section 7 defines them:
+The truth is docs/contract.md#the-identification-model's sway-yaw model in continuous time (integrated with 8
+Euler sub-steps per logged sample, so the fitted discrete model is not the generating one), run as a zigzag
+with a rate-limited rudder servo and counter-rudder triggered by the *measured* heading, as a tank would.
+Effects (each off by default) act as docs/diagnosis.md defines them:
 
 - ``rudder_offset`` deg: effective rudder = logged + offset;
 - ``rudder_delay`` s: effective rudder = logged(t - delay);
@@ -38,7 +38,8 @@ from pipeline.model import PAPER_TABLE4, as_theta
 
 @dataclass(frozen=True)
 class TruthConfig:
-    theta: tuple[float, ...] = tuple(PAPER_TABLE4.values())  # a11 a12 a21 a22 b11 b21, SPEC units
+    # a11 a12 a21 a22 b11 b21, in the units of docs/contract.md#run-data
+    theta: tuple[float, ...] = tuple(PAPER_TABLE4.values())
     u0: float = 2.0  # m/s approach speed
     dt: float = 0.08  # s logging step
     substeps: int = 8
@@ -73,7 +74,7 @@ def zigzag_truth(
 ) -> Run:
     """Simulate a rudder/heading zigzag of the truth model; returns a processed-style :class:`Run`.
 
-    ``first_side`` 'starboard' (positive rudder first) or 'port'.  Units of SPEC section 2.
+    ``first_side`` 'starboard' (positive rudder first) or 'port'.  Units of docs/contract.md#run-data.
     """
     a11, a12, a21, a22, b11, b21 = as_theta(cfg.theta)
     rng = np.random.default_rng(cfg.seed)

@@ -1,10 +1,10 @@
-"""Plain words and tables of the diagnosis report, from diagnosis.json (SPEC section 7) alone.
+"""Plain words and tables of the diagnosis report, from diagnosis.json (docs/diagnosis.md) alone.
 
 Pure functions of the stage's output (no file access), so the notebook stays thin and every
 sentence a reviewer reads can be tested.  Nothing here returns a raw dict, ``None`` or an internal
 key: missing numbers become "n/a" and effect names become words.
 
-Units: heading psi deg, yaw rate r deg/s, sway v m/s, rudder delta deg, time s (SPEC section 2).
+Units: heading psi deg, yaw rate r deg/s, sway v m/s, rudder delta deg, time s (docs/contract.md#run-data).
 Residuals are measured minus model.
 """
 
@@ -274,8 +274,8 @@ def plain(text: Any, keys: Any = ()) -> str:
 def poles(params: dict | None) -> list[complex] | None:
     """Eigenvalues (1/s) of the linear sway-yaw model's state matrix [[a11, a12], [a21, a22]].
 
-    Eigenvalues do not depend on the state units (a similarity transform), so SPEC's mixed units
-    (v m/s, r deg/s) give the poles in 1/s directly."""
+    Eigenvalues do not depend on the state units (a similarity transform), so the mixed units of
+    docs/contract.md#run-data (v m/s, r deg/s) give the poles in 1/s directly."""
     p = params or {}
     try:
         a = np.array([[p["a11"], p["a12"]], [p["a21"], p["a22"]]], dtype=float)

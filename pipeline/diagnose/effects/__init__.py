@@ -1,4 +1,4 @@
-"""The open effect catalogue of the diagnosis (SPEC section 7): one module per effect, one list.
+"""The open effect catalogue of the diagnosis (docs/diagnosis.md): one module per effect, one list.
 
 Adding an effect = one new module defining ``EFFECT`` (a :class:`~.base.Effect`) + its line in
 :data:`CATALOGUE` + its test.  Feature effects need no engine change (their terms are codes of

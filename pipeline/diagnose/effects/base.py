@@ -1,9 +1,9 @@
-"""The effect object of the diagnosis catalogue (SPEC section 7) and what an effect may use.
+"""The effect object of the diagnosis catalogue (docs/diagnosis.md) and what an effect may use.
 
 An effect is a small object (one module per effect, registered in
 :data:`pipeline.diagnose.effects.CATALOGUE`):
 
-- ``name`` (SPEC section 7) and ``forms``: one or more parameterisations (e.g. Norrbin r^3 or r|r|);
+- ``name`` (docs/diagnosis.md) and ``forms``: one or more parameterisations (e.g. Norrbin r^3 or r|r|);
   the fit tries every form and keeps the one of least TRAINING cost;
 - every form's :class:`Param` list: name with unit suffix, null value (the effect absent), bounds,
   start, unit;
@@ -27,7 +27,7 @@ An effect is a small object (one module per effect, registered in
 
 Everything about one effect lives on its object (docs/diagnosis.md, "Adding an effect").
 
-Units: v m/s, r deg/s, psi deg, delta deg, time s, u m/s (SPEC section 2).
+Units: v m/s, r deg/s, psi deg, delta deg, time s, u m/s (docs/contract.md#run-data).
 """
 
 from __future__ import annotations
@@ -92,9 +92,10 @@ class Param:
     feature: tuple[int, int] | None = None  # (feature code, equation) for a term linear in the parameter
     time_scaled: bool = False
     speed_scaled: bool = False
-    #: a damping coefficient of a hull term (SPEC signs: negative damps).  Held <= 0 in the anchored
-    #: form of an extension (fit.Layout.bounds, docs/diagnosis.md "Sound at every amplitude"): there
-    #: the linear part is the small-motion model and the term is the growth of damping with amplitude
+    #: a damping coefficient of a hull term (contract signs (docs/contract.md#run-data): negative damps).
+    #: Held <= 0 in the anchored form of an extension (fit.Layout.bounds, docs/diagnosis.md "Sound at every
+    #: amplitude"): there the linear part is the small-motion model and the term is the growth of damping with
+    #: amplitude
     damping: bool = False
 
     def _scale(self, ctx: Context) -> float:

@@ -33,10 +33,10 @@ class NonlinearSwayDamping(Effect):
         return bool(response_change >= MIN_RESPONSE), response_floor_text(response_change, MIN_RESPONSE)
 
     def physical(self, form, values, ctx):
-        """One sentence, read by the sign of y_vv: cross-flow drag opposes the drift (y_vv < 0 in SPEC
-        signs, dv/dt = ... + y_vv v|v|); a fitted y_vv > 0 pushes the drift further, which no hull's
-        drag does, and is said to stand in for something else.  n_vv's sign depends on where along the
-        hull the cross-flow acts, so it is given, not judged."""
+        """One sentence, read by the sign of y_vv: cross-flow drag opposes the drift (y_vv < 0 in contract
+        signs (docs/contract.md#run-data), dv/dt = ... + y_vv v|v|); a fitted y_vv > 0 pushes the drift
+        further, which no hull's drag does, and is said to stand in for something else.  n_vv's sign depends
+        on where along the hull the cross-flow acts, so it is given, not judged."""
         y, n = values["y_vv_per_m"], values["n_vv_deg_per_m2"]
         dv, dr = y * ctx.v_max**2, n * ctx.v_max**2
         yaw = f"its yaw part adds {dr:+.3g} deg/s^2 to the yaw acceleration"

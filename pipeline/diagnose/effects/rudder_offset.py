@@ -1,4 +1,4 @@
-"""rudder_offset: the effective rudder is the logged one plus a constant (SPEC section 7)."""
+"""rudder_offset: the effective rudder is the logged one plus a constant (docs/diagnosis.md)."""
 
 from __future__ import annotations
 
