@@ -23,6 +23,7 @@ deleted, truncated or edited since reruns the stage.  A stage's ``timing.json`` 
 from __future__ import annotations
 
 import ast
+import functools
 import hashlib
 import json
 import time
@@ -109,8 +110,15 @@ def _module_file(name: str) -> Path | None:
 
 
 def _imports(path: Path, module: str) -> set[str]:
-    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
     package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    return set(_imports_of_source(path.read_text(encoding="utf-8"), package))
+
+
+@functools.lru_cache(maxsize=1024)
+def _imports_of_source(text: str, package: str) -> frozenset[str]:
+    """The pipeline modules a module's source text imports (keyed on the text itself, so an edited
+    file is parsed again and an unchanged one once per process)."""
+    tree = ast.parse(text)
     found: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -124,7 +132,7 @@ def _imports(path: Path, module: str) -> set[str]:
                 mod = node.module or ""
             found.add(mod)
             found.update(f"{mod}.{a.name}" for a in node.names)   # "from pkg import module"
-    return {m for m in found if m.split(".")[0] == "pipeline"}
+    return frozenset(m for m in found if m.split(".")[0] == "pipeline")
 
 
 def import_closure(*modules: str) -> list[Path]:

@@ -50,8 +50,13 @@ SHARED_WORK_GROUPS = {"kv_files": "kvlcc2", "hsva_design": "hsva_design", "rende
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """An ``xdist_group`` mark on every test that uses a fixture of :data:`SHARED_WORK_GROUPS` (before
-    xdist reads the marks)."""
+    xdist reads the marks); a ``long`` mark on every test a module names in its ``LONG_TESTS`` (test
+    names with their parameter ids: the cases of a parametrised family that ``make test`` leaves to
+    ``make test-long``), before ``-m "not long"`` deselects them."""
     for item in items:
+        long_names = getattr(getattr(item, "module", None), "LONG_TESTS", ())
+        if item.name in long_names:
+            item.add_marker(pytest.mark.long)
         for name, group in SHARED_WORK_GROUPS.items():
             if name in getattr(item, "fixturenames", ()):
                 item.add_marker(pytest.mark.xdist_group(group))

@@ -247,6 +247,34 @@ KNOWN_WRONG: dict[str, str] = {}
 #: the method finds today, both ships); `make generalise` (TANKTEST_GENERALISE=full) runs all 32.
 CI_CASES = ("00", "03", "04", "08", "10", "12", "16", "25", "27", "31")
 FULL = os.environ.get("TANKTEST_GENERALISE") == "full"
+#: the cases of this file `make test` leaves to `make test-long` (tests/conftest.py marks them long):
+#: make test keeps one case of each family (clean, offset, yaw damping; the MARIN KVLCC2 fold 1; the
+#: Mariner clean and side swap; the tanker's linear side swap; the container's linear; the cross-flow
+#: ferry), so every truth family is still exercised; these are the further draws, folds and variants.
+LONG_TESTS = frozenset({
+    "test_case[03-slow-none]", "test_case[04-fast-none]", "test_case[10-fast-rudder_delay]",
+    "test_case[12-fast-rudder_lag]", "test_case[25-fast-rudder_asymmetry]", "test_case[27-fast-speed_loss]",
+    "test_case[31-slow-rudder_offset+nonlinear_yaw_damping]",
+    "test_case_fresh_draw[fresh777-31-slow-rudder_offset+nonlinear_yaw_damping]",
+    "test_kvlcc2_marin_side_swap_with_a_process_disturbance[seed1300-fold1]",
+    "test_kvlcc2_rate_gyro_bias_beside_a_misalignment[1300-False-1]",
+    "test_kvlcc2_false_misalignment_is_refused_by_the_approach[1]",
+    "test_kvlcc2_same_cause_model_scale_file",
+    "test_mariner_linear_is_none[2]", "test_mariner_hull_constants_are_an_offset[1]",
+    "test_mariner_hull_constants_are_an_offset[2]",
+    "test_mariner_process_disturbance_is_not_an_effect[1-linear-seed1350]",
+    "test_mariner_process_disturbance_is_not_an_effect[1-offset-seed1350]",
+    "test_mariner_process_disturbance_is_not_an_effect[2-linear-seed1350]",
+    "test_mariner_process_disturbance_is_not_an_effect[2-offset-seed1350]",
+    "test_mariner_disturbance_short_horizons_tell",
+    "test_tanker_side_swap[1-full-seed1300]", "test_tanker_side_swap[2-linear-seed1300]",
+    "test_tanker_side_swap[2-full-seed1300]", "test_tanker_process_disturbance[linear-seed1300-fold1]",
+    "test_tanker_heading_misalignment[linear-0.3deg-fold1]", "test_tanker_rate_gyro_bias[linear-1]",
+    "test_tanker_with_turning_circles[linear-1300]", "test_a_step_that_hinges_on_one_training_run_is_found",
+    "test_container_side_swap[full-seed1300-dist0-fold1]",
+    "test_crossflow_side_swap[ferry-linear-seed1300-fold1]",
+    "test_crossflow_disturbed_side_swap[bulker-crossflow-seed2000-fold1]",
+})
 
 
 def known_wrong(values: tuple, known: dict, key, test_id: str, measured: str = ""):
