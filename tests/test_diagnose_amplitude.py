@@ -49,9 +49,10 @@ def test_anchored_layout_holds_the_linear_part_and_signs_the_damping():
 
 @pytest.fixture(scope="module")
 def hsva_fold(hsva_dir):
-    from pipeline.cli.diagnose import load_run, pick_catalog_runs
+    from pipeline.cli.diagnose import load_run
     from pipeline.diagnose.core import _context
-    from pipeline.diagnose.fit import series_from_run, set_initial_states
+    from pipeline.diagnose.design import pick_catalog_runs
+    from pipeline.diagnose.fit import series_from_run, with_initial_states
 
     runs = {p.stem: load_run(p) for p in sorted(hsva_dir.glob("*.dat"))}
     keys = ("kind", "rudder_deg", "heading_deg", "first_side")
@@ -62,7 +63,7 @@ def hsva_fold(hsva_dir):
     assert small.name in va                          # the catalog rule holds it out of this fold
     cfg = DiagnoseConfig()
     ctx = _context(train + [series_from_run(runs[k]) for k in va])
-    set_initial_states(train + [small], cfg.x0_window_T * ctx.t_ship, None, cfg.x0_box_sigma)
+    *train, small = with_initial_states(train + [small], cfg.x0_window_T * ctx.t_ship, None, cfg.x0_box_sigma)
     return train, small, ctx, cfg
 
 

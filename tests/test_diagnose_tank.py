@@ -476,8 +476,8 @@ def test_tank_dead_time_is_found_with_a_fast_rudder():
 #: a noise seed of the tank at which the 10 deg pull-out design's dead time is seen but not named
 #: (measured 2026-11-26 at four seeds: named at the default seed and at 12, not at 11 and 13, where its
 #: held-out cut, 0.098 / 0.092 deg, is under the 0.1 deg heading floor; docstring).  With
-#: hull_nonlinearity in the catalogue it is named at 13 too (test_tank_dead_time_is_found_with_a_10_deg_
-#: pull_out); the seed is kept for the pull-out tests that were measured at it
+#: hull_nonlinearity tried by the selection it was named at 13 too (effects.TRIAL says why that effect
+#: is not tried: test_tank_dead_time_is_found_with_a_10_deg_pull_out is a strict xfail again)
 NOT_NAMED_SEED = 13
 
 
@@ -498,11 +498,15 @@ def test_tank_dead_time_is_seen_on_a_pull_out(seed):
 
 @pytest.mark.slow
 @pytest.mark.long     # CI cut: the hidden-effect cases, the clean and default ship, a pull-out (make test)
+@pytest.mark.xfail(strict=True, reason="on the 10 deg pull-out design at this seed the dead time's held-out "
+                   "cut, 0.092 deg, is under the 0.1 deg heading floor (twice the 0.05 deg heading noise) "
+                   "while single hull effects carry the ship's nonlinearity; named with hull_nonlinearity "
+                   "tried, which is not (pipeline.diagnose.effects.TRIAL)")
 def test_tank_dead_time_is_found_with_a_10_deg_pull_out():
     """The 0.6 s dead time on the 10 deg pull-out design at the seed where, with the hull's
-    nonlinearity carried by single hull effects, its held-out cut (0.092 deg) stayed under the 0.1 deg
-    heading floor: with hull_nonlinearity in the catalogue (the Abkowitz-type set in one step) the ship's
-    own nonlinearity is carried whole and the dead time is named on top of it."""
+    nonlinearity carried by single hull effects, its held-out cut (0.092 deg) stays under the 0.1 deg
+    heading floor; with the Abkowitz-type set tried in one step (hull_nonlinearity) the ship's own
+    nonlinearity is carried whole and the dead time is named on top of it."""
     rep = _design_diagnosis("PULL_OUT", rudder_delay=0.6, seed=NOT_NAMED_SEED)
     _found_on_top_of_the_ship(rep, "rudder_delay")
 

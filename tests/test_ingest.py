@@ -495,7 +495,7 @@ def test_commands_writing_into_one_out_folder_keep_each_others_files(tmp_path):
     b = _write_csv(tmp_path / "b.csv", _synthetic(n=700, seed=4))
     assert main(["ingest", str(b), "--out", str(out)]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["a.parquet", "b.parquet", "estimates.json", "index.json",
-                                                     "trace.parquet"]
+                                                     "timing.json", "trace.parquet"]
     assert main(["identify", str(out / "b.parquet"), "--out", str(out), "--samples", "300"]) == 0
     assert read_json(out / "estimates.json")["run_id"] == "b"
     assert [e["run_id"] for e in read_json(out / "index.json")["runs"]] == ["a", "b"]

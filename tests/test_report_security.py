@@ -131,6 +131,8 @@ def test_figure_text_is_never_mathtext():
         return buf.getvalue()
 
     with mpl.rc_context():
+        mpl.rcParams["text.parse_math"] = True               # matplotlib's default (another test may have
+        #                                                      run nb.setup() in this process already)
         with pytest.raises(ValueError, match="macro"):      # the fault: mathtext parses the name
             draw()
         nb.setup()
