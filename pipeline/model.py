@@ -44,7 +44,8 @@ def as_theta(params) -> np.ndarray:
     Parameters
     ----------
     params : mapping or sequence
-        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or a sequence of 6 in PARAM_NAMES order.
+        a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model), by name or a sequence of
+        6 in PARAM_NAMES order.
 
     Returns
     -------
@@ -86,7 +87,8 @@ def rhs(x, delta, theta):
     delta : array or float
         Rudder angle, deg.
     theta : mapping or sequence
-        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+        The six parameters a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model), by
+        name or in PARAM_NAMES order.
 
     Returns
     -------
@@ -116,7 +118,8 @@ def state_matrices(theta) -> tuple[np.ndarray, np.ndarray]:
     Parameters
     ----------
     theta : mapping or sequence
-        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+        The six parameters a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model), by
+        name or in PARAM_NAMES order.
 
     Returns
     -------
@@ -145,7 +148,8 @@ def step(x, delta, theta, h: float):
     delta : array or float
         Rudder angle over the step, deg.
     theta : mapping or sequence
-        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+        The six parameters a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model), by
+        name or in PARAM_NAMES order.
     h : float
         Step, s.
 
@@ -170,7 +174,8 @@ def zoh_matrices(theta, h: float) -> tuple[np.ndarray, np.ndarray]:
     Parameters
     ----------
     theta : mapping or sequence
-        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+        The six parameters a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model), by
+        name or in PARAM_NAMES order.
     h : float
         Step, s.
 
@@ -205,7 +210,8 @@ def simulate_zoh(theta, x0, delta, h: float) -> np.ndarray:
     Parameters
     ----------
     theta : mapping or sequence
-        The six parameters a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+        The six parameters a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model), by
+        name or in PARAM_NAMES order.
     x0 : sequence
         Initial (v m/s, r deg/s, psi deg).
     delta : array
@@ -277,7 +283,8 @@ def nomoto_indices(params) -> dict[str, float]:
     Parameters
     ----------
     params : mapping or sequence
-        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2) (docs/contract.md#run-data units).
+        a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model)
+        (docs/contract.md#run-data units).
 
     Returns
     -------

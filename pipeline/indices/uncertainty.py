@@ -59,7 +59,8 @@ def jacobian(params, *, rel_step: float = 1e-6) -> np.ndarray:
     Parameters
     ----------
     params : mapping or sequence
-        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+        a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model), by name or in
+        PARAM_NAMES order.
     rel_step : float
         Step relative to each parameter's size (at least 1e-3 of a unit), dimensionless.
 
@@ -126,7 +127,8 @@ def indices_with_uncertainty(params, cov, *, method: str = "unscented") -> dict[
     Parameters
     ----------
     params : mapping or sequence
-        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+        a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model), by name or in
+        PARAM_NAMES order.
     cov : array or None
         Their 6 x 6 covariance in the same order (None: stds are None).
     method : str
@@ -150,7 +152,8 @@ def monte_carlo(params, cov, *, samples: int = 20000, seed: int = 0) -> dict[str
     Parameters
     ----------
     params : mapping or sequence
-        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+        a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model), by name or in
+        PARAM_NAMES order.
     cov : array
         Their 6 x 6 covariance.
     samples : int
@@ -206,7 +209,8 @@ def draw_validity(params, cov, *, samples: int = 20000, seed: int = 0) -> dict[s
     Parameters
     ----------
     params : mapping or sequence
-        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2), by name or in PARAM_NAMES order.
+        a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model), by name or in
+        PARAM_NAMES order.
     cov : array
         Their 6 x 6 covariance.
     samples : int
@@ -271,7 +275,7 @@ def index_range_over_box(params, half_widths: dict[str, float], *, interior: int
     Parameters
     ----------
     params : mapping or sequence
-        a11 a12 a21 a22 (1/s), b11 b21 (1/s^2).
+        a11 a12 a21 a22 b11 b21 (units of docs/contract.md#the-identification-model).
     half_widths : dict
         Parameter name -> half-width of the box, the parameter's unit.
     interior : int
