@@ -491,20 +491,8 @@ def test_a_bar_refreshes_on_a_terminal_only(capfd, monkeypatch):
     assert "\r" in capfd.readouterr().err
 
 
-def _compared_bytes(p) -> bytes:
-    """A file's bytes as a rebuild compares them: estimates.json without its ``timing`` object (the
-    filter loop's seconds, which the contract keeps in that file; docs/operations.md)."""
-    import json
-
-    if p.name != "estimates.json":
-        return p.read_bytes()
-    doc = json.loads(p.read_text())
-    doc.pop("timing", None)
-    return json.dumps(doc, sort_keys=True).encode()
-
-
 def _tree_bytes(root) -> dict[str, bytes]:
-    return {str(p.relative_to(root)): _compared_bytes(p) for p in sorted(root.rglob("*"))
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
             if p.is_file() and p.name != "timing.json"}
 
 
@@ -596,7 +584,7 @@ def two_full_builds(tmp_path_factory):
         rc_rep = main(["report", "--all", "--changed", "--keep-going", f"--root={root}", f"--out={reports}"])
         files = {}
         for base in (root, reports):
-            files.update({str(p.relative_to(tmp)): _compared_bytes(p) for p in sorted(base.rglob("*"))
+            files.update({str(p.relative_to(tmp)): p.read_bytes() for p in sorted(base.rglob("*"))
                           if p.is_file() and p.name != "timing.json"})
         builds.append((rc_run, rc_rep, files))
     return raw, builds
@@ -619,7 +607,7 @@ def test_a_bad_dataset_leaves_the_good_ones_reports(two_full_builds):
 @pytest.mark.long
 def test_a_full_rebuild_gives_the_same_bytes(two_full_builds):
     """Everything removed and built again (stages and reports): every file the same bytes but
-    timing.json (the stages' and the reports' times) and estimates.json's ``timing`` object."""
+    timing.json (the stages' and the reports' times), the identification's estimates included."""
     _, (first, second) = two_full_builds
     assert first[2].keys() == second[2].keys()
     assert len(first[2]) >= 20
