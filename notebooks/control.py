@@ -363,12 +363,16 @@ ad = cm.get("adaptive")
 if ad:
     sc = ad.get("scenario") or {}
     ru = ad.get("rule") or {}
-    rows = []
-    for name in ("fixed", "adaptive"):
-        st = (ad.get("stats") or {}).get(name) or {}
-        rows.append({"gains": name, **{k.replace("_", " "): f"{nb.num(v.get('mean'), 3)} +- "
-                                       f"{nb.num(v.get('std'), 2)}" for k, v in st.items()}})
-    nb.table(pd.DataFrame(rows).set_index("gains"),
+
+    def fixed_vs_adaptive(stats: dict, label: str) -> pd.DataFrame:
+        """One row per gain schedule (fixed, adaptive): each metric's mean +- std over the seeds."""
+        rows = [{label: name, **{k.replace("_", " "): f"{nb.num(v.get('mean'), 3)} +- "
+                                                      f"{nb.num(v.get('std'), 2)}"
+                                 for k, v in ((stats or {}).get(name) or {}).items()}}
+                for name in ("fixed", "adaptive")]
+        return pd.DataFrame(rows).set_index(label)
+
+    nb.table(fixed_vs_adaptive(ad.get("stats"), "gains"),
              f"{sc.get('plant')}: course changes of +-{sc.get('course_step_deg')} deg every "
              f"{sc.get('course_step_every_s')} s, propeller cut at {sc.get('speed_change_s')} s to "
              f"{sc.get('speed_share')} of the approach speed; metrics after the cut, over seeds "
@@ -389,12 +393,7 @@ if ad:
                 "over-confident, no positive K, T).")
     pid_ad = ad.get("pid") or {}
     if pid_ad.get("stats"):
-        prow = []
-        for name in ("fixed", "adaptive"):
-            st = pid_ad["stats"].get(name) or {}
-            prow.append({"PID gains": name, **{k.replace("_", " "): f"{nb.num(v.get('mean'), 3)} +- "
-                                               f"{nb.num(v.get('std'), 2)}" for k, v in st.items()}})
-        nb.table(pd.DataFrame(prow).set_index("PID gains"),
+        nb.table(fixed_vs_adaptive(pid_ad["stats"], "PID gains"),
                  f"The same scenario and seeds with the project's PID ({pid_ad.get('design')}), starting "
                  f"from K {nb.num((pid_ad.get('start') or {}).get('K'), 3)} 1/s, T "
                  f"{nb.num((pid_ad.get('start') or {}).get('T'), 3)} s (the operating-point model): its "
