@@ -20,7 +20,7 @@ import pandas as pd
 import matplotlib.pyplot as plt
 from IPython.display import display
 from pipeline.report import nb
-nb.setup()
+page = nb.setup()
 data = nb.Data(root, dataset)
 
 ind = data.json("indices/indices.json")
@@ -58,7 +58,7 @@ groups = [("indices used by the design", basis.get("flags"))]
 groups += [(f"not used: {r.get('candidate')}",
             [{"check": "rejected", "subject": "", "reason": r.get("reasons")}])
            for r in basis.get("rejected") or []]
-n_flags = nb.flags_table(groups, "Trust flags of the indices the design uses (shown, never used "
+n_flags = page.flags_table(groups, "Trust flags of the indices the design uses (shown, never used "
                          "silently) and the index sets that were not used, with the reason.")
 
 # %% [markdown]
@@ -71,7 +71,7 @@ n_flags = nb.flags_table(groups, "Trust flags of the indices the design uses (sh
 if dmodel.get("identified") or dmodel.get("graphical"):
     from pipeline.indices.design_model import decision_table
     rows, cap = decision_table(dmodel)
-    nb.table(pd.DataFrame(rows).set_index("model"), cap)
+    page.table(pd.DataFrame(rows).set_index("model"), cap)
 elif dmodel:
     nb.note(f"Design model: {dmodel.get('source')} ({dmodel.get('rule')})")
 
@@ -95,18 +95,18 @@ for name, d in designs.items():
     row["flags"] = nb.flag_marks(d.get("flags"))
     rows.append(row)
 if rows:
-    nb.table(pd.DataFrame(rows).set_index("design"),
+    page.table(pd.DataFrame(rows).set_index("design"),
              "CGSA designs (Kp deg of rudder per deg of heading error, Kd deg per deg/s) and the loop "
              "figures on the Nomoto plant the design is for: gain and phase margins, crossover, "
              "closed-loop bandwidth, sensitivity peak Ms (inf: the phase never reaches -180 deg).")
-nb.full_scale_rows(pd.DataFrame({n: {f"{k} ({u})": d[k] for k, u in (("K", "1/s"), ("T", "s"), ("T1", "s"),
+page.full_scale_rows(pd.DataFrame({n: {f"{k} ({u})": d[k] for k, u in (("K", "1/s"), ("T", "s"), ("T1", "s"),
                                                                 ("T2", "s"), ("T3", "s"), ("Tw", "s"),
                                                                 ("Kd", "s"), ("filter_tau", "s"))
                                        if isinstance(d.get(k), (int, float))} for n, d in designs.items()}),
                    data, "The designs' indices, time constants and Kd (deg per deg/s, so in s).")
 dflags = [(f"design {n}", d.get("flags")) for n, d in designs.items() if d.get("flags")]
 if dflags:
-    n_flags += nb.flags_table(dflags, "Designs whose loop fails a robustness check, with the reason.")
+    n_flags += page.flags_table(dflags, "Designs whose loop fails a robustness check, with the reason.")
 def plain_log_ticks(ax):
     """Decade ticks as plain numbers (the pages take text literally, so no mathtext 10^n labels)."""
     from matplotlib.ticker import FuncFormatter, NullFormatter
@@ -130,7 +130,7 @@ if bode:
     axes[1].set_xlabel("frequency (rad/s)")
     plain_log_ticks(axes[1])
     nb.legend_outside(axes[0])
-    nb.show(fig, "Open-loop Bode diagram of each design on the Nomoto plant. The phase margin is the "
+    page.show(fig, "Open-loop Bode diagram of each design on the Nomoto plant. The phase margin is the "
             "distance of the phase from -180 deg where the gain crosses 0 dB.")
 
 # %% [markdown]
@@ -144,7 +144,7 @@ if bode:
 ap = designs.get("autopilot")
 if ap:
     keys_ = ("K", "T", "Kp", "Kd", "Ki", "wn", "zeta", "wr", "r_max")
-    nb.table(pd.DataFrame([{k: ap.get(k) for k in keys_}], index=["autopilot"]),
+    page.table(pd.DataFrame([{k: ap.get(k) for k in keys_}], index=["autopilot"]),
              "Autopilot gains: Kp deg/deg, Kd deg/(deg/s), Ki deg/(deg s); wn, wr rad/s; r_max deg/s. "
              + ("Kd clipped at 0 (the ship is faster than the loop)." if ap.get("kd_clipped") else ""))
 
@@ -162,7 +162,7 @@ if op:
     for name, mdl in (op.get("models") or {}).items():
         mrows.append({"model": name.replace("_", " "), "K (1/s)": mdl.get("K"), "T (s)": mdl.get("T"),
                       "source": mdl.get("source")})
-    nb.table(pd.DataFrame(mrows).set_index("model"), "The models of the operating-point comparison.")
+    page.table(pd.DataFrame(mrows).set_index("model"), "The models of the operating-point comparison.")
     orows = []
     for bname, kinds in (op.get("margins") or {}).items():
         for kind, blk in kinds.items():
@@ -176,7 +176,7 @@ if op:
                               "Ms (-)": mm.get("sensitivity_peak"),
                               "stable": mm.get("stable")})
     if orows:
-        nb.table(pd.DataFrame(orows).set_index(["designed from", "controller", "loop on"]),
+        page.table(pd.DataFrame(orows).set_index(["designed from", "controller", "loop on"]),
                  f"Sampled-loop margins of both bases. Used for the autopilot: "
                  f"{str(op.get('used')).replace('_', ' ')} ({op.get('why')}). Rule: {op.get('rule')}.")
 
@@ -209,7 +209,7 @@ for name, r in sampled.items():
                      "delay margin (s)": dr.get("worst_delay_margin_s"),
                      "Ms (-)": dr.get("worst_sensitivity_peak"), "stable": f"{dr['stable_fraction']:.1%}"})
 if rows:
-    nb.table(pd.DataFrame(rows).set_index(["design", "loop"]),
+    page.table(pd.DataFrame(rows).set_index(["design", "loop"]),
              f"Sampled loop (dt {rob.get('dt_s')} s, servo lag {rob.get('servo_time_constant_s')} s, "
              f"dead time {rob.get('dead_time_s')} s = {rob.get('dead_time_samples')} samples). Draws: the "
              "worst margin over the stable draws and the share of draws whose closed loop is stable. "
@@ -223,7 +223,7 @@ for name, r in sampled.items():
                          "overshoot (%)": m.get("overshoot_pct"),
                          "2 % settling (s)": m.get("settling_time_s")})
 if rows:
-    nb.table(pd.DataFrame(rows).set_index(["design", "plant"]),
+    page.table(pd.DataFrame(rows).set_index(["design", "plant"]),
              f"A clean {cfg.get('step_deg', 10):g} deg course step (no wind, no waves): percent overshoot "
              "and "
              "2 % settling time, on the design model and on the nonlinear KCS at full and reduced speed "
@@ -248,7 +248,7 @@ if nyq:
     axes[1].set_ylabel("|S| (dB)")
     plain_log_ticks(axes[1])
     nb.legend_outside(axes[1])
-    nb.show(fig, "Left: Nyquist plot of each design's sampled loop on the design model (|L| < 5 shown), "
+    page.show(fig, "Left: Nyquist plot of each design's sampled loop on the design model (|L| < 5 shown), "
             "the critical point -1 and the circle of radius 0.5 (Ms = 2). Right: sensitivity |S| = "
             "|1/(1 + L)| up to the Nyquist frequency; the dotted line is Ms = 2 (6 dB), the usual "
             "robustness bound.")
@@ -278,7 +278,7 @@ for plant, sub in sel.groupby("plant", sort=False):
     plant_name = {"nomoto": "Nomoto model of the design indices",
                   "kcs": "nonlinear KCS of the virtual tank"}.get(plant, plant)
     axes[0].set_title(f"plant: {plant_name}, wave seed {seed}")
-    nb.show(fig, f"Plant: {plant_name}. Heading (top, paper Fig. 4) and actual rudder (bottom, paper "
+    page.show(fig, f"Plant: {plant_name}. Heading (top, paper Fig. 4) and actual rudder (bottom, paper "
             "Fig. 5) for each design, one wave realisation. Look at the rise to the set course, the "
             "overshoot, and the rudder needed to hold course against the steady wind moment.")
 
@@ -315,13 +315,13 @@ if table:
     rows = [{"metric": names.get(n, n.replace("_", " ")), **table[n],
              data.paper_label: "" if pmap.get(n) is None else str(pmap.get(n))} for n in keys]
     nseeds = results[0].get("seeds", "?")
-    nb.table(pd.DataFrame(rows).set_index("metric"),
+    page.table(pd.DataFrame(rows).set_index("metric"),
              "Every plant and design in one table (columns plant / design): mean +- standard deviation "
              f"over {nseeds} wave seeds, in the order of the paper's metrics; the paper's figures beside "
              "them "
              "(its single run, Table 7 indices, Tw = 3 s).")
     nb.paper_note(data)
-    nb.full_scale_rows(pd.DataFrame({f"{r.get('plant')} / {r.get('design')}":
+    page.full_scale_rows(pd.DataFrame({f"{r.get('plant')} / {r.get('design')}":
                                      {names.get(n, n): (v.get("mean") if isinstance(v, dict) else v)
                                       for n, v in (r.get("stats") or r.get("metrics") or {}).items()}
                                      for r in results}),
@@ -330,7 +330,7 @@ defs = cm.get("definitions")
 if defs:
     def _txt(v):
         return "; ".join(f"{k}: {x}" for k, x in v.items()) if isinstance(v, dict) else str(v)
-    nb.table(pd.DataFrame({"definition": {names.get(k, k.replace("_", " ")): _txt(v)
+    page.table(pd.DataFrame({"definition": {names.get(k, k.replace("_", " ")): _txt(v)
                                           for k, v in defs.items()}}),
              "How each metric is measured by the control stage.")
 val = cm.get("identification_value") or {}
@@ -340,7 +340,7 @@ for plant, block in val.items():
         rows.append({"plant": plant, "metric": names.get(k, k.replace("_", " ")),
                      "mean difference": v.get("mean"), "std": v.get("std")})
 if rows:
-    nb.table(pd.DataFrame(rows).set_index(["plant", "metric"]),
+    page.table(pd.DataFrame(rows).set_index(["plant", "metric"]),
              "The value of identification: identified-design minus graphical-design metrics, paired over "
              "the same wave seeds (negative = the identified design is faster or closer to course).")
 
@@ -372,7 +372,7 @@ if ad:
                 for name in ("fixed", "adaptive")]
         return pd.DataFrame(rows).set_index(label)
 
-    nb.table(fixed_vs_adaptive(ad.get("stats"), "gains"),
+    page.table(fixed_vs_adaptive(ad.get("stats"), "gains"),
              f"{sc.get('plant')}: course changes of +-{sc.get('course_step_deg')} deg every "
              f"{sc.get('course_step_every_s')} s, propeller cut at {sc.get('speed_change_s')} s to "
              f"{sc.get('speed_share')} of the approach speed; metrics after the cut, over seeds "
@@ -388,12 +388,12 @@ if ad:
         ax.axvline(sc.get("speed_change_s", 0), color="k", ls="--", lw=0.8)
         ax.set_xlabel(nb.label("time"))
         nb.legend_outside(ax)
-        nb.show(fig, "Adaptive gains on the first seed; the dashed line is the propeller cut. Flat "
+        page.show(fig, "Adaptive gains on the first seed; the dashed line is the propeller cut. Flat "
                 "stretches are re-designs refused by the rule (too little excitation, filter "
                 "over-confident, no positive K, T).")
     pid_ad = ad.get("pid") or {}
     if pid_ad.get("stats"):
-        nb.table(fixed_vs_adaptive(pid_ad["stats"], "PID gains"),
+        page.table(fixed_vs_adaptive(pid_ad["stats"], "PID gains"),
                  f"The same scenario and seeds with the project's PID ({pid_ad.get('design')}), starting "
                  f"from K {nb.num((pid_ad.get('start') or {}).get('K'), 3)} 1/s, T "
                  f"{nb.num((pid_ad.get('start') or {}).get('T'), 3)} s (the operating-point model): its "
@@ -401,7 +401,7 @@ if ad:
     kt = ad.get("K_tracking") or {}
     if kt.get("per_seed"):
         ro = ad.get("rudder_offset") or {}
-        nb.table(pd.DataFrame(kt["per_seed"]).set_index("seed"),
+        page.table(pd.DataFrame(kt["per_seed"]).set_index("seed"),
                  "Identified K (1/s) in the adaptive CGSA loop: mean over the 50 s before the speed change "
                  f"and over the last 100 s, and their ratio (speed share {kt.get('speed_share')}). "
                  "Rudder offset "

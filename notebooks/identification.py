@@ -20,7 +20,7 @@ import pandas as pd
 import matplotlib.pyplot as plt
 from IPython.display import display
 from pipeline.report import nb
-nb.setup()
+page = nb.setup()
 data = nb.Data(root, dataset)
 
 est = {a: data.json(f"identify/{a}/estimates.json") for a in algorithms}
@@ -121,21 +121,21 @@ for rid in ordered:
     lab = data.run_label(rid)
     if rid == ident_run:
         fig = series_figure(rid, "one-step", f"Identification run {lab}: one-step prediction")
-        nb.show(fig, f"Identification run {lab} (paper Fig. 2): measured v, r, psi (grey) and the "
+        page.show(fig, f"Identification run {lab} (paper Fig. 2): measured v, r, psi (grey) and the "
                 "one-step predictions of both filters; the dotted green line ends the identification "
                 "window. Look for how quickly the predictions lock on to the data and how closely "
                 "they follow it after the window.")
     else:
         fig = series_figure(rid, "one-step", f"Held-out run {lab}: one-step prediction")
-        nb.show(fig, f"Held-out run {lab} (paper Fig. 3): one-step predictions of both filters "
+        page.show(fig, f"Held-out run {lab} (paper Fig. 3): one-step predictions of both filters "
                 "against the tank data, with the parameters identified on the identification run.")
     fig = residual_figure(rid, f"{lab}: one-step residuals (measured minus predicted)")
-    nb.show(fig, f"{lab}: one-step prediction errors of yaw rate and heading. The one-step predictions "
+    page.show(fig, f"{lab}: one-step prediction errors of yaw rate and heading. The one-step predictions "
             "above lie on the data, so their errors are drawn here at their own scale: noise-like "
             "residuals mean the filter tracks the run; a pattern that follows the rudder means it lags.")
     if (pred.run_id == rid).any() and (pred["mode"] == "free-run").any():
         fig = series_figure(rid, "free-run", f"{lab}: free-run simulation")
-        nb.show(fig, f"{lab}: free-run simulation of the identified models from the measured "
+        page.show(fig, f"{lab}: free-run simulation of the identified models from the measured "
                 "initial state, driven only by the measured rudder. This is the honest test of a "
                 "model: errors accumulate in heading instead of being corrected every step.")
 
@@ -167,7 +167,7 @@ for ax in axes[1]:
 for col in axes.T:
     nb.time_axes(col, data)
 nb.legend_outside(axes[0, 2])
-nb.show(fig, "Parameter estimates with one-sigma bands (the model of docs/identification.md in data units: "
+page.show(fig, "Parameter estimates with one-sigma bands (the model of docs/identification.md in data units: "
         "a11, a22 in 1/s; a12 in m/deg/s; a21 in deg/m/s; b11 in m/s^2 per deg; b21 in 1/s^2). "
         "A converged estimate is flat with a narrow band; the paper's values are for its KCS "
         "tank data and need not match another data set.")
@@ -183,7 +183,7 @@ for p in PARAM_NAMES:
         row[f"{nb.ALG_LABEL.get(a, a)} std"] = float(np.sqrt(cov[k, k])) if cov.shape == (6, 6) else np.nan
     row[f"{data.paper_label} Table 4"] = PAPER_TABLE4[p]
     rows.append(row)
-nb.table(pd.DataFrame(rows).set_index("parameter"),
+page.table(pd.DataFrame(rows).set_index("parameter"),
          f"Identified parameters after {est[algorithms[0]].get('samples')} samples (one-sigma from "
          "the final filter covariance), model scale, beside the paper's Table 4.")
 nb.paper_note(data)
@@ -209,7 +209,7 @@ axes[1].set_xlabel(nb.label("time"))
 nb.time_axes(axes, data)
 for ax in axes:
     nb.legend_outside(ax)
-nb.show(fig, "Top: the fuzzy forgetting factor f (always within [0.95, 1]); it drops when the "
+page.show(fig, "Top: the fuzzy forgetting factor f (always within [0.95, 1]); it drops when the "
         "innovations grow, which lets the filter forget old data. Bottom: normalised innovation "
         "squared; a consistent filter averages about 3 (the number of measurements).")
 
@@ -246,7 +246,7 @@ for _, k in keys.iterrows():
     row[f"{data.paper_label} table"] = f"Table {table_no}" if paper else ""
     rows.append(row)
 val = pd.DataFrame(rows).sort_values("_o").drop(columns="_o").set_index(["run", "filter"])
-nb.table(val, "Validation errors of both filters on every held-out stretch, the identification run after "
+page.table(val, "Validation errors of both filters on every held-out stretch, the identification run after "
          "its window first, then the other runs by rudder angle and side: MSE of v (m/s)^2, MSE of r "
          "(deg/s)^2, MAE of psi (deg), one-step (online, what the paper's Tables 5 and 6 report) and "
          "free-run (the model simulated from the measured initial state), with the paper's one-step "
@@ -268,7 +268,7 @@ nb.note("The filter loop's wall time of each algorithm is kept beside its estima
 
 # %%
 from pipeline.indices.trust import identify_side_flags
-n_flags = nb.flags_table([(nb.ALG_LABEL.get(a, a),
+n_flags = page.flags_table([(nb.ALG_LABEL.get(a, a),
                            (metrics.get("flags") or {}).get(a, identify_side_flags(est[a])))
                           for a in algorithms],
                          "Trust checks of the identification that failed, with the reason (the validation "

@@ -19,7 +19,7 @@ import pandas as pd
 import matplotlib.pyplot as plt
 from IPython.display import display
 from pipeline.report import nb
-nb.setup()
+page = nb.setup()
 data = nb.Data(root, dataset)
 
 ind = data.json("indices/indices.json")
@@ -57,13 +57,13 @@ for name in [*INDEX_NAMES, *(f"{n}_prime" for n in INDEX_NAMES)]:
     row[f"{data.paper_label} graphical"] = PAPER_GRAPHICAL.get(name)
     rows.append(row)
 t7_shown = pd.DataFrame(rows).set_index("index")
-nb.table(t7_shown,
+page.table(t7_shown,
          "Nomoto indices from the identified parameters (paper Eq. 6) with one-sigma bounds propagated "
          "from the filter covariance, the graphical (standard test) K and T of the identification run, "
          "and the paper's values; dimensional first (K in 1/s, time constants in s), then "
          "non-dimensional. 'flags' names the trust checks a value fails (reasons in the table of "
          "flags below). Dimensional values at model scale.")
-nb.full_scale_rows(t7_shown, data, "Table 7's dimensional indices of this dataset (the paper's left out: "
+page.full_scale_rows(t7_shown, data, "Table 7's dimensional indices of this dataset (the paper's left out: "
                    "they are its KCS model's).", skip=tuple(c for c in t7_shown if c.startswith("paper")))
 nb.paper_note(data)
 
@@ -78,7 +78,7 @@ if not g.empty and "run_id" in g:
     shown = g[cols].rename(columns={"K": "K (1/s)", "T": "T (s)", "K_prime": "K' (-)", "T_prime": "T' (-)",
                                     "K_std": "K +-1 sigma", "T_std": "T +-1 sigma",
                                     "rudder_offset_deg": "rudder offset (deg)"})
-    nb.table(nb.with_full_scale(shown.set_index(["run_id", "method"]), data, ("K (1/s)", "T (s)")),
+    page.table(nb.with_full_scale(shown.set_index(["run_id", "method"]), data, ("K (1/s)", "T (s)")),
              "First-order K and T per zigzag run, sorted by rudder angle, heading trigger and first side: "
              "'standard' is the Nomoto standard-test (graphical) method, 'integral' the least-squares "
              "integral method (with its one-sigma bounds). They change with the amplitude because the "
@@ -100,7 +100,7 @@ if not g.empty and "run_id" in g:
             ax.axhline(cm_v, color="tab:red", ls=":", lw=1.0, label="autopilot design")
         ax.set_ylabel(f"{q[0]}' (-)" if primed else f"{q} ({'1/s' if q == 'K' else 's'})")
     nb.legend_outside(axes[1])
-    nb.show(fig, ("Non-dimensional K' and T'" if primed else "K and T (no Lpp or speed for K', T')")
+    page.show(fig, ("Non-dimensional K' and T'" if primed else "K and T (no Lpp or speed for K', T')")
             + " per run and method (crosses: flagged values), with the "
             "values the autopilot is designed from. The spread between runs shows how amplitude-specific "
             "the first-order indices are.")
@@ -114,14 +114,14 @@ groups = [(f"identified {nb.ALG_LABEL.get(a, a)}", fl) for a, fl in iflags.items
 groups.append(("graphical model (identification run)", gm.get("flags")))
 for r in ind.get("graphical") or []:
     groups.append((f"{r.get('method')} method, run {r.get('run_id')}", r.get("flags")))
-n_flags = nb.flags_table(groups, "Every trust check that failed, with its reason. A flagged number is "
+n_flags = page.flags_table(groups, "Every trust check that failed, with its reason. A flagged number is "
                          "shown but not used silently: the autopilot basis below says what was used.")
 nb.note("Autopilot designed from: " + str(cm.get("basis") or cm.get("source") or "not stated"))
 dm = cm.get("design_model") or {}
 if dm.get("identified") or dm.get("graphical"):
     from pipeline.indices.design_model import decision_table
     rows_dm, cap = decision_table(dm)
-    nb.table(pd.DataFrame(rows_dm).set_index("model"),
+    page.table(pd.DataFrame(rows_dm).set_index("model"),
              cap + " The filter's consistency flags above judge its stated uncertainty, not whether its "
              "model predicts.")
 
@@ -163,12 +163,12 @@ if ztab.empty:
 else:
     if not ztab["note"].any():
         ztab = ztab.drop(columns="note")
-    nb.table(nb.with_full_scale(ztab.set_index("run"), data),
+    page.table(nb.with_full_scale(ztab.set_index("run"), data),
              "ITTC 7.5-04-02-01 metrics per run, zigzags by rudder angle then turning circles (overshoot "
              "angles deg, times s, turning-circle distances in ship lengths) and the IMO MSC.137(76) "
              "verdict.")
 if crit:
-    nb.table(pd.DataFrame(crit).set_index(["run", "criterion"]),
+    page.table(pd.DataFrame(crit).set_index(["run", "criterion"]),
              "IMO criteria per run, in the order of the table above: value against limit.")
 
 # %% [markdown]
@@ -203,7 +203,7 @@ if len(drawn):
         nb.time_axes(col, data)
     h, lab = axes.flat[0].get_legend_handles_labels()
     fig.legend(h, lab, loc="outside lower center", ncol=2, frameon=False)
-    nb.show(fig, f"All {len(drawn)} zigzags drawn, in the order of the tables: heading (blue) and rudder "
+    page.show(fig, f"All {len(drawn)} zigzags drawn, in the order of the tables: heading (blue) and rudder "
             "(black); dotted lines mark the heading triggers. Overshoots are how far the heading goes "
             "past the trigger after each rudder execute.")
 turn = runs[runs["kind"] == "turning"] if "kind" in runs else runs.iloc[0:0]
@@ -219,7 +219,7 @@ if len(turn):
     ax.set_xlabel("y0 / L (-)")
     ax.set_ylabel("x0 / L (-)")
     nb.legend_outside(ax)
-    nb.show(fig, "Turning-circle tracks in ship lengths from the approach point (x0 up, y0 to the "
+    page.show(fig, "Turning-circle tracks in ship lengths from the approach point (x0 up, y0 to the "
             "right: starboard turns go right); advance, transfer and tactical diameter in the table "
             "above are read from these.")
 

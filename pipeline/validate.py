@@ -40,6 +40,7 @@ from pipeline.errors import InputError
 from pipeline.identify.core import _arrays, measured_indices, run_filter
 from pipeline.io import Run
 from pipeline.model import PARAM_NAMES, simulate
+from pipeline.results import Result, spread
 
 #: The paper's Tables 5 and 6 (one-step online prediction; docs/results.md).
 PAPER_TABLES = paper.TABLES_5_6
@@ -56,7 +57,7 @@ DEFINITIONS = {
 
 
 @dataclass(frozen=True)
-class ValidationRow:
+class ValidationRow(Result):
     """The scores of one algorithm on one segment of one run in one mode.
 
     ``segment`` is 'identification-rest' or 'held-out', ``mode`` 'one-step' or 'free-run';
@@ -74,18 +75,13 @@ class ValidationRow:
     mae_psi: float
     samples: int
 
-    def to_json(self) -> dict[str, Any]:
-        return {"algorithm": self.algorithm, "run_id": self.run_id, "segment": self.segment,
-                "mode": self.mode, "test_name": self.test_name, "mse_v": self.mse_v, "mse_r": self.mse_r,
-                "mae_psi": self.mae_psi, "samples": self.samples}
-
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> ValidationRow:
         return cls(**{k: doc[k] for k in cls.__dataclass_fields__})
 
 
 @dataclass(frozen=True)
-class ValidationMetrics:
+class ValidationMetrics(Result):
     """``validate/metrics.json``: every row's scores, the paper's Tables 5 and 6, the definitions,
     the identify-side trust flags of each algorithm's estimates and the data label
     (:func:`pipeline.catalog.data_label`: what simulated data the scores come from)."""
@@ -98,13 +94,7 @@ class ValidationMetrics:
     paper: Mapping[str, Any]
     definitions: Mapping[str, str]
     flags: Mapping[str, tuple[Mapping[str, Any], ...]]
-    label: Mapping[str, str]
-
-    def to_json(self) -> dict[str, Any]:
-        return {"dataset": self.dataset, "provenance": self.provenance, "ident_run": self.ident_run,
-                "validation_runs": list(self.validation_runs), "rows": [r.to_json() for r in self.rows],
-                "paper": self.paper, "definitions": dict(self.definitions),
-                "flags": {a: [dict(f) for f in fl] for a, fl in self.flags.items()}, **self.label}
+    label: Mapping[str, str] = spread()
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> ValidationMetrics:
@@ -231,7 +221,7 @@ def one_step(est: dict[str, Any], run: Run, *, cfg: FilterConfig | None = None, 
                 x0[i], P0[i, i] = 0.0, cfg.v0_std ** 2
     else:
         P0 = P_full
-    out = run_filter(alg, x0, P0, Y3[start + 1:], d[start:-1], h, cfg, meas_idx)
+    out = run_filter(alg, x0, P0, Y3[start + 1:], d[start:-1], h=h, cfg=cfg, meas_idx=meas_idx)
     return out.x_prior[:, :3]
 
 

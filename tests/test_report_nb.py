@@ -26,3 +26,28 @@ def test_log_axes_are_labelled_in_plain_numbers():
     assert not any("$" in s or "mathdefault" in s for s in labels)
     assert lin.yaxis.get_major_formatter() is before
     plt.close(fig)
+
+
+def test_each_page_numbers_its_own_tables_and_figures(monkeypatch):
+    """The numbers live in the Page setup() returns: two pages count independently, and the module's
+    show/table (for a notebook that has not taken its page) use the page of the last setup()."""
+    import IPython.display
+    import pandas as pd
+
+    shown: list[str] = []
+    monkeypatch.setattr(IPython.display, "display",
+                        lambda obj: shown.append(getattr(obj, "data", None) or "<figure>"))
+    first = nb.setup()
+    df = pd.DataFrame({"K (1/s)": [0.39]}, index=["identified"])
+    first.table(df, "one")
+    first.table(df, "two")
+    second = nb.setup()
+    second.table(df, "three")
+    fig, _ = plt.subplots()
+    second.show(fig, "a figure")
+    nb.table(df, "four")                      # the module's helper: the last setup()'s page
+    assert (first.tables, first.figures, second.tables, second.figures) == (2, 0, 2, 1)
+    captions = [s for s in shown if "Table " in s or "Figure " in s]
+    assert ["Table 1. one" in captions[0], "Table 2. two" in captions[1], "Table 1. three" in captions[2],
+            "Figure 1.</b> a figure" in captions[3], "Table 2. four" in captions[4]] == [True] * 5
+    assert 'id="T_tab1"' in captions[2]       # the table id follows the page's number: same bytes

@@ -10,7 +10,7 @@ import pytest
 from pipeline.config import FilterConfig
 from pipeline.errors import FilterError
 from pipeline.identify import fast, initial_state, run_filter, synthetic
-from pipeline.identify.core import fuzzy_channel
+from pipeline.identify.core import fuzzy_channel, step_model
 from pipeline.identify.fuzzy import RULES, forgetting_factor
 from pipeline.identify.srukf import (
     cholupdate,
@@ -75,16 +75,15 @@ def test_sr_equals_full_covariance_ukf(data, alpha, use_fuzzy, fast_path):
     d, y = data
     cfg = dataclasses.replace(FilterConfig(), alpha=alpha, use_fuzzy=use_fuzzy, fast=fast_path)
     x0, P0 = initial_state(y[0], IDX, cfg)
-    out = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], H, cfg, IDX)
-    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
+    out = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], h=H, cfg=cfg, meas_idx=IDX)
     chan = fuzzy_channel(cfg, IDX)
 
     def f_of(innov, prev):
         e = float(innov[chan])
         return forgetting_factor(e, e - prev, cfg.fuzzy), e
 
-    ref = ukf_run_reference(x0, P0, y[1:], d[:-1], H, np.diag(np.square(cfg.q_std)),
-                            np.diag(np.square(cfg.r_std)), IDX, w, f_of if use_fuzzy else None)
+    ref = ukf_run_reference(x0, P0, y[1:], d[:-1], step_model(cfg, IDX, H),
+                            f_of=f_of if use_fuzzy else None)
     assert len(out.x) == 500
     # round-off only: tolerance scales with the weights (|Wm0| ~ 1e6 when alpha = 1e-3)
     tol = 1e-9 if alpha >= 0.5 else 1e-5
@@ -103,11 +102,9 @@ def test_reference_path_equals_fast_path(data):
     d, y = data
     cfg = FilterConfig()
     x0, P0 = initial_state(y[0], IDX, cfg)
-    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
-    a = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], H, cfg, IDX)
-    ref = srukf_run_reference(x0, np.linalg.cholesky(P0), y[1:], d[:-1], H, np.diag(cfg.q_std),
-                              np.diag(cfg.r_std), IDX, w,
-                              lambda i, p: (forgetting_factor(i[1], i[1] - p, cfg.fuzzy), i[1]))
+    a = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], h=H, cfg=cfg, meas_idx=IDX)
+    ref = srukf_run_reference(x0, np.linalg.cholesky(P0), y[1:], d[:-1], step_model(cfg, IDX, H),
+                              f_of=lambda i, p: (forgetting_factor(i[1], i[1] - p, cfg.fuzzy), i[1]))
     assert np.allclose(a.x, ref["x"], rtol=1e-10, atol=1e-12)
     assert np.allclose(a.x_prior, ref["x_prior"], rtol=1e-10, atol=1e-12)
     assert np.allclose(a.nis, ref["nis"], rtol=1e-8)
@@ -119,7 +116,7 @@ def test_negative_wc0_stays_finite_and_positive_definite_100k_steps():
     t, d, _, y = synthetic.zigzag(n=100_001, seed=8)
     cfg = dataclasses.replace(FilterConfig(), alpha=1e-3)
     x0, P0 = initial_state(y[0], IDX, cfg)
-    out = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], H, cfg, IDX)
+    out = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], h=H, cfg=cfg, meas_idx=IDX)
     assert np.all(np.isfinite(out.x)) and np.all(np.isfinite(out.std))
     assert np.all(out.std > 0)
     assert np.linalg.eigvalsh(out.P_final).min() > 0
@@ -134,7 +131,8 @@ def test_filter_raises_filter_error_when_downdate_fails(data):
     x0, P0 = initial_state(y[0], IDX, cfg)
     for fast_path in (True, False):
         with pytest.raises(FilterError):
-            run_filter("srukf-ffm", x0, P0, y[1:50], d[:49], H, dataclasses.replace(cfg, fast=fast_path), IDX)
+            run_filter("srukf-ffm", x0, P0, y[1:50], d[:49], h=H,
+                       cfg=dataclasses.replace(cfg, fast=fast_path), meas_idx=IDX)
 
 
 def _both_kernels(y, d, cfg, idx):
@@ -209,13 +207,11 @@ def test_parameter_process_noise_runs_the_plain_kernel_and_equals_full_ukf(data)
     assert not fast._structured(np.diag(cfg.q_std), IDX)
     assert fast._structured(np.diag(FilterConfig().q_std), IDX)
     x0, P0 = initial_state(y[0], IDX, cfg)
-    out = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], H, cfg, IDX)
-    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
+    out = run_filter("srukf-ffm", x0, P0, y[1:], d[:-1], h=H, cfg=cfg, meas_idx=IDX)
     chan = fuzzy_channel(cfg, IDX)
-    ref = ukf_run_reference(x0, P0, y[1:], d[:-1], H, np.diag(np.square(cfg.q_std)),
-                            np.diag(np.square(cfg.r_std)), IDX, w,
-                            lambda i, p: (forgetting_factor(float(i[chan]), float(i[chan]) - p, cfg.fuzzy),
-                                          float(i[chan])))
+    ref = ukf_run_reference(x0, P0, y[1:], d[:-1], step_model(cfg, IDX, H),
+                            f_of=lambda i, p: (forgetting_factor(float(i[chan]), float(i[chan]) - p,
+                                                                 cfg.fuzzy), float(i[chan])))
     assert np.max(np.abs(out.x - ref["x"]) / np.abs(ref["x"]).max(axis=0)) < 1e-9
 
 
@@ -277,4 +273,4 @@ def test_written_out_step_block_equals_the_loop_blocks_bit_for_bit():
     # its failure path: a measurement noise below round-off of the innovation variance (status 3)
     bad = dataclasses.replace(cfg, r_std=(1e-30, 1e-30, 1e-30))
     with pytest.raises(FilterError, match="measurement update"):
-        run_filter("srukf-ffm", x0, P0, y[1:50], d[:49], H, bad, IDX)
+        run_filter("srukf-ffm", x0, P0, y[1:50], d[:49], h=H, cfg=bad, meas_idx=IDX)

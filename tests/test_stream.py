@@ -21,7 +21,7 @@ def test_streaming_equals_the_batch_kernel_sample_for_sample(drop_v):
     meas = measured_indices(Y3[:, 0])
     cfg = FilterConfig()
     x0, P0 = initial_state(Y3[0], meas, cfg)
-    batch = run_filter("srukf-ffm", x0, P0, Y3[1:], d[:-1], run.dt, cfg, meas)
+    batch = run_filter("srukf-ffm", x0, P0, Y3[1:], d[:-1], h=run.dt, cfg=cfg, meas_idx=meas)
     s = StreamingIdentifier(x0, P0, run.dt, cfg, meas)
     for k in range(1, len(d)):
         sample = {"delta": d[k - 1], "r": Y3[k, 1], "psi": Y3[k, 2]}

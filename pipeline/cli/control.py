@@ -89,7 +89,7 @@ def dataset_inputs(cat, indices: dict, cfg: ControlConfig):
 
 
 def _run(args) -> int:
-    from pipeline.control.stage import run_control
+    from pipeline.control.stage import control_result
 
     # the catalog only where a default comes from it (--indices/--paper with --out need none)
     cat = catalog(args) if args.out is None or (args.indices is None and not args.paper) else None
@@ -117,12 +117,12 @@ def _run(args) -> int:
         cfg, notice, extra = dataset_inputs(cat, doc, cfg)
     if args.plants is not None and "kcs" not in args.plants:
         extra.pop("kcs", None)
-    metrics, ts = run_control(doc, cfg, source=source, plants=tuple(args.plants) if args.plants else None,
-                              progress=not args.no_progress, robustness=extra)
+    result, ts = control_result(doc, cfg, source=source, plants=tuple(args.plants) if args.plants else None,
+                                progress=not args.no_progress, robustness=extra)
     if notice:                                   # one line, once the run has succeeded
         print(notice, file=sys.stderr)
-        metrics["notes"].append(notice)
-    metrics["indices_source"] = source
+        result = replace(result, notes=[*result.notes, notice])
+    metrics = replace(result, indices_source=source).to_json()
     out = args.out or cat.control_dir
     with atomic_dir(out, writer="control") as tmp:
         write_json(tmp / "metrics.json", metrics)

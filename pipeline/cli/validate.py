@@ -7,7 +7,6 @@ identified); writes validate/metrics.json and validate/predictions.parquet (pipe
 
 from __future__ import annotations
 
-from pipeline.catalog import data_label, is_builtin_tank
 from pipeline.cli._common import add_dataset_args, catalog
 from pipeline.config import FilterConfig
 from pipeline.errors import InputError
@@ -24,7 +23,7 @@ def register(sub) -> None:
 
 def _run(args) -> int:
     from pipeline.runinfo import choose_runs
-    from pipeline.validate import DEFINITIONS, PAPER_TABLES, validate
+    from pipeline.validate import metrics_document, validate
 
     cat = catalog(args)
     index = read_json(cat.runs_index)
@@ -53,12 +52,9 @@ def _run(args) -> int:
         return run
 
     rows, preds = validate(estimates, load(ident_id), [load(r) for r in val_ids], FilterConfig())
-    doc = {"dataset": args.dataset, "provenance": index.get("provenance"), "ident_run": ident_id,
-           "validation_runs": val_ids, "rows": rows, "paper": PAPER_TABLES,
-           "definitions": dict(DEFINITIONS)}
     # the identify-side trust flags of each estimate travel with the errors computed from it
-    doc["flags"] = {alg: identify_side_flags(est) for alg, est in estimates.items()}
-    doc.update(data_label(is_builtin_tank(index), index.get("provenance")))
+    doc = metrics_document(args.dataset, index, ident_run=ident_id, validation_runs=val_ids, rows=rows,
+                           flags={alg: identify_side_flags(est) for alg, est in estimates.items()}).to_json()
     with atomic_dir(cat.validate_dir) as tmp:
         write_frame(tmp / "predictions.parquet", preds, {"dataset": args.dataset, "ident_run": ident_id})
         write_json(tmp / "metrics.json", doc)

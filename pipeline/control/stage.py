@@ -43,6 +43,7 @@ from pipeline.control.design import (
 from pipeline.control.disturbance import wave_sequence, wave_variance_theory, wind_from_config
 from pipeline.control.metrics import WORST, course_metrics, seed_statistics
 from pipeline.control.operating_point import operating_point
+from pipeline.control.result import ControlMetrics, RefusedControl
 from pipeline.control.robustness import nyquist_for
 from pipeline.control.robustness import robustness as robustness_block
 from pipeline.control.settings import KEYS as SETTING_KEYS
@@ -144,15 +145,15 @@ def design_basis(indices: dict) -> dict:
             "reason": cm.get("reason")}
 
 
-def refused_document(indices: dict, cfg: ControlConfig) -> tuple[dict, pd.DataFrame]:
+def refused_document(indices: dict, cfg: ControlConfig) -> tuple[RefusedControl, pd.DataFrame]:
     """The control outputs when no index set can be trusted: no design, the reason, nothing simulated."""
     basis = design_basis(indices)
-    doc = {"dataset": indices.get("dataset"), "provenance": indices.get("provenance", "unknown"),
-           "virtual": indices.get("provenance") == "virtual",
-           "builtin_tank": bool(indices.get("builtin_tank")), "refused": True, "reason": basis["reason"],
-           "design_basis": basis, "notes": [f"autopilot not designed: {basis['reason']}"],
-           "config": asdict(cfg), "designs": {}, "results": [], "identification_value": {},
-           "paper": PAPER_CONTROL, "plants": {}, "seeds": []}
+    doc = RefusedControl(
+        dataset=indices.get("dataset"), provenance=indices.get("provenance", "unknown"),
+        virtual=indices.get("provenance") == "virtual", builtin_tank=bool(indices.get("builtin_tank")),
+        refused=True, reason=basis["reason"], design_basis=basis,
+        notes=[f"autopilot not designed: {basis['reason']}"], config=asdict(cfg), designs={}, results=[],
+        identification_value={}, paper=PAPER_CONTROL, plants={}, seeds=[])
     cols = ["plant", "design", "seed", "time", "psi_ref", "psi", "r", "delta_cmd", "delta", "wave", "wind"]
     ts = pd.DataFrame({c: pd.Series(dtype="object" if c in ("plant", "design") else "float64")
                        for c in cols})
@@ -243,6 +244,17 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                 plants: tuple[str, ...] | None = None, progress: bool = True,
                 design_choice: dict | None = None,
                 robustness: dict | None = None) -> tuple[dict, pd.DataFrame]:
+    """:func:`control_result` with the metrics in their JSON form (the content of metrics.json);
+    the parameters are the same."""
+    result, ts = control_result(indices, cfg, source=source, plants=plants, progress=progress,
+                                design_choice=design_choice, robustness=robustness)
+    return result.to_json(), ts
+
+
+def control_result(indices: dict, cfg: ControlConfig | None = None, *, source: str = "indices.json",
+                   plants: tuple[str, ...] | None = None, progress: bool = True,
+                   design_choice: dict | None = None,
+                   robustness: dict | None = None) -> tuple[ControlMetrics | RefusedControl, pd.DataFrame]:
     """Designs, simulations over seeds and statistics for one dataset.
 
     BLAS runs on one thread here (threadpoolctl): every matrix of the stage is at most about ten by
@@ -266,8 +278,9 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
 
     Returns
     -------
-    (metrics document, time series frame with plant, design, seed, time, psi_ref, psi, r, delta_cmd,
-    delta, wave, wind).
+    ControlMetrics or RefusedControl, pandas.DataFrame
+        The metrics (``to_json()`` is metrics.json) and the time series frame with plant, design,
+        seed, time (s), psi_ref, psi (deg), r (deg/s), delta_cmd, delta, wave, wind (deg).
     """
     with threadpool_limits(limits=1, user_api="blas"):
         return _run_control(indices, cfg, source=source, plants=plants, progress=progress,
@@ -276,7 +289,7 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
 
 def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plants: tuple[str, ...] | None,
                  progress: bool, design_choice: dict | None,
-                 robustness: dict | None) -> tuple[dict, pd.DataFrame]:
+                 robustness: dict | None) -> tuple[ControlMetrics | RefusedControl, pd.DataFrame]:
     cfg = ControlConfig() if cfg is None else cfg
     if not isinstance(indices, dict):
         raise InputError("indices document is not a JSON object", file=source)
@@ -404,12 +417,12 @@ def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plant
                               "std": float(np.std(d, ddof=1)) if d.size > 1 else 0.0}
             value[plant] = {"difference": f"{ident_name} minus graphical, paired over seeds", "metrics": diff}
 
-    doc = {
-        "dataset": indices.get("dataset"),
-        "provenance": provenance,
-        "virtual": provenance == "virtual",
-        "builtin_tank": bool(indices.get("builtin_tank")),
-        "plants": {
+    doc = dict(
+        dataset=indices.get("dataset"),
+        provenance=provenance,
+        virtual=provenance == "virtual",
+        builtin_tank=bool(indices.get("builtin_tank")),
+        plants={
             "nomoto": {"used": "nomoto" in plants, "description": plant_label(control_model)},
             "identified": {"used": paper_plant == "identified",
                            "description": "identified second-order Nomoto model (SR-UKF-FFM, Eq. 6), linear, "
@@ -418,14 +431,14 @@ def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plant
                     "description": "nonlinear 3-DOF MMG KCS of the virtual tank (pipeline.tank.KCSShip); "
                                    "used only for virtual-tank data"},
         },
-        "notes": notes,
-        "design_basis": basis,
-        "config": asdict(cfg),
-        "wind_rudder_deg": wind,
-        "wave_variance_theory_deg2": wave_variance_theory(cfg.wave_num, cfg.wave_den),
-        "seeds": seeds,
-        "models": {"control_model": control_model, "graphical_model": graphical_model},
-        "definitions": {
+        notes=notes,
+        design_basis=basis,
+        config=asdict(cfg),
+        wind_rudder_deg=wind,
+        wave_variance_theory_deg2=wave_variance_theory(cfg.wave_num, cfg.wave_den),
+        seeds=seeds,
+        models={"control_model": control_model, "graphical_model": graphical_model},
+        definitions={
             "rise_time": f"first time |psi - set| <= {cfg.settle_band:g} x step (s)",
             "rise_time_10_90": "10 % to 90 % of the step (s)",
             "reach_time": "first time psi reaches the set course (s)",
@@ -443,16 +456,16 @@ def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plant
             "bandwidth": "half-power (-3.01 dB) frequency of the complementary sensitivity (rad/s)",
             "Ms": "max |1/(1 + L(j w))| on 1e-4..1e3 rad/s",
         },
-        "designs": table,
-        "results": results,
-        "identification_value": value,
-        "paper": PAPER_CONTROL,
-        "paper_case": (paper_case(per, paper_plant, paper_design, designs[paper_design].Kp, wind)
-                       if paper_plant else None),
-        "design_model": _design_model_block(design_choice, control_model),
-        "settings": {k: getattr(cfg, f) for k, (f, _, _) in SETTING_KEYS.items()},
-        "operating_point": op,
-    }
+        designs=table,
+        results=results,
+        identification_value=value,
+        paper=PAPER_CONTROL,
+        paper_case=(paper_case(per, paper_plant, paper_design, designs[paper_design].Kp, wind)
+                    if paper_plant else None),
+        design_model=_design_model_block(design_choice, control_model),
+        settings={k: getattr(cfg, f) for k, (f, _, _) in SETTING_KEYS.items()},
+        operating_point=op,
+    )
     rob = robustness_block(designs, control_model, cfg, robustness or {})
     for name, row in rob.pop("designs").items():     # docs/control.md: the margins belong to each design
         doc["designs"][name]["sampled_loop"] = row
@@ -469,4 +482,4 @@ def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plant
               f"identification {secs:.2f} s", file=sys.stderr)
     doc["robustness"]["nyquist"] = nyquist_for(designs, control_model, cfg, n=cfg.bode_points)
     ts = pd.concat(frames, ignore_index=True)
-    return doc, ts
+    return ControlMetrics(**doc), ts

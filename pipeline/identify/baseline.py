@@ -50,8 +50,29 @@ def _fx(x, dt, delta=0.0):
     return out
 
 
-def make_filter(x0, P0, h, q_std, r_std_m, meas_idx, alpha, beta, kappa):
-    """A filterpy UKF for the augmented model; returns (ukf, cholesky counter)."""
+def make_filter(x0, P0, *, h: float, q_std, r_std, meas_idx, alpha: float, beta: float, kappa: float):
+    """A filterpy UKF for the augmented model.
+
+    Parameters
+    ----------
+    x0, P0 : array_like
+        Initial posterior (9,), (9, 9) (v m/s, r deg/s, psi deg, the parameters in their units).
+    h : float
+        Step, s.
+    q_std : sequence of float
+        (9,) one-sigma process noise per step (each state's unit); Q is diagonal.
+    r_std : sequence of float
+        (m,) one-sigma measurement noise of the measured channels; R is diagonal.
+    meas_idx : sequence of int
+        The measured states among (v, r, psi) = (0, 1, 2).
+    alpha, beta, kappa : float
+        Merwe's sigma-point spread, prior-knowledge and secondary scaling (dimensionless).
+
+    Returns
+    -------
+    (filterpy.kalman.UnscentedKalmanFilter, CountingCholesky)
+        The filter and its Cholesky failure counter.
+    """
     chol = CountingCholesky()
     pts = MerweScaledSigmaPoints(9, alpha=alpha, beta=beta, kappa=kappa, sqrt_method=chol)
     idx = np.asarray(meas_idx)
@@ -59,7 +80,7 @@ def make_filter(x0, P0, h, q_std, r_std_m, meas_idx, alpha, beta, kappa):
     ukf.x = np.array(x0, dtype=float)
     ukf.P = np.array(P0, dtype=float)
     ukf.Q = np.diag(np.asarray(q_std, float) ** 2)
-    ukf.R = np.diag(np.asarray(r_std_m, float) ** 2)
+    ukf.R = np.diag(np.asarray(r_std, float) ** 2)
     return ukf, chol
 
 

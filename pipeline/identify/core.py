@@ -33,9 +33,10 @@ from pipeline.identify.baseline import make_filter, run_ffm_ukf
 from pipeline.identify.consistency import consistency as filter_consistency
 from pipeline.identify.consistency import flags as consistency_flags
 from pipeline.identify.fuzzy import CHANNELS, RULES, forgetting_factor
-from pipeline.identify.srukf import srukf_run_reference, ut_weights
+from pipeline.identify.srukf import StepModel, srukf_run_reference, ut_weights
 from pipeline.io import Run
 from pipeline.model import PARAM_NAMES, STATE_NAMES, nomoto_indices
+from pipeline.results import Result, optional, spread
 
 ALGORITHMS = ("srukf-ffm", "ffm-ukf")
 PIN_STD = 1e-9          # one-sigma of a parameter held fixed (hidden-v case)
@@ -111,20 +112,60 @@ def _check_cfg(cfg: FilterConfig) -> None:
         raise InputError("filter configuration: r_std and theta0_std must be positive")
 
 
-def run_filter(algorithm: str, x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, h: float,
+def step_model(cfg: FilterConfig, meas_idx, h: float) -> StepModel:
+    """The filter's step settings from ``cfg``: Q (all nine states) and R (the measured channels
+    ``meas_idx``) as diagonal square roots, the unscented weights, step ``h`` (s)."""
+    meas_idx = np.asarray(meas_idx, dtype=np.int64)
+    return StepModel(h=h, sq_q=np.diag(np.asarray(cfg.q_std, float)),
+                     sq_r=np.diag(np.asarray(cfg.r_std, float)[meas_idx]), meas_idx=meas_idx,
+                     weights=ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa))
+
+
+def kernel_settings(cfg: FilterConfig, meas_idx, h: float) -> fast.KernelSettings:
+    """:func:`step_model` with the fuzzy forgetting settings, as the compiled kernels read them."""
+    meas_idx = np.asarray(meas_idx, dtype=np.int64)
+    fz = np.array([*cfg.fuzzy.e_domain, *cfg.fuzzy.de_domain, *cfg.fuzzy.f_range], dtype=float)
+    return fast.KernelSettings(model=step_model(cfg, meas_idx, h), chan=fuzzy_channel(cfg, meas_idx),
+                               fz=fz, rules=RULES)
+
+
+def run_filter(algorithm: str, x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, *, h: float,
                cfg: FilterConfig, meas_idx) -> FilterOutput:
-    """Run one algorithm from posterior (x0, P0) over Y3 (N, 3) (columns v, r, psi; only
-    ``meas_idx`` are used) with rudder ``delta_prev`` (N,), deg, step h s.  Times the loop alone."""
+    """Run one algorithm over a window.  Times the loop alone.
+
+    Parameters
+    ----------
+    algorithm : str
+        'srukf-ffm' or 'ffm-ukf'.
+    x0, P0 : numpy.ndarray
+        Initial posterior (9,), (9, 9) (v m/s, r deg/s, psi deg, the parameters in their units).
+    Y3 : numpy.ndarray
+        (N, 3) measured v m/s, r deg/s, psi deg; only the columns ``meas_idx`` are used.
+    delta_prev : numpy.ndarray
+        (N,) rudder over the step into each sample, deg.
+    h : float
+        Step, s.
+    cfg : FilterConfig
+        Filter settings.
+    meas_idx : array of int
+        The measured states among (v, r, psi) = (0, 1, 2).
+
+    Returns
+    -------
+    FilterOutput
+        Per-step results, final posterior and the loop's wall time (s).
+    """
     _check_cfg(cfg)
     meas_idx = np.asarray(meas_idx, dtype=np.int64)
     Y = np.ascontiguousarray(Y3[:, meas_idx], dtype=float)
     dp = np.ascontiguousarray(delta_prev, dtype=float)
     n, m = Y.shape
-    chan = fuzzy_channel(cfg, meas_idx)
-    r_m = np.asarray(cfg.r_std, float)[meas_idx]
+    settings = kernel_settings(cfg, meas_idx, h)
+    chan = settings.chan
     innov3 = np.full((n, 3), np.nan)
     if algorithm == "ffm-ukf":
-        ukf, chol = make_filter(x0, P0, h, cfg.q_std, r_m, meas_idx, cfg.alpha, cfg.beta, cfg.kappa)
+        ukf, chol = make_filter(x0, P0, h=h, q_std=cfg.q_std, r_std=np.asarray(cfg.r_std, float)[meas_idx],
+                                meas_idx=meas_idx, alpha=cfg.alpha, beta=cfg.beta, kappa=cfg.kappa)
         t0 = _time.perf_counter()
         out, xf, Pf = run_ffm_ukf(ukf, chol, Y, dp, cfg.fuzzy if chan >= 0 else None, chan)
         secs = _time.perf_counter() - t0
@@ -133,34 +174,27 @@ def run_filter(algorithm: str, x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, h
                             secs, out["chol_failures"])
     if algorithm != "srukf-ffm":
         raise InputError(f"unknown algorithm {algorithm!r} (choose {' or '.join(ALGORITHMS)})")
-    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
-    sq_q = np.diag(np.asarray(cfg.q_std, float))
-    sq_r = np.diag(r_m)
     try:
         S0 = np.linalg.cholesky(np.asarray(P0, float))
     except np.linalg.LinAlgError:
         raise FilterError("initial covariance is not positive definite") from None
     if cfg.fast:
-        fz = np.array([*cfg.fuzzy.e_domain, *cfg.fuzzy.de_domain, *cfg.fuzzy.f_range], dtype=float)
-        args = (sq_q, sq_r, meas_idx, w.wm, w.wc, w.gamma, chan >= 0, chan, fz, RULES)
-        outs = (np.empty((n, 9)), np.empty((n, 9)), np.empty((n, 9)), np.empty((n, m)), np.empty(n),
-                np.empty(n))
-        warm = tuple(np.empty((1,) + a.shape[1:]) for a in outs)
-        fast.srukf_kernel(np.asarray(x0, float), S0, Y[:1], dp[:1], h, *args, *warm)   # compile/warm up
+        fast.run(x0, S0, Y[:1], dp[:1], settings)                  # compile / warm up
         t0 = _time.perf_counter()
-        status, k, xf, Sf = fast.srukf_kernel(np.asarray(x0, float), S0, Y, dp, h, *args, *outs)
+        got = fast.run(x0, S0, Y, dp, settings)
         secs = _time.perf_counter() - t0
-        if status != 0:
-            raise FilterError(f"SR-UKF {_FAIL_WHAT[status]} failed at step {k}: covariance lost positive "
-                              "definiteness")
-        x_prior, x, std, innov, nis, f = outs
+        if got.status != 0:
+            raise FilterError(f"SR-UKF {_FAIL_WHAT[got.status]} failed at step {got.step}: covariance lost "
+                              "positive definiteness")
+        x_prior, x, std, innov, nis, f = got.x_prior, got.x_post, got.std, got.innov, got.nis, got.f
+        xf, Sf = got.x, got.S
     else:
         def f_of(innov, prev):
             e = float(innov[chan])
             return forgetting_factor(e, e - prev, cfg.fuzzy), e
 
         t0 = _time.perf_counter()
-        ref = srukf_run_reference(x0, S0, Y, dp, h, sq_q, sq_r, meas_idx, w, f_of if chan >= 0 else None)
+        ref = srukf_run_reference(x0, S0, Y, dp, settings.model, f_of=f_of if chan >= 0 else None)
         secs = _time.perf_counter() - t0
         x_prior, x, innov, nis, f = ref["x_prior"], ref["x"], ref["innov"], ref["nis"], ref["f"]
         std = np.sqrt(np.einsum("kij,kij->ki", ref["S"], ref["S"]))
@@ -242,11 +276,11 @@ def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: Fi
     x0, P0 = initial_state(Y3[0], meas_idx, cfg)
     q_estimate = None
     if cfg.process_noise == "data":
-        q_estimate = estimate_process_noise(x0, P0, Y3[1:], delta[:-1], h, cfg, meas_idx)
+        q_estimate = estimate_process_noise(x0, P0, Y3[1:], delta[:-1], h=h, cfg=cfg, meas_idx=meas_idx)
         cfg = dataclasses.replace(cfg, q_std=tuple(q_estimate["q_std_all"]))
     elif cfg.process_noise != "paper":
         raise InputError(f"process_noise must be 'paper' or 'data', got {cfg.process_noise!r}")
-    out = run_filter(algorithm, x0, P0, Y3[1:], delta[:-1], h, cfg, meas_idx)
+    out = run_filter(algorithm, x0, P0, Y3[1:], delta[:-1], h=h, cfg=cfg, meas_idx=meas_idx)
     cov = out.P_final[3:, 3:]
     theta = out.x_final[3:]
     try:
@@ -306,18 +340,18 @@ def measured_noise_std(Y3: np.ndarray, meas_idx, fallback) -> tuple[tuple[float,
     return (out[0], out[1], out[2]), src
 
 
-def _mean_nis(x0, P0, Y3, delta_prev, h, cfg: FilterConfig, meas_idx) -> float:
+def _mean_nis(x0, P0, Y3, delta_prev, *, h: float, cfg: FilterConfig, meas_idx) -> float:
     """Mean NIS of the SR-UKF-FFM (compiled kernel) over the window; inf when the filter breaks down."""
     try:
-        out = run_filter("srukf-ffm", x0, P0, Y3, delta_prev, h, dataclasses.replace(cfg, fast=True),
-                         meas_idx)
+        out = run_filter("srukf-ffm", x0, P0, Y3, delta_prev, h=h, cfg=dataclasses.replace(cfg, fast=True),
+                         meas_idx=meas_idx)
     except FilterError:
         return float("inf")
     nis = out.nis[np.isfinite(out.nis)]
     return float(np.mean(nis)) if nis.size else float("inf")
 
 
-def estimate_process_noise(x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, h: float, cfg: FilterConfig,
+def estimate_process_noise(x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, *, h: float, cfg: FilterConfig,
                            meas_idx) -> dict[str, Any]:
     """Process noise Q of the motion states from the data: covariance matching of the mean NIS.
 
@@ -351,7 +385,8 @@ def estimate_process_noise(x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, h: fl
         return (*(c * base), *cfg.q_std[3:])
 
     def nis_of(c: float) -> float:
-        return _mean_nis(x0, P0, Y3, delta_prev, h, dataclasses.replace(cfg, q_std=q_of(c)), meas_idx)
+        return _mean_nis(x0, P0, Y3, delta_prev, h=h, cfg=dataclasses.replace(cfg, q_std=q_of(c)),
+                         meas_idx=meas_idx)
 
     lo, hi = (float(x) for x in cfg.process_scale_bracket)
     n_lo, n_hi = nis_of(lo), nis_of(hi)
@@ -498,64 +533,142 @@ def identify_run(run: Run, cfg: FilterConfig | None = None, algorithm: str | Non
     return ident
 
 
-def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfig,
-                   dataset: str | None = None) -> dict[str, Any]:
-    """estimates.json content (docs/contract.md#identifyalgorithm-identify)."""
+@dataclass(frozen=True)
+class FilterState(Result):
+    """The filter's final posterior: state names, x (9,) and P (9, 9) in the units of the module
+    docstring (v m/s, r deg/s, psi deg, then the six parameters)."""
+
+    names: list[str]
+    x: list[float]
+    P: list[list[float]]
+
+
+@dataclass(frozen=True)
+class FilterSettings(Result):
+    """The filter settings an identification ran with (docs/contract.md#identifyalgorithm-identify):
+    q_std (9,) the Q used (estimated or the paper's, one-sigma per step in each state's unit), r_std
+    (3,) the R used (v m/s, r deg/s, psi deg), the unscented-transform alpha, beta, kappa (-), the prior
+    theta0 and its one-sigma, the fuzzy forgetting settings, and whether the numba kernel ran."""
+
+    q_std: list[float]
+    alpha: float
+    beta: float
+    measurement_noise: str
+    process_noise: str
+    r_std: list[float]
+    kappa: float
+    theta0: list[float]
+    theta0_std: list[float]
+    use_fuzzy: bool
+    fuzzy: dict[str, Any]
+    fast_path: bool
+
+
+@dataclass(frozen=True)
+class Estimates(Result):
+    """``identify/<algorithm>/estimates.json`` (keys, units: docs/contract.md#identifyalgorithm-identify).
+
+    ``parameters`` and ``parameters_std`` map a11 .. b21 to their value and one-sigma (units of
+    pipeline.model); ``covariance`` is their 6 x 6 covariance; ``indices`` the Nomoto indices (K 1/s,
+    T's s) or None with ``indices_error``; ``dt`` the step (s); ``timing`` names the file holding the
+    seconds.  Keys left out when None: indices_error, window, filterpy_failures, note.
+    """
+
+    algorithm: str
+    samples: int
+    parameters: dict[str, float]
+    covariance: list[list[float]]
+    indices: dict[str, float] | None
+    timing: dict[str, str]
+    run_id: str | None
+    dataset: str | None
+    provenance: str | None
+    source_file: str | None
+    test_name: str | None
+    parameters_std: dict[str, float]
+    measured: list[str]
+    dt: float
+    consistency: dict[str, Any]
+    filter_state: FilterState
+    settings: FilterSettings
+    indices_error: str | None = optional()
+    flags: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    noise_estimate: dict[str, Any] = dataclasses.field(default_factory=dict)
+    window: str | None = optional()
+    filterpy_failures: int | None = optional()
+    note: str | None = optional()
+    label: dict[str, str] = spread()
+
+
+def estimates(ident: Identification, meta: dict[str, Any], cfg: FilterConfig,
+              dataset: str | None = None) -> Estimates:
+    """The typed content of estimates.json for one identification.
+
+    Parameters
+    ----------
+    ident : Identification
+        The result of :func:`identify_run` or :func:`identify_arrays`.
+    meta : dict
+        The run's metadata (run_id, provenance, source_file, test_name).
+    cfg : FilterConfig
+        The settings it ran with.
+    dataset : str, optional
+        The dataset's name.
+
+    Returns
+    -------
+    Estimates
+        ``.to_json()`` is the file's content.
+    """
     std = np.sqrt(np.maximum(np.diag(ident.covariance), 0.0))
-    doc: dict[str, Any] = {
-        "algorithm": ident.algorithm,
-        "samples": ident.samples,
-        "parameters": ident.parameters,
-        "covariance": ident.covariance.tolist(),
-        "indices": ident.indices,
+    cons = ident.consistency
+    settings = FilterSettings(
+        q_std=[(cons.get("q_std") or {}).get(n, cfg.q_std[i]) if i < 3 else cfg.q_std[i]
+               for i, n in enumerate(STATE9)],            # the Q used (estimated or paper)
+        alpha=cfg.alpha, beta=cfg.beta,
+        measurement_noise=cfg.measurement_noise, process_noise=cfg.process_noise,
+        r_std=[(cons.get("r_std") or {}).get(n, cfg.r_std[i])
+               for i, n in enumerate(STATE_NAMES)],      # the R used (measured or paper)
+        kappa=cfg.kappa, theta0=list(cfg.theta0), theta0_std=list(cfg.theta0_std),
+        use_fuzzy=cfg.use_fuzzy, fuzzy={"e_domain": list(cfg.fuzzy.e_domain),
+                                        "de_domain": list(cfg.fuzzy.de_domain),
+                                        "f_range": list(cfg.fuzzy.f_range), "channel": cfg.fuzzy.channel},
+        fast_path=bool(cfg.fast) if ident.algorithm == "srukf-ffm" else False)
+    return Estimates(
+        algorithm=ident.algorithm, samples=ident.samples, parameters=ident.parameters,
+        covariance=ident.covariance.tolist(), indices=ident.indices,
         # the filter loop's seconds differ run to run: they go to timing.json beside this file (written
         # by the identify command), so the result's bytes do not (docs/operations.md)
-        "timing": {"file": "timing.json"},
-        "run_id": meta.get("run_id"),
-        "dataset": dataset,
-        "provenance": meta.get("provenance", "measured"),
-        "source_file": meta.get("source_file"),
-        "test_name": meta.get("test_name"),
-        "parameters_std": dict(zip(PARAM_NAMES, map(float, std), strict=True)),
-        "measured": ident.measured,
-        "dt": ident.dt,
-        "consistency": ident.consistency,
-        "filter_state": {"names": list(STATE9), "x": ident.x_final.tolist(), "P": ident.P_final.tolist()},
-        "settings": {
-            "q_std": [(ident.consistency.get("q_std") or {}).get(n, cfg.q_std[i]) if i < 3 else cfg.q_std[i]
-                      for i, n in enumerate(STATE9)],            # the Q used (estimated or paper)
-            "alpha": cfg.alpha, "beta": cfg.beta,
-            "measurement_noise": cfg.measurement_noise, "process_noise": cfg.process_noise,
-            "r_std": [(ident.consistency.get("r_std") or {}).get(n, cfg.r_std[i])
-                      for i, n in enumerate(STATE_NAMES)],      # the R used (measured or paper)
-            "kappa": cfg.kappa, "theta0": list(cfg.theta0), "theta0_std": list(cfg.theta0_std),
-            "use_fuzzy": cfg.use_fuzzy, "fuzzy": {"e_domain": list(cfg.fuzzy.e_domain),
-                                                  "de_domain": list(cfg.fuzzy.de_domain),
-                                                  "f_range": list(cfg.fuzzy.f_range),
-                                                  "channel": cfg.fuzzy.channel},
-            "fast_path": bool(cfg.fast) if ident.algorithm == "srukf-ffm" else False,
+        timing={"file": "timing.json"},
+        run_id=meta.get("run_id"), dataset=dataset, provenance=meta.get("provenance", "measured"),
+        source_file=meta.get("source_file"), test_name=meta.get("test_name"),
+        parameters_std=dict(zip(PARAM_NAMES, map(float, std), strict=True)),
+        measured=ident.measured, dt=ident.dt, consistency=cons,
+        filter_state=FilterState(names=list(STATE9), x=ident.x_final.tolist(), P=ident.P_final.tolist()),
+        settings=settings,
+        indices_error=ident.indices_error or None,
+        flags=ident.flags,
+        noise_estimate={      # docs/identification.md#process-noise-from-the-data
+            "R": {"method": cons.get("r_std_source"), "std": cons.get("r_std")},
+            "Q": {"method": cons.get("q_std_source"), "std": cons.get("q_std"),
+                  **{k: v for k, v in (cons.get("noise_estimate") or {}).items() if k != "q_std"}},
         },
-    }
-    if ident.indices_error:
-        doc["indices_error"] = ident.indices_error
-    doc["flags"] = ident.flags
-    doc["noise_estimate"] = {      # docs/identification.md#process-noise-from-the-data
-        "R": {"method": ident.consistency.get("r_std_source"), "std": ident.consistency.get("r_std")},
-        "Q": {"method": ident.consistency.get("q_std_source"), "std": ident.consistency.get("q_std"),
-              **{k: v for k, v in (ident.consistency.get("noise_estimate") or {}).items() if k != "q_std"}},
-    }
-    if ident.window:
-        doc["window"] = ident.window
-    if ident.filterpy_failures is not None:
-        doc["filterpy_failures"] = ident.filterpy_failures
-    if "v" not in ident.measured:
-        doc["note"] = ("run has no sway-velocity column: identified from r and psi only; the six "
-                       "parameters are not unique, the Nomoto indices are")
-    doc.update(data_label(is_builtin_tank_run(meta), meta.get("provenance")))
-    return doc
+        window=ident.window or None,
+        filterpy_failures=ident.filterpy_failures,
+        note=(None if "v" in ident.measured else
+              "run has no sway-velocity column: identified from r and psi only; the six "
+              "parameters are not unique, the Nomoto indices are"),
+        label=data_label(is_builtin_tank_run(meta), meta.get("provenance")))
 
 
-def identify_batch(Y3: np.ndarray, delta: np.ndarray, h: float, cfg: FilterConfig | None = None,
+def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfig,
+                   dataset: str | None = None) -> dict[str, Any]:
+    """estimates.json content (docs/contract.md#identifyalgorithm-identify): :func:`estimates` in its
+    JSON form."""
+    return estimates(ident, meta, cfg, dataset).to_json()
+
+
+def identify_batch(Y3: np.ndarray, delta: np.ndarray, h: float, cfg: FilterConfig | None = None, *,
                    parallel: bool = False):
     """SR-UKF-FFM (numba kernel) on R runs of equal length at once.
 
@@ -574,27 +687,17 @@ def identify_batch(Y3: np.ndarray, delta: np.ndarray, h: float, cfg: FilterConfi
     for r in range(nr):
         x0s[r], P0 = initial_state(Y3[r, 0], meas_idx, cfg)
     S0 = np.linalg.cholesky(P0)
-    w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
-    chan = fuzzy_channel(cfg, meas_idx)
-    fz = np.array([*cfg.fuzzy.e_domain, *cfg.fuzzy.de_domain, *cfg.fuzzy.f_range], dtype=float)
-    args = (np.diag(np.asarray(cfg.q_std, float)), np.diag(np.asarray(cfg.r_std, float)), meas_idx,
-            w.wm, w.wc, w.gamma, chan >= 0, chan, fz, RULES)
-    xf = np.empty((nr, 9))
-    Sf = np.empty((nr, 9, 9))
-    st = np.zeros(nr, dtype=np.int64)
+    settings = kernel_settings(cfg, meas_idx, h)
     Yk, dk = np.ascontiguousarray(Y3[:, 1:]), np.ascontiguousarray(delta[:, :-1])
+    chunks = None
     if parallel:
         import numba
 
         chunks = max(1, min(nr, 4 * numba.get_num_threads()))
-        fast.srukf_batch_kernel_parallel(x0s[:1], S0, Y3[:1, 1:3], delta[:1, :2], h, *args, xf[:1], Sf[:1],
-                                         st[:1], 1)
-        t0 = _time.perf_counter()
-        fast.srukf_batch_kernel_parallel(x0s, S0, Yk, dk, h, *args, xf, Sf, st, chunks)
-    else:
-        fast.srukf_batch_kernel(x0s[:1], S0, Y3[:1, 1:3], delta[:1, :2], h, *args, xf[:1], Sf[:1], st[:1])
-        t0 = _time.perf_counter()
-        fast.srukf_batch_kernel(x0s, S0, Yk, dk, h, *args, xf, Sf, st)
+    fast.run_batch(x0s[:1], S0, Y3[:1, 1:3], delta[:1, :2], settings,
+                   chunks=None if chunks is None else 1)                  # compile / warm up
+    t0 = _time.perf_counter()
+    xf, Sf, st = fast.run_batch(x0s, S0, Yk, dk, settings, chunks=chunks)
     secs = _time.perf_counter() - t0
     P = np.einsum("rij,rkj->rik", Sf, Sf)
     return xf[:, 3:], P[:, 3:, 3:], st, secs

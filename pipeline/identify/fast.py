@@ -43,13 +43,16 @@ beside it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
 
 from pipeline.identify import _unrolled as un
-from pipeline.identify.fuzzy import fuzzy_factor_ws
+from pipeline.identify.fuzzy import RULES, fuzzy_factor_ws
+from pipeline.identify.srukf import StepModel
 
 NX = 9
 NPTS = 2 * NX + 1
@@ -638,3 +641,96 @@ def srukf_batch_kernel_parallel(x0s, S0, Ys, deltas_prev, h, sq_q, sq_r, meas_id
         hi = (nr * (c + 1)) // chunks
         _batch_range(lo, hi, x0s, S0, Ys, deltas_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc,
                      gamma, use_fuzzy, chan, fz, rules, x_final, S_final, status)
+
+
+# ------------------------------------------------------------------------------ Python wrappers
+# The compiled kernels above take their settings as positional arrays (numba compiles them so); the
+# Python code calls them through these wrappers, with the settings as one frozen bundle.
+
+@dataclass(frozen=True)
+class KernelSettings:
+    """What the compiled kernels read besides the data and the posterior.
+
+    Attributes
+    ----------
+    model : StepModel
+        Step h (s), square roots of Q and R, measured states, unscented weights.
+    chan : int
+        Position in ``model.meas_idx`` of the innovation that feeds the fuzzy forgetting factor;
+        -1: no forgetting (f = 1).
+    fz : numpy.ndarray
+        (6,) the fuzzy domains (e_lo, e_hi, de_lo, de_hi in the channel's unit, deg/s for r) and the
+        range of f (f_lo, f_hi, dimensionless).
+    rules : numpy.ndarray
+        (5, 5) the rule table (:data:`pipeline.identify.fuzzy.RULES`).
+    """
+
+    model: StepModel
+    chan: int
+    fz: np.ndarray
+    rules: np.ndarray = dataclasses.field(default_factory=lambda: RULES)
+
+    def _tail(self) -> tuple:
+        w = self.model.weights
+        return (self.model.meas_idx, w.wm, w.wc, w.gamma, self.chan >= 0, self.chan, self.fz, self.rules)
+
+    def kernel_args(self) -> tuple:
+        """The settings in the positional order of :func:`srukf_kernel` and the batch kernels."""
+        return (self.model.sq_q, self.model.sq_r, *self._tail())
+
+    def steps_args(self) -> tuple:
+        """The settings in the positional order of :func:`srukf_steps` (after Y and delta_prev): h,
+        the noise factors with their non-zero columns, then as :meth:`kernel_args`."""
+        m = self.model
+        return (m.h, m.sq_q, nonzero_columns(m.sq_q), m.sq_r, nonzero_columns(m.sq_r), *self._tail())
+
+
+@dataclass(frozen=True)
+class KernelRun:
+    """The outcome of :func:`run`: ``status`` (0 ok, else the failure code of the module docstring)
+    at ``step``; the final posterior (x (9,), S (9, 9) lower factor); per step (N rows) the prior and
+    posterior states, the one-sigmas of the posterior, the innovations (N, m), NIS and forgetting
+    factor f (units of the state: v m/s, r deg/s, psi deg, parameters in theirs)."""
+
+    status: int
+    step: int
+    x: np.ndarray
+    S: np.ndarray
+    x_prior: np.ndarray
+    x_post: np.ndarray
+    std: np.ndarray
+    innov: np.ndarray
+    nis: np.ndarray
+    f: np.ndarray
+
+
+def run(x0: np.ndarray, S0: np.ndarray, Y: np.ndarray, delta_prev: np.ndarray,
+        settings: KernelSettings) -> KernelRun:
+    """Run the compiled SR-UKF-FFM from posterior (x0, S0) over Y (N, m) with rudder ``delta_prev``
+    (N,), deg (:func:`srukf_kernel`); the per-step outputs are allocated here."""
+    n, m = Y.shape
+    outs = (np.empty((n, NX)), np.empty((n, NX)), np.empty((n, NX)), np.empty((n, m)), np.empty(n),
+            np.empty(n))
+    status, k, x, S = srukf_kernel(np.asarray(x0, float), S0, Y, delta_prev, settings.model.h,
+                                   *settings.kernel_args(), *outs)
+    return KernelRun(int(status), int(k), x, S, *outs)
+
+
+def run_batch(x0s: np.ndarray, S0: np.ndarray, Ys: np.ndarray, deltas_prev: np.ndarray,
+              settings: KernelSettings, *, chunks: int | None = None) -> tuple[np.ndarray, np.ndarray,
+                                                                              np.ndarray]:
+    """Run the compiled kernel over R runs of equal length (Ys (R, N, m), deltas_prev (R, N) deg,
+    x0s (R, 9), one S0): :func:`srukf_batch_kernel`, or with ``chunks`` blocks over numba's threads
+    :func:`srukf_batch_kernel_parallel` (each run's numbers the same).  Returns the final posteriors
+    x (R, 9), S (R, 9, 9) and each run's status (R,)."""
+    nr = Ys.shape[0]
+    xf = np.empty((nr, NX))
+    Sf = np.empty((nr, NX, NX))
+    st = np.zeros(nr, dtype=np.int64)
+    h = settings.model.h
+    if chunks is None:
+        srukf_batch_kernel(x0s, S0, Ys, deltas_prev, h, *settings.kernel_args(), xf, Sf, st)
+    else:
+        srukf_batch_kernel_parallel(x0s, S0, Ys, deltas_prev, h, *settings.kernel_args(), xf, Sf, st,
+                                    chunks)
+    return xf, Sf, st

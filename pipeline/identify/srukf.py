@@ -50,6 +50,42 @@ class Weights:
     gamma: float
 
 
+@dataclass(frozen=True)
+class StepModel:
+    """Everything one filter step reads besides the data and the posterior.
+
+    Attributes
+    ----------
+    h : float
+        Model step, s.
+    sq_q : numpy.ndarray
+        (9, 9) square root of the process noise Q (one-sigma per step in each state's unit:
+        v m/s, r deg/s, psi deg, the parameters in theirs).
+    sq_r : numpy.ndarray
+        (m, m) square root of the measurement noise R of the measured channels (same units).
+    meas_idx : numpy.ndarray
+        (m,) indices of the measured states among (v, r, psi) = (0, 1, 2), int64.
+    weights : Weights
+        The unscented transform's weights and spread.
+    """
+
+    h: float
+    sq_q: np.ndarray
+    sq_r: np.ndarray
+    meas_idx: np.ndarray
+    weights: Weights
+
+    @property
+    def Q(self) -> np.ndarray:
+        """The process noise covariance sq_q sq_q^T."""
+        return self.sq_q @ self.sq_q.T
+
+    @property
+    def R(self) -> np.ndarray:
+        """The measurement noise covariance sq_r sq_r^T."""
+        return self.sq_r @ self.sq_r.T
+
+
 def ut_weights(n: int, alpha: float, beta: float, kappa: float) -> Weights:
     """Weights of the scaled unscented transform for dimension ``n``."""
     lam = alpha ** 2 * (n + kappa) - n
@@ -129,19 +165,21 @@ class StepResult:
     nis: float
 
 
-def srukf_step(x, S, y, delta_prev, h, sq_q, sq_r, meas_idx, w: Weights, f: float = 1.0) -> StepResult:
-    """One time + measurement update of the SR-UKF, then forgetting S <- S / sqrt(f)."""
+def srukf_step(x, S, y, delta_prev: float, model: StepModel, f: float = 1.0) -> StepResult:
+    """One time + measurement update of the SR-UKF from posterior (x, S) with measurement y (m,) and
+    rudder ``delta_prev`` (deg) over the step, then forgetting S <- S / sqrt(f)."""
+    w = model.weights
     # time update
-    Xp = model_fx(sigma_points(x, S, w.gamma), delta_prev, h)
+    Xp = model_fx(sigma_points(x, S, w.gamma), delta_prev, model.h)
     xm = Xp @ w.wm
-    Sm = _factor_with_point0(Xp - xm[:, None], sq_q, w.wc, "time update")
+    Sm = _factor_with_point0(Xp - xm[:, None], model.sq_q, w.wc, "time update")
     # measurement update (sigma points redrawn from the prior)
     X = sigma_points(xm, Sm, w.gamma)
-    Y = X[meas_idx]
+    Y = X[model.meas_idx]
     ym = Y @ w.wm
     DX = X - xm[:, None]
     DY = Y - ym[:, None]
-    Sy = _factor_with_point0(DY, sq_r, w.wc, "innovation covariance")
+    Sy = _factor_with_point0(DY, model.sq_r, w.wc, "innovation covariance")
     Pxy = (DX * w.wc) @ DY.T
     K = solve_triangular(Sy.T, solve_triangular(Sy, Pxy.T, lower=True), lower=False).T
     innov = y - ym
@@ -154,8 +192,9 @@ def srukf_step(x, S, y, delta_prev, h, sq_q, sq_r, meas_idx, w: Weights, f: floa
     return StepResult(x_prior=xm, x=xn, S=Sn / math.sqrt(f), innov=innov, nis=float(z @ z))
 
 
-def srukf_run_reference(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, w: Weights, f_of=None):
-    """Run the reference SR-UKF over samples Y (N, m) with rudder ``delta_prev`` (N,).
+def srukf_run_reference(x0, S0, Y, delta_prev, model: StepModel, *, f_of=None):
+    """Run the reference SR-UKF from posterior (x0, S0) over samples Y (N, m) with rudder
+    ``delta_prev`` (N,), deg.
 
     ``f_of(innov_channel_value, previous)`` gives the forgetting factor (None: f = 1).  Returns a dict
     of arrays: x_prior (N, 9), x (N, 9), S (N, 9, 9), innov (N, m), nis (N,), f (N,).
@@ -163,11 +202,11 @@ def srukf_run_reference(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, w: Weigh
     x, S = np.asarray(x0, float), np.asarray(S0, float)
     n = Y.shape[0]
     out = {"x_prior": np.empty((n, NX)), "x": np.empty((n, NX)), "S": np.empty((n, NX, NX)),
-           "innov": np.empty((n, len(meas_idx))), "nis": np.empty(n), "f": np.ones(n)}
+           "innov": np.empty((n, len(model.meas_idx))), "nis": np.empty(n), "f": np.ones(n)}
     prev_e = 0.0
     for k in range(n):
         try:
-            res = srukf_step(x, S, Y[k], delta_prev[k], h, sq_q, sq_r, meas_idx, w)
+            res = srukf_step(x, S, Y[k], delta_prev[k], model)
         except FilterError as exc:
             raise FilterError(f"SR-UKF step {k}: {exc}") from None
         f = 1.0
@@ -179,12 +218,14 @@ def srukf_run_reference(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, w: Weigh
     return out
 
 
-def ukf_run_reference(x0, P0, Y, delta_prev, h, Q, R, meas_idx, w: Weights, f_of=None):
-    """Plain full-covariance UKF with the same weights, sigma points and forgetting (test reference).
+def ukf_run_reference(x0, P0, Y, delta_prev, model: StepModel, *, f_of=None):
+    """Plain full-covariance UKF with the same weights, sigma points and forgetting (test reference):
+    Q = sq_q sq_q^T and R = sq_r sq_r^T of ``model``.
 
     Returns a dict of arrays: x_prior, x, P (N, 9, 9), innov, nis, f.
     """
     x, P = np.asarray(x0, float), np.asarray(P0, float)
+    h, Q, R, meas_idx, w = model.h, model.Q, model.R, model.meas_idx, model.weights
     n = Y.shape[0]
     out = {"x_prior": np.empty((n, NX)), "x": np.empty((n, NX)), "P": np.empty((n, NX, NX)),
            "innov": np.empty((n, len(meas_idx))), "nis": np.empty(n), "f": np.ones(n)}

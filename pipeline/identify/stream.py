@@ -21,9 +21,7 @@ import numpy as np
 from pipeline.config import FilterConfig
 from pipeline.errors import FilterError, InputError, ModelError
 from pipeline.identify import fast
-from pipeline.identify.core import _FAIL_WHAT, fuzzy_channel
-from pipeline.identify.fuzzy import RULES
-from pipeline.identify.srukf import ut_weights
+from pipeline.identify.core import _FAIL_WHAT, kernel_settings
 from pipeline.model import PARAM_NAMES, nomoto_indices
 
 
@@ -51,14 +49,9 @@ class StreamingIdentifier:
             self.S = np.linalg.cholesky(np.asarray(P0, dtype=float))
         except np.linalg.LinAlgError:
             raise FilterError("initial covariance is not positive definite") from None
-        w = ut_weights(9, cfg.alpha, cfg.beta, cfg.kappa)
-        self.sq_q = np.diag(np.asarray(cfg.q_std, float))
-        self.sq_r = np.diag(np.asarray(cfg.r_std, float)[self.meas_idx])
-        chan = fuzzy_channel(cfg, self.meas_idx)
-        fz = np.array([*cfg.fuzzy.e_domain, *cfg.fuzzy.de_domain, *cfg.fuzzy.f_range], dtype=float)
-        self._args = (self.h, self.sq_q, fast.nonzero_columns(self.sq_q), self.sq_r,
-                      fast.nonzero_columns(self.sq_r), self.meas_idx, w.wm, w.wc, w.gamma, chan >= 0, chan,
-                      fz, RULES)
+        settings = kernel_settings(cfg, self.meas_idx, self.h)
+        self.sq_q, self.sq_r = settings.model.sq_q, settings.model.sq_r
+        self._args = settings.steps_args()
         self._ws = fast.workspace(m)
         self._out = (np.empty((1, 9)), np.empty((1, 9)), np.empty((1, 9)), np.empty((1, m)), np.empty(1),
                      np.empty(1))

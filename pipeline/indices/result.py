@@ -2,7 +2,8 @@
 
 ``indices/indices.json`` is an :class:`IndicesDocument`, ``indices/zigzag.json`` a
 :class:`ZigzagDocument` (keys and units in docs/contract.md and docs/indices.md).  Each class has
-``to_json()`` (the JSON-ready dict, keys in the order the files carry them) and
+``to_json()`` (the JSON-ready dict, keys in the order the files carry them: the field order of
+:class:`pipeline.results.Result` unless the class writes its own) and
 ``from_json(doc)`` (its inverse: ``X.from_json(x.to_json()) == x``).  Trust flags, IMO criteria and
 the per-run metrics stay plain mappings: their keys belong to :mod:`pipeline.indices.trust`,
 :mod:`pipeline.indices.imo` and the metric functions.
@@ -15,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from pipeline.model import INDEX_NAMES
+from pipeline.results import Result
 
 Flags = tuple[Mapping[str, Any], ...]
 
@@ -24,14 +26,11 @@ def _flags(items: Any) -> Flags:
 
 
 @dataclass(frozen=True)
-class IndexValue:
+class IndexValue(Result):
     """One index with its one-sigma uncertainty (K in 1/s, T's in s, primed ones dimensionless)."""
 
     value: float | None
     std: float | None
-
-    def to_json(self) -> dict[str, Any]:
-        return {"value": self.value, "std": self.std}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> IndexValue:
@@ -39,7 +38,7 @@ class IndexValue:
 
 
 @dataclass(frozen=True)
-class UncertaintyCheck:
+class UncertaintyCheck(Result):
     """The seeded Monte Carlo check of the Gaussian bounds of one algorithm's indices.
 
     ``invalid_fraction``: share of draws with no real positive time constants (second-order model);
@@ -70,15 +69,12 @@ class UncertaintyCheck:
 
 
 @dataclass(frozen=True)
-class Nondimensional:
+class Nondimensional(Result):
     """What the primed indices of one algorithm were made with (Lpp m, approach speed m/s)."""
 
     run_id: str | None
     lpp_m: float | None
     approach_speed_m_s: float | None
-
-    def to_json(self) -> dict[str, Any]:
-        return {"run_id": self.run_id, "lpp_m": self.lpp_m, "approach_speed_m_s": self.approach_speed_m_s}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Nondimensional:
@@ -86,7 +82,7 @@ class Nondimensional:
 
 
 @dataclass(frozen=True)
-class KTRow:
+class KTRow(Result):
     """K (1/s) and T (s) of one zigzag by one K-T method ('standard' or 'integral').
 
     ``primes`` holds K' and T' (dimensionless, None where Lpp or U is unknown); ``K_std``,
@@ -127,15 +123,12 @@ class KTRow:
 
 
 @dataclass(frozen=True)
-class AmplitudeMean:
+class AmplitudeMean(Result):
     """Mean K (1/s) and T (s) of one K-T method over the zigzags of one amplitude."""
 
     K_mean: float
     T_mean: float
     runs: int
-
-    def to_json(self) -> dict[str, Any]:
-        return {"K_mean": self.K_mean, "T_mean": self.T_mean, "runs": self.runs}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> AmplitudeMean:
@@ -143,7 +136,7 @@ class AmplitudeMean:
 
 
 @dataclass(frozen=True)
-class GraphicalModel:
+class GraphicalModel(Result):
     """The standard (graphical) method's K (1/s), T (s) on the reference zigzag, with K', T'."""
 
     source: str
@@ -165,7 +158,7 @@ class GraphicalModel:
 
 
 @dataclass(frozen=True)
-class ControlModel:
+class ControlModel(Result):
     """The indices the autopilot is designed from (K 1/s, T1 T2 T3 T s) and why.
 
     ``refused`` with its ``reason`` when no candidate is trustworthy (the indices shown are then
@@ -207,7 +200,7 @@ class ControlModel:
 
 
 @dataclass(frozen=True)
-class IndicesDocument:
+class IndicesDocument(Result):
     """``indices/indices.json``: identified indices with uncertainty, K-T by the graphical and
     integral methods, the control model and the paper's figures (units in ``units``)."""
 
@@ -272,7 +265,7 @@ class IndicesDocument:
 
 
 @dataclass(frozen=True)
-class RunMetrics:
+class RunMetrics(Result):
     """One run's entry in ``indices/zigzag.json``: its kind ('zigzag', 'turning', other), the
     metrics (keys and units of :mod:`pipeline.indices.zigzag` / :mod:`pipeline.indices.turning`,
     None when they could not be computed), the IMO check and what failed and why."""
@@ -284,10 +277,6 @@ class RunMetrics:
     imo: Mapping[str, Any] | None
     errors: tuple[str, ...]
 
-    def to_json(self) -> dict[str, Any]:
-        return {"run_id": self.run_id, "test_name": self.test_name, "kind": self.kind,
-                "metrics": self.metrics, "imo": self.imo, "errors": list(self.errors)}
-
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> RunMetrics:
         return cls(run_id=doc["run_id"], test_name=doc["test_name"], kind=doc["kind"],
@@ -295,16 +284,12 @@ class RunMetrics:
 
 
 @dataclass(frozen=True)
-class ZigzagDocument:
+class ZigzagDocument(Result):
     """``indices/zigzag.json``: the manoeuvre metrics and IMO check of every run."""
 
     dataset: str | None
     provenance: str | None
     runs: tuple[RunMetrics, ...]
-
-    def to_json(self) -> dict[str, Any]:
-        return {"dataset": self.dataset, "provenance": self.provenance,
-                "runs": [r.to_json() for r in self.runs]}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> ZigzagDocument:

@@ -37,13 +37,55 @@ ALG_COLOR = {"srukf-ffm": "tab:red", "ffm-ukf": "tab:blue"}
 UNITS = {"v": "m/s", "r": "deg/s", "psi": "deg", "delta": "deg", "u": "m/s", "time": "s",
          "x0": "m", "y0": "m"}
 
-_FIG = {"n": 0}
-_TAB = {"n": 0}
+class Page:
+    """The numbering of one report page: figures and tables numbered 1, 2, ... in the order shown.
+
+    Made by :func:`setup` and held by the notebook (``page = nb.setup()``, then ``page.show(fig,
+    caption)``, ``page.table(df, caption)``): the numbers live in this object, so two pages built in
+    one process number their figures independently.
+    """
+
+    def __init__(self) -> None:
+        self.figures = 0
+        self.tables = 0
+
+    def table(self, df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True) -> None:
+        """:func:`render_table` with the next table number (then :attr:`tables`)."""
+        self.tables += 1
+        render_table(df, caption, self.tables, precision=precision, index=index)
+
+    def show(self, fig, caption: str) -> None:
+        """:func:`render_figure` with the next figure number (then :attr:`figures`)."""
+        self.figures += 1
+        render_figure(fig, caption, self.figures)
+
+    def flags_table(self, groups: list[tuple[str, list[dict] | None]], caption: str) -> int:
+        """One table of every flag (:func:`flag_rows`).  Returns the number of flags (0: a note says
+        that no check failed)."""
+        rows = flag_rows(groups)
+        if rows:
+            self.table(pd.DataFrame(rows).set_index(["set", "check"]), caption)
+        else:
+            note("No trust check failed for the numbers in this report.")
+        return len(rows)
+
+    def full_scale_rows(self, df: pd.DataFrame, data: Data, caption: str,
+                        skip: tuple[str, ...] = ()) -> None:
+        """For full-scale data, the table of :func:`full_scale_frame`; nothing for model-scale data."""
+        got = full_scale_frame(df, data, caption, skip)
+        if got is not None:
+            self.table(*got)
 
 
-def setup() -> None:
+#: the page of the last :func:`setup`, for a notebook that calls the module's :func:`show`,
+#: :func:`table`, :func:`flags_table`, :func:`full_scale_rows` instead of its page's methods
+_LAST_PAGE: list[Page] = [Page()]
+
+
+def setup() -> Page:
     """Plot and display defaults: inline PNG (embedded as base64 in the HTML), readable sizes, text in
-    figures taken literally (no mathtext)."""
+    figures taken literally (no mathtext).  Returns the page's :class:`Page` (figure and table
+    numbers from 1)."""
     import matplotlib as mpl
 
     try:
@@ -60,8 +102,9 @@ def setup() -> None:
         "text.parse_math": False,
     })
     pd.set_option("display.precision", 4)
-    _FIG["n"] = 0
-    _TAB["n"] = 0
+    page = Page()
+    _LAST_PAGE[0] = page
+    return page
 
 
 def _sha256(path: Path) -> str:
@@ -317,16 +360,21 @@ def esc(value: Any) -> str:
     return _html.escape(_fmt(value) if not isinstance(value, str) else value, quote=True)
 
 
-def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True):
-    """Display ``df`` as a numbered, captioned HTML table (numbers to ``precision`` significant digits).
+def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True) -> None:
+    """:meth:`Page.table` on the page of the last :func:`setup` (prefer the page's own method)."""
+    _LAST_PAGE[0].table(df, caption, precision=precision, index=index)
+
+
+def render_table(df: pd.DataFrame, caption: str, number: int, *, precision: int = 4,
+                 index: bool = True) -> None:
+    """Display ``df`` as table ``number``, captioned, in HTML (numbers to ``precision`` significant
+    digits).
 
     Every cell, index label, column label and the caption go through :func:`esc` (data-derived
-    strings never become markup).  The table id is fixed (``tab<N>``, N = table number in the
-    report) and cells carry no ids, so the same inputs give the same bytes.
+    strings never become markup).  The table id is fixed (``tab<N>``, N = ``number``) and cells carry
+    no ids, so the same inputs give the same bytes.
     """
     from IPython.display import HTML, display
-
-    _TAB["n"] += 1
 
     def fmt(x):
         if isinstance(x, (float, np.floating)):
@@ -342,9 +390,9 @@ def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True
 
     from pandas.io.formats.style import Styler
 
-    styler = Styler(df, uuid=f"tab{_TAB['n']}", cell_ids=False).format(fmt)
+    styler = Styler(df, uuid=f"tab{number}", cell_ids=False).format(fmt)
     styler = styler.format_index(fmt_label, axis=0).format_index(fmt_label, axis=1)
-    styler = styler.set_caption(f"Table {_TAB['n']}. {esc(caption)}")
+    styler = styler.set_caption(f"Table {number}. {esc(caption)}")
     styler = styler.set_table_styles([{"selector": "caption", "props": "caption-side: top; "
                                        "text-align: left; font-weight: bold; padding: 4px 0;"}])
     # words read left to right, numbers stay right-aligned (class selectors: no cell ids needed)
@@ -371,15 +419,19 @@ def plain_log_ticks(fig) -> None:
 
 
 def show(fig, caption: str) -> None:
-    """Display a figure (PNG) with a numbered caption that says what to see; closes it."""
+    """:meth:`Page.show` on the page of the last :func:`setup` (prefer the page's own method)."""
+    _LAST_PAGE[0].show(fig, caption)
+
+
+def render_figure(fig, caption: str, number: int) -> None:
+    """Display a figure (PNG) as figure ``number`` with a caption that says what to see; closes it."""
     import matplotlib.pyplot as plt
     from IPython.display import HTML, display
 
-    _FIG["n"] += 1
     plain_log_ticks(fig)
     display(fig)
     plt.close(fig)
-    display(HTML(f"<p style='margin:0 0 1.2em 0'><b>Figure {_FIG['n']}.</b> {esc(caption)}</p>"))
+    display(HTML(f"<p style='margin:0 0 1.2em 0'><b>Figure {number}.</b> {esc(caption)}</p>"))
 
 
 def note(text: str) -> None:
@@ -424,13 +476,14 @@ def with_full_scale(df: pd.DataFrame, data: Data, columns: tuple[str, ...] | Non
     return pd.DataFrame(out, index=df.index)
 
 
-def full_scale_rows(df: pd.DataFrame, data: Data, caption: str, skip: tuple[str, ...] = ()) -> None:
-    """For full-scale data, a table of the rows of ``df`` whose index label ends in a Froude-scaled
-    unit ('T1 (s)'), at full scale, columns ``skip`` left out (e.g. the paper's model-scale values);
-    nothing for model-scale data."""
+def full_scale_frame(df: pd.DataFrame, data: Data, caption: str,
+                     skip: tuple[str, ...] = ()) -> tuple[pd.DataFrame, str] | None:
+    """The full-scale table of :meth:`Page.full_scale_rows` and its caption: the rows of ``df`` whose
+    index label ends in a Froude-scaled unit ('T1 (s)'), at full scale 1:lambda (times x sqrt lambda,
+    rates / sqrt lambda), columns ``skip`` left out; None for model-scale data or when no row scales."""
     lam = data.full_scale
     if lam is None:
-        return
+        return None
     rows = {}
     for lab, row in df.drop(columns=[c for c in skip if c in df.columns]).iterrows():
         conv = particulars.full_scale_label(str(lab), lam)
@@ -438,11 +491,17 @@ def full_scale_rows(df: pd.DataFrame, data: Data, caption: str, skip: tuple[str,
             continue
         factor = particulars.full_scale_label(str(lab), lam, 1.0)[1]
         rows[conv[0]] = pd.to_numeric(row, errors="coerce") * factor
-    if rows:
-        # columns with no number (flags, words) say nothing at full scale
-        table(pd.DataFrame.from_dict(rows, orient="index").dropna(axis=1, how="all"),
-              f"{caption} At full scale 1:{lam:g} (Froude: times x {math.sqrt(lam):.3g}, rates / "
-              f"{math.sqrt(lam):.3g}).")
+    if not rows:
+        return None
+    # columns with no number (flags, words) say nothing at full scale
+    return (pd.DataFrame.from_dict(rows, orient="index").dropna(axis=1, how="all"),
+            f"{caption} At full scale 1:{lam:g} (Froude: times x {math.sqrt(lam):.3g}, rates / "
+            f"{math.sqrt(lam):.3g}).")
+
+
+def full_scale_rows(df: pd.DataFrame, data: Data, caption: str, skip: tuple[str, ...] = ()) -> None:
+    """:meth:`Page.full_scale_rows` on the page of the last :func:`setup` (prefer the page's own)."""
+    _LAST_PAGE[0].full_scale_rows(df, data, caption, skip)
 
 
 def paper_note(data: Data) -> None:
@@ -516,17 +575,16 @@ def flag_marks(flags: list[dict] | None, subject: str | None = None) -> str:
     return ", ".join(out)
 
 
-def flags_table(groups: list[tuple[str, list[dict] | None]], caption: str) -> int:
-    """One table of every flag: which number set, which check, about what, the reason.  Returns the
-    number of flags (0: a note says that no check failed)."""
-    rows = [{"set": name, "check": CHECK_LABEL.get(str(f.get("check")), str(f.get("check"))),
+def flag_rows(groups: list[tuple[str, list[dict] | None]]) -> list[dict[str, Any]]:
+    """The rows of a flags table: set, check (its reader's label), about what, the reason."""
+    return [{"set": name, "check": CHECK_LABEL.get(str(f.get("check")), str(f.get("check"))),
              "about": f.get("subject", ""), "reason": f.get("reason", "")}
             for name, flags in groups for f in flags or []]
-    if rows:
-        table(pd.DataFrame(rows).set_index(["set", "check"]), caption)
-    else:
-        note("No trust check failed for the numbers in this report.")
-    return len(rows)
+
+
+def flags_table(groups: list[tuple[str, list[dict] | None]], caption: str) -> int:
+    """:meth:`Page.flags_table` on the page of the last :func:`setup` (prefer the page's own)."""
+    return _LAST_PAGE[0].flags_table(groups, caption)
 
 
 def conclusion(points: list[str]) -> None:
