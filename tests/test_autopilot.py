@@ -235,14 +235,14 @@ def test_adaptive_run_keeps_its_anti_bursting_rule():
     """In the loop on the nonlinear KCS: each re-design moves a gain by at most the stated share, and
     without excitation (no course changes) the gains never move."""
     pytest.importorskip("pipeline.tank")
-    from pipeline.control.adaptive import after_change_metrics, run_once
+    from pipeline.control.adaptive import AdaptiveStart, after_change_metrics, run_once
     from pipeline.model import PAPER_TABLE4
 
     theta = [PAPER_TABLE4[n] for n in ("a11", "a12", "a21", "a22", "b11", "b21")]
     cov = np.diag([0.05, 0.01, 0.5, 0.05, 1e-5, 1e-3]) ** 2
     cfg = replace(ControlConfig(), adaptive_duration=120.0, adaptive_change_s=60.0, adaptive_step_every=30.0,
                   wave=False)
-    r = run_once(theta, cov, 0.3867, 3.68, 1, cfg, adapt=True)
+    r = run_once(AdaptiveStart(theta, cov, 0.3867, 3.68), 1, cfg, adapt=True)
     g = r["gains"]
     for (_, kp0, kd0, _), (_, kp1, kd1, _) in zip(g[:-1], g[1:], strict=True):
         assert abs(kp1 - kp0) <= cfg.adaptive_max_gain_change * abs(kp0) + 1e-12
@@ -250,7 +250,7 @@ def test_adaptive_run_keeps_its_anti_bursting_rule():
     m = after_change_metrics(r["t"], r["ref"], r["psi"], r["delta"], cfg)
     assert np.isfinite(m["heading_mae_deg"]) and m["rudder_travel_deg"] > 0
     calm = replace(cfg, adaptive_step_deg=0.0, wind_rudder=0.0)
-    quiet = run_once(theta, cov, 0.3867, 3.68, 1, calm, adapt=True)
+    quiet = run_once(AdaptiveStart(theta, cov, 0.3867, 3.68), 1, calm, adapt=True)
     assert {(kp, kd) for _, kp, kd, _ in quiet["gains"]} == {(quiet["gains"][0][1], quiet["gains"][0][2])}
     assert all(e.startswith(("start", "excitation")) for *_, e in quiet["gains"])
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pipeline.config import ControlConfig, TankConfig
-from pipeline.control.adaptive import SwayYawShip, k_tracking, rudder_offset, run_once
+from pipeline.control.adaptive import AdaptiveStart, SwayYawShip, k_tracking, rudder_offset, run_once
 from pipeline.model import PAPER_TABLE4, PARAM_NAMES, nomoto_indices
 
 THETA = np.array([PAPER_TABLE4[n] for n in PARAM_NAMES])
@@ -43,7 +43,8 @@ def test_in_loop_k_follows_the_speed_change_with_a_constant_disturbance():
     got = {}
     for remove in (True, False):
         c = replace(cfg, adaptive_remove_rudder_offset=remove)
-        r = run_once(THETA, cov, idx["K"], idx["T"], 7, c, True, ship=SwayYawShip(THETA), q_std=q)
+        r = run_once(AdaptiveStart(THETA, cov, idx["K"], idx["T"]), 7, c, adapt=True, ship=SwayYawShip(THETA),
+                     q_std=q)
         got[remove] = k_tracking(r["t"], r["K_estimate"], c)
         if remove:
             assert r["rudder_offset"][-1] == pytest.approx(-cfg.wind_rudder, abs=0.05)
@@ -65,8 +66,8 @@ def test_adaptive_pid_follows_k_and_keeps_its_integral_through_redesigns():
     cov = np.diag((0.1 * np.abs(THETA) + 1e-4) ** 2)
     out = {}
     for adapt in (False, True):
-        r = run_once(THETA, cov, idx["K"], idx["T"], 7, cfg, adapt, ship=SwayYawShip(THETA), q_std=q,
-                     controller="pid")
+        r = run_once(AdaptiveStart(THETA, cov, idx["K"], idx["T"]), 7, cfg, adapt=adapt,
+                     ship=SwayYawShip(THETA), q_std=q, controller="pid")
         out[adapt] = (after_change_metrics(r["t"], r["ref"], r["psi"], r["delta"], cfg),
                       k_tracking(r["t"], r["K_estimate"], cfg), r["gains"])
     kt = out[True][1]

@@ -347,13 +347,12 @@ def test_refused_control_model_keeps_its_own_keys():
     ident = {a: {n: {"value": v, "std": 0.01} for n, v in PAPER_TABLE7.items()}
              for a in ("srukf-ffm", "ffm-ukf")}
     gm = {"source": "standard", "run_id": "z20", "K": -0.3, "T": 14.0, "flags": [sign]}
-    args = (ident, {"srukf-ffm": [sign], "ffm-ukf": [sign]}, {}, gm, {"srukf-ffm": {}, "ffm-ukf": {}},
-            "z20", 7.0, 1.18)
-    cm = control_model(args[0], ident_flags=args[1], failures=args[2], graphical_model=args[3],
-                       estimates=args[4], ident=args[5], lpp=args[6], u=args[7])
+    opts = {"ident_flags": {"srukf-ffm": [sign], "ffm-ukf": [sign]}, "failures": {}, "graphical_model": gm,
+            "estimates": {"srukf-ffm": {}, "ffm-ukf": {}}, "ident": "z20", "lpp": 7.0, "u": 1.18}
+    cm = control_model(ident, **opts)
     assert cm.refused and cm.source == "refused" and cm.reason.count("K negative") == 3
     assert cm.indices == PAPER_TABLE7 and cm.primes == {}          # the best identified set, shown only
-    doc = choose_control_model(*args)
+    doc = choose_control_model(ident, **opts)
     assert doc == cm.to_json() and ControlModel.from_json(doc) == cm
     assert list(doc) == ["source", "refused", "reason", *INDEX_NAMES, "basis", "rejected", "flags",
                          "second_order"]

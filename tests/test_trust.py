@@ -158,7 +158,8 @@ def _choose(srukf_flags, ffm_flags, graphical_flags):
              for a in ("srukf-ffm", "ffm-ukf")}
     flags = {"srukf-ffm": srukf_flags, "ffm-ukf": ffm_flags}
     gm = {"source": "standard", "run_id": "z20", "K": 0.3, "T": 14.0, "flags": graphical_flags}
-    return choose_control_model(ident, flags, {}, gm, {"srukf-ffm": {}, "ffm-ukf": {}}, "z20", 7.0, 1.18)
+    return choose_control_model(ident, ident_flags=flags, failures={}, graphical_model=gm,
+                                estimates={"srukf-ffm": {}, "ffm-ukf": {}}, ident="z20", lpp=7.0, u=1.18)
 
 
 def test_autopilot_falls_back_visibly_and_refuses_when_nothing_is_trusted():

@@ -29,7 +29,7 @@ its new set course (deg; the largest and the mean).
 from __future__ import annotations
 
 import time as _time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -116,9 +116,32 @@ def rudder_offset(delta: np.ndarray, k: int, window: int, first: int) -> float:
     return float(np.mean(delta[:m])) if m > 0 else 0.0
 
 
-def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
-             adapt: bool, *, ship=None, q_std=None, controller: str = "cgsa") -> dict[str, Any]:
-    """One run (module docstring); fixed gains, and no identifier, when ``adapt`` is False.
+@dataclass(frozen=True)
+class AdaptiveStart:
+    """Where an in-loop run starts.
+
+    Attributes
+    ----------
+    theta : sequence of float
+        The identifier's prior parameters a11 .. b21 (units of docs/contract.md#the-identification-model).
+    cov : array_like
+        Their 6 x 6 covariance (the same units squared).
+    K : float
+        Gain the first autopilot gains are designed from, 1/s.
+    T : float
+        Time constant the first gains are designed from, s.
+    """
+
+    theta: Any
+    cov: Any
+    K: float
+    T: float
+
+
+def run_once(start: AdaptiveStart, seed: int, cfg: ControlConfig, *, adapt: bool, ship=None, q_std=None,
+             controller: str = "cgsa") -> dict[str, Any]:
+    """One run (module docstring) from ``start`` on wave ``seed``; fixed gains, and no identifier,
+    when ``adapt`` is False.
 
     ``ship``: the plant (default the nonlinear KCS, slowed by its propeller cut); any object with
     ``reset()``, ``step(cmd, dt, disturbance_deg)`` giving v (m/s), r (deg/s), psi (deg), delta (deg)
@@ -143,10 +166,11 @@ def run_once(theta0, cov0, K0: float, T0: float, seed: int, cfg: ControlConfig,
     fcfg = replace(FilterConfig(), r_std=tuple(noise_sd))
     if q_std is not None:
         fcfg = replace(fcfg, q_std=(*(float(q) for q in q_std), *fcfg.q_std[3:]))
-    x0 = np.concatenate([[st["v"], st["r"], st["psi"]], np.asarray(theta0, float)])
+    K0, T0 = start.K, start.T
+    x0 = np.concatenate([[st["v"], st["r"], st["psi"]], np.asarray(start.theta, float)])
     P0 = np.zeros((9, 9))
     P0[:3, :3] = np.diag(noise_sd ** 2)
-    P0[3:, 3:] = np.asarray(cov0, float)
+    P0[3:, 3:] = np.asarray(start.cov, float)
     ident = StreamingIdentifier(x0, P0, dt, fcfg)
     if controller == "pid":
         design = pid_design(K0, T0, cfg)
@@ -247,15 +271,14 @@ def k_tracking(t: np.ndarray, k_est: np.ndarray, cfg: ControlConfig) -> dict[str
     return {"K_before_change": kb, "K_end": ke, "ratio": ke / kb if kb else float("nan")}
 
 
-def _paired(theta0, cov0, K0: float, T0: float, seeds: list[int], cfg: ControlConfig, q_std,
+def _paired(start: AdaptiveStart, seeds: list[int], cfg: ControlConfig, *, q_std,
             controller: str) -> tuple[dict[str, Any], float]:
     """Fixed and adaptive runs of one controller on the same seeds: rows, statistics, differences."""
     rows = {"adaptive": [], "fixed": []}
     gains, finals, id_secs, tracking = [], [], 0.0, []
     for seed in seeds:
         for name in ("fixed", "adaptive"):
-            r = run_once(theta0, cov0, K0, T0, seed, cfg, adapt=name == "adaptive", q_std=q_std,
-                         controller=controller)
+            r = run_once(start, seed, cfg, adapt=name == "adaptive", q_std=q_std, controller=controller)
             m = after_change_metrics(r["t"], r["ref"], r["psi"], r["delta"], cfg)
             rows[name].append({"seed": seed, **m})
             if name == "adaptive":
@@ -271,7 +294,7 @@ def _paired(theta0, cov0, K0: float, T0: float, seeds: list[int], cfg: ControlCo
                          for k in keys}
     pairs = list(zip(rows["adaptive"], rows["fixed"], strict=True))
     diff = {k: float(np.nanmean([a[k] - b[k] for a, b in pairs])) for k in keys}
-    return {"start": {"K": K0, "T": T0}, "seeds": seeds, "per_seed": rows, "stats": summary,
+    return {"start": {"K": start.K, "T": start.T}, "seeds": seeds, "per_seed": rows, "stats": summary,
             "difference": {"what": "adaptive minus fixed, mean over the paired seeds", "metrics": diff},
             "gains_first_seed": gains[0] if gains else [], "final_indices": finals,
             "K_tracking": tracking}, id_secs
@@ -286,10 +309,12 @@ def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int], cfg: Co
     The CGSA (the paper's adaptive design) starts from K0 (1/s), T0 (s); with ``pid_start`` (K, T of
     the operating-point model) the project's PID runs the same scenario as ``pid`` (its model's K, T
     move at most ``adaptive_max_gain_change`` per re-design, its integral term carried over)."""
-    cg, id_secs = _paired(theta0, cov0, K0, T0, seeds, cfg, q_std, "cgsa")
+    start = AdaptiveStart(theta0, cov0, K0, T0)
+    cg, id_secs = _paired(start, seeds, cfg, q_std=q_std, controller="cgsa")
     out = _cgsa_document(cg, cfg, K0, T0, seeds, q_std)
     if pid_start is not None:
-        pid, _ = _paired(theta0, cov0, pid_start[0], pid_start[1], seeds, cfg, q_std, "pid")
+        pid, _ = _paired(replace(start, K=pid_start[0], T=pid_start[1]), seeds, cfg, q_std=q_std,
+                         controller="pid")
         out["pid"] = {k: v for k, v in pid.items() if k != "seeds"}
         out["pid"]["design"] = f"PID autopilot, Tw = {cfg.tw:g} s, re-designed from the moving K, T"
     return out, id_secs

@@ -328,7 +328,7 @@ def control_model(ident_out: dict[str, Any], *, ident_flags: dict[str, list], fa
                         second_order={"ok": False, "reason": "refused"})
 
 
-def choose_control_model(ident_out: dict[str, Any], ident_flags: dict[str, list], failures: dict[str, str],
+def choose_control_model(ident_out: dict[str, Any], *, ident_flags: dict[str, list], failures: dict[str, str],
                          graphical_model: dict[str, Any], estimates: dict[str, dict], ident: str,
                          lpp: float | None, u: float | None) -> dict[str, Any]:
     """The ``control_model`` entry of indices.json: :func:`control_model` in its JSON form.

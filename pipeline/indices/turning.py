@@ -65,7 +65,7 @@ def _held_end(delta: np.ndarray, i_e: int, level: float, c: ManoeuvreConfig) -> 
     return i_e + int(off[0]) - 1 if off.size else delta.size - 1
 
 
-def _steady_mask(t, change, r, i_e: int, held_end: int, total_held: float, cfg: IndicesConfig):
+def _steady_mask(t, change, r, *, i_e: int, held_end: int, total_held: float, cfg: IndicesConfig):
     """Samples of the steady turn (ITTC 7.5-04-02-01), or (None, start) when there are too few.
 
     Steady: the rudder still held (pull-out excluded), the heading changed by at least ``start``
@@ -152,7 +152,7 @@ def turning_metrics(run: Run, *, config: IndicesConfig | None = None) -> dict[st
     total = float(np.max(change[i_e:]))
     total_held = float(np.max(change[i_e:held_end + 1]))
     steady, start = _steady_mask(t, change, run.col("r") if "r" in run.frame.columns else None,
-                                 i_e, held_end, total_held, cfg)
+                                 i_e=i_e, held_end=held_end, total_held=total_held, cfg=cfg)
     d_steady = ratio = r_steady = None
     if steady is not None:
         _, _, rad = fit_circle(x[steady], y[steady])

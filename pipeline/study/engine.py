@@ -212,7 +212,8 @@ def run_study(spec: Spec, out: str | Path, *, scheduler: str | None = None, work
         try:
             cases_dir.mkdir(parents=True, exist_ok=True)      # only once there is a cluster to run on
             _register_warm(client, kind, spec.settings)
-            done.update(_fan_out(client, kind, spec, pending, cases_dir, lost, progress))
+            got, lost = _fan_out(client, kind, spec, pending, cases_dir=cases_dir, progress=progress)
+            done.update(got)
             n_workers = len(client.scheduler_info().get("workers", {})) or n_workers
         finally:
             if own:
@@ -254,8 +255,13 @@ def _register_warm(client, kind, settings) -> None:
         client.register_worker_plugin(plugin)
 
 
-def _fan_out(client, kind, spec: Spec, pending, cases_dir: Path, lost: dict, progress: bool) -> dict:
+def _fan_out(client, kind, spec: Spec, pending, *, cases_dir: Path,
+             progress: bool) -> tuple[dict[str, dict], dict[str, str]]:
+    """Run the ``pending`` cases on the cluster, writing each finished case's JSON to ``cases_dir``.
+    Returns (case id -> its document, case id -> why a case was lost: a worker gone after its
+    retries, a cancelled task)."""
     from distributed import as_completed
+    lost: dict[str, str] = {}
     futures = {}
     for c in pending:
         fut = client.submit(run_case_task, kind.name, c["params"], c["seed"], spec.settings,
@@ -291,7 +297,7 @@ def _fan_out(client, kind, spec: Spec, pending, cases_dir: Path, lost: dict, pro
         raise
     finally:
         bar.close()
-    return got
+    return got, lost
 
 
 #: s between two looks at the scheduler while no case finishes (a cheap call; a tenth of the default
