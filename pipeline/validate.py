@@ -225,7 +225,7 @@ def one_step(est: dict[str, Any], run: Run, *, cfg: FilterConfig | None = None, 
     return out.x_prior[:, :3]
 
 
-def free_run(est: dict[str, Any], run: Run, start: int = 0, v_start: float | None = None) -> np.ndarray:
+def free_run(est: dict[str, Any], run: Run, *, start: int = 0, v_start: float | None = None) -> np.ndarray:
     """Free-run simulation from the measured state at ``start``, driven by the measured rudder.
 
     Parameters

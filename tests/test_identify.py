@@ -88,8 +88,8 @@ def test_recovers_indices_with_paper_q_on_consistent_data(with_v):
 
 def test_baseline_agrees_with_srukf_and_counts_no_failures():
     t, d, _, y = synthetic.zigzag(n=300, seed=4)
-    a = identify_arrays(t, d, y, FilterConfig(), "srukf-ffm")
-    b = identify_arrays(t, d, y, FilterConfig(), "ffm-ukf")
+    a = identify_arrays(t, d, y, FilterConfig(), algorithm="srukf-ffm")
+    b = identify_arrays(t, d, y, FilterConfig(), algorithm="ffm-ukf")
     assert np.allclose(list(a.parameters.values()), list(b.parameters.values()), rtol=1e-7)
     assert np.allclose(a.covariance, b.covariance, rtol=1e-6, atol=1e-14)
     assert b.filterpy_failures == 0 and "chol_failures" in b.trace

@@ -55,16 +55,16 @@ def idents():
     no_v = y.copy()
     no_v[:, 0] = np.nan
     cfg = FilterConfig()
-    return {"srukf": identify_arrays(t, d, y, cfg, "srukf-ffm"),
-            "ffm": identify_arrays(t, d, y, cfg, "ffm-ukf"),
-            "no_v": identify_arrays(t, d, no_v, cfg, "srukf-ffm")}
+    return {"srukf": identify_arrays(t, d, y, cfg, algorithm="srukf-ffm"),
+            "ffm": identify_arrays(t, d, y, cfg, algorithm="ffm-ukf"),
+            "no_v": identify_arrays(t, d, no_v, cfg, algorithm="srukf-ffm")}
 
 
 def test_estimates_keys_follow_the_contract_order_with_the_optional_ones_only_when_set(idents):
     cfg = FilterConfig()
     meta = {"run_id": "zz", "provenance": "virtual", "source_file": "zz.csv", "test_name": "zigzag 20/20",
             "ship": "my hull"}
-    est = estimates(idents["srukf"], meta, cfg, "d")
+    est = estimates(idents["srukf"], meta, cfg, dataset="d")
     assert isinstance(est.filter_state, FilterState) and isinstance(est.settings, FilterSettings)
     doc = est.to_json()
     core = ["algorithm", "samples", "parameters", "covariance", "indices", "timing", "run_id", "dataset",

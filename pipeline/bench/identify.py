@@ -15,10 +15,12 @@ def run(quick: bool = False) -> list[dict]:
     n = cfg.samples
     t, d, _, y = synthetic.zigzag(n=n, seed=1)
     reps_fast, reps_base, n_batch = (20, 1, 200) if quick else (200, 15, 1000)
-    identify_arrays(t, d, y, cfg, "srukf-ffm")          # compile / warm up
-    identify_arrays(t[:20], d[:20], y[:20], cfg, "ffm-ukf")
-    fast = min(identify_arrays(t, d, y, cfg, "srukf-ffm").timing["seconds_total"] for _ in range(reps_fast))
-    base = min(identify_arrays(t, d, y, cfg, "ffm-ukf").timing["seconds_total"] for _ in range(reps_base))
+    identify_arrays(t, d, y, cfg, algorithm="srukf-ffm")          # compile / warm up
+    identify_arrays(t[:20], d[:20], y[:20], cfg, algorithm="ffm-ukf")
+    fast = min(identify_arrays(t, d, y, cfg, algorithm="srukf-ffm").timing["seconds_total"]
+               for _ in range(reps_fast))
+    base = min(identify_arrays(t, d, y, cfg, algorithm="ffm-ukf").timing["seconds_total"]
+               for _ in range(reps_base))
     steps = n - 1
     Ys = np.empty((n_batch, n, 3))
     ds = np.empty((n_batch, n))

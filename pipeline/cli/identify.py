@@ -64,7 +64,7 @@ def _write(out_dir: Path, ident, meta: dict, cfg: FilterConfig, dataset: str | N
         write_frame(tmp / "trace.parquet", ident.trace, {"run_id": meta.get("run_id"),
                                                          "algorithm": ident.algorithm,
                                                          "provenance": meta.get("provenance")})
-        write_json(tmp / "estimates.json", estimates_json(ident, meta, cfg, dataset))
+        write_json(tmp / "estimates.json", estimates_json(ident, meta, cfg, dataset=dataset))
         write_json(tmp / TIMING_FILE, ident.timing)     # seconds: kept out of the compared results
 
 
@@ -128,7 +128,7 @@ def _run(args) -> int:
             raise InputError("--out DIR is required with a RUN")
         run = load_run(args.run, args.scale)
         alg = args.algorithm or "srukf-ffm"
-        ident = identify_run(run, cfg, alg, args.samples)
+        ident = identify_run(run, cfg, algorithm=alg, samples=args.samples)
         _write(args.out, ident, run.meta, cfg, None)
         print(_summary(ident, args.out))
         return 0
@@ -145,7 +145,8 @@ def _run(args) -> int:
     run.meta.setdefault("run_id", ident_id)
     run.meta.setdefault("provenance", entry.get("provenance", index.get("provenance")))
     algs = [args.algorithm] if args.algorithm else ["srukf-ffm", "ffm-ukf"]
-    idents = [(a, identify_run(run, cfg, a, args.samples)) for a in algs]   # all succeed before writing
+    # all succeed before writing
+    idents = [(a, identify_run(run, cfg, algorithm=a, samples=args.samples)) for a in algs]
     for alg, ident in idents:
         out = cat.identify_dir(alg)
         _write(out, ident, run.meta, cfg, args.dataset)

@@ -240,7 +240,7 @@ def _arrays(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, d, Y3
 
 
-def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: FilterConfig,
+def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: FilterConfig, *,
                     algorithm: str | None = None, samples: int | None = None,
                     name: str = "run") -> Identification:
     """Identify the six parameters from the first ``samples`` samples.
@@ -446,7 +446,7 @@ def trust_flags(consistency: dict[str, Any], indices: dict[str, float] | None, i
     return flags
 
 
-def identification_window(run: Run, cfg: FilterConfig, samples: int | None = None) -> tuple[int, str]:
+def identification_window(run: Run, cfg: FilterConfig, *, samples: int | None = None) -> tuple[int, str]:
     """Number of samples to identify from, and how it was chosen (scale-free when configured).
 
     ``samples`` (the --samples option) wins; else ``cfg.window_s`` seconds; else
@@ -507,7 +507,7 @@ def make_trace(time, delta, Y3, x0, std0, out: FilterOutput) -> pd.DataFrame:
     return pd.DataFrame(cols)
 
 
-def identify_run(run: Run, cfg: FilterConfig | None = None, algorithm: str | None = None,
+def identify_run(run: Run, cfg: FilterConfig | None = None, *, algorithm: str | None = None,
                  samples: int | None = None) -> Identification:
     """Identify a processed run (docs/contract.md#run-data columns) from its identification window.
 
@@ -518,7 +518,7 @@ def identify_run(run: Run, cfg: FilterConfig | None = None, algorithm: str | Non
     """
     cfg = cfg or FilterConfig()
     t, d, Y3 = _arrays(run)
-    n, how = identification_window(run, cfg, samples)
+    n, how = identification_window(run, cfg, samples=samples)
     n_eff = min(n, len(t))
     if n_eff < cfg.min_samples:
         raise InputError(f"too few samples to identify from: {n_eff} (need at least {cfg.min_samples}: "
@@ -528,7 +528,7 @@ def identify_run(run: Run, cfg: FilterConfig | None = None, algorithm: str | Non
         raise InputError(f"no rudder excitation: the rudder moves {rng:.3g} deg within the identification "
                          f"window (at least {cfg.min_rudder_range:g} deg needed to learn its effect)",
                          file=run.name, column="delta")
-    ident = identify_arrays(t, d, Y3, cfg, algorithm, n, name=run.name)
+    ident = identify_arrays(t, d, Y3, cfg, algorithm=algorithm, samples=n, name=run.name)
     ident.window = how
     return ident
 
@@ -600,7 +600,7 @@ class Estimates(Result):
     label: dict[str, str] = spread()
 
 
-def estimates(ident: Identification, meta: dict[str, Any], cfg: FilterConfig,
+def estimates(ident: Identification, meta: dict[str, Any], cfg: FilterConfig, *,
               dataset: str | None = None) -> Estimates:
     """The typed content of estimates.json for one identification.
 
@@ -661,11 +661,11 @@ def estimates(ident: Identification, meta: dict[str, Any], cfg: FilterConfig,
         label=data_label(is_builtin_tank_run(meta), meta.get("provenance")))
 
 
-def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfig,
+def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfig, *,
                    dataset: str | None = None) -> dict[str, Any]:
     """estimates.json content (docs/contract.md#identifyalgorithm-identify): :func:`estimates` in its
     JSON form."""
-    return estimates(ident, meta, cfg, dataset).to_json()
+    return estimates(ident, meta, cfg, dataset=dataset).to_json()
 
 
 def identify_batch(Y3: np.ndarray, delta: np.ndarray, h: float, cfg: FilterConfig | None = None, *,

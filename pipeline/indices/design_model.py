@@ -43,7 +43,7 @@ def heldout_error(parameters: dict[str, float], runs: list[Run]) -> dict[str, An
     est = {"parameters": {n: float(parameters[n]) for n in PARAM_NAMES}}
     per, tot, n = {}, 0.0, 0
     for run in runs:
-        pred = free_run(est, run, 0)
+        pred = free_run(est, run, start=0)
         psi = run.frame["psi"].to_numpy(dtype=float)[1:]
         err = np.abs(pred[:, 2] - psi)
         err = err[np.isfinite(err)]

@@ -103,7 +103,7 @@ def run_case(params: dict, seed: int, cfg: BatchIdentifyConfig) -> dict[str, Any
     if n > ident.samples + 10:
         est = {"parameters": ident.parameters}
         _, _, y3 = _arrays(run)
-        pred = free_run(est, run, start, float(ident.x_final[0]))
+        pred = free_run(est, run, start=start, v_start=float(ident.x_final[0]))
         s = scores(y3[start + 1:], pred)
         out.update({f"validation_{k}": (float(v) if v is not None else None) for k, v in s.items()})
         out["validation_samples"] = int(n - start - 1)
@@ -168,7 +168,7 @@ def warm(cfg: BatchIdentifyConfig) -> None:
     from pipeline.identify import identify_arrays, synthetic
 
     t, d, _, y = synthetic.zigzag(n=40, seed=1)
-    identify_arrays(t, d, y, FilterConfig(), "srukf-ffm", samples=40)
+    identify_arrays(t, d, y, FilterConfig(), algorithm="srukf-ffm", samples=40)
 
 
 def summarise(frame: pd.DataFrame, cfg: BatchIdentifyConfig, study_seed: int) -> dict[str, Any]:
