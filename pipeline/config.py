@@ -125,6 +125,34 @@ class IngestChecks:
     # fewer samples than this on either side of a long step: the offset is not measured (a fit of
     # a step and two offsets needs several samples per side)
     gap_edge: int = 5
+    # a time step longer than this many local logging steps is a candidate gap (a logger's jitter
+    # stays within a few per cent of its step; one missing sample makes a step of 2)
+    gap_step_factor: float = 1.5
+    # where the offset cannot be measured (gap_edge), a step is a gap only beyond this many logging
+    # steps: one missing sample (2 steps) still counts, a stamp's late-by-half jitter (1.5) does not
+    gap_unmeasured_factor: float = 1.9
+    # share of the step a time stamp may depart from the uniform grid beyond its printed rounding
+    # before the time column counts as not uniform (a quarter step: a jitter, never a missing sample)
+    time_jitter_share: float = 0.25
+    # the slope s of psi on int(r dt) names its cause when it is within this share of 1/57.3 (psi in
+    # rad), 57.3 (r in rad/s) or -1 (r reversed): the three are far apart, and a 15 % band holds a
+    # calibration's few per cent with room (a slope near none of them is only refused)
+    unit_factor_tolerance: float = 0.15
+    # deg: a test rudder of at least this angle is large enough to tell radians from degrees by
+    # (below 5 deg, rudder angles in deg and a turn's heading change overlap radians' ranges)
+    min_test_rudder_deg: float = 5.0
+    # a rudder whose largest value is below this share of the stated test angle is in radians
+    # (35 deg is 0.61 rad: 2 % of it; 20 % leaves room for a rudder that never reaches its angle)
+    rad_rudder_share: float = 0.2
+    # s: a turning circle is checked for its heading change only when logged for longer than this
+    # (the heading of a turn on a held rudder changes by less in its first seconds)
+    min_turn_check_s: float = 20.0
+    # share of the largest rudder within which a rudder phase is still at its held angle when the
+    # heading at an execute is read (pipeline.ingest.checks.infer_test_from_rudder)
+    held_rudder_share: float = 0.05
+    # deg: one rudder side held while the heading turns through at least this much is a turning
+    # circle (a zigzag's heading reverses within its trigger, 5-20 deg; a quarter turn is no zigzag)
+    turning_min_heading_deg: float = 90.0
 
 
 @dataclass(frozen=True)
@@ -211,6 +239,13 @@ class FilterConfig:
     use_fuzzy: bool = True               # False: forgetting factor fixed at 1
     v0_std: float = 0.1                  # m/s, initial one-sigma of v when the run has no v column
     fast: bool = True                    # numba kernel for the SR-UKF (False: numpy reference path)
+    # one-sigma (the parameter's own unit) of b11 and a21 when v is not measured, where they are held
+    # at their prior (pipeline.identify.core.initial_state): 1e-9 is below any parameter's resolution
+    # (1e-4 and more) yet keeps P0 positive definite for the Cholesky factor
+    pin_std: float = 1e-9
+    # most bisections of log c in the process-noise match: 30 halvings shrink the bracket's ratio of
+    # 1000 to 1 + 6e-9, far inside the process_nis_tolerance the search stops at
+    process_max_bisections: int = 30
 
 
 @dataclass(frozen=True)

@@ -552,21 +552,24 @@ def _write_text(path: Path, text: str) -> bool:
     return True
 
 
-def dataset_names(raw_root: Path = DEFAULT_RAW) -> list[str]:
-    """Every dataset that can run now: virtual; hsva when its files exist; each folder of
-    ``raw_root``; 'local' when tank files sit directly in ``raw_root``."""
-    raw_root = Path(raw_root)
-    names = ["virtual"]
-    try:
-        hsva = load_dataset("hsva", raw_root, write_missing=False)
-        if hsva.files_dir.is_dir() and hsva.raw_files():
-            names.append("hsva")
-    except InputError:
-        pass
-    if raw_root.is_dir():
-        for p in sorted(raw_root.iterdir(), key=lambda q: q.name):
-            if p.is_dir() and not p.name.startswith((".", "_")) and p.name not in ("virtual", "hsva"):
-                names.append(p.name)
-        if any(p.is_file() and is_tank_file(p) for p in raw_root.iterdir()):
-            names.append(LOCAL)
-    return names
+def dataset_names(raw_root: Path = DEFAULT_RAW, shared: Path | None = None) -> list[str]:
+    """Every dataset that can run now, in build order: the names :func:`pipeline.build.discover`
+    finds (virtual; hsva when ``shared``/data/kvlcc2_hsva holds its files; each folder of
+    ``raw_root``; 'local' when tank files sit directly in ``raw_root``).
+
+    Parameters
+    ----------
+    raw_root : pathlib.Path
+        The raw-data root (default data/raw).
+    shared : pathlib.Path, optional
+        The shared folder with data/kvlcc2_hsva (default ../shared, as the build's).
+
+    Returns
+    -------
+    list of str
+        The names, each a valid ``--dataset NAME``.
+    """
+    from pipeline.build import discover
+
+    found = discover(raw_root) if shared is None else discover(raw_root, shared)
+    return [d.name for d in found]

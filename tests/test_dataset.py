@@ -604,3 +604,23 @@ def test_the_build_reads_the_hsva_description_and_goes_stale_when_it_changes(hsv
     assert "ran ingest" in capsys.readouterr().out
     index = json.loads((root / "hsva" / "runs" / "index.json").read_text())
     assert index["identify"] == {"half_periods": 3.0} and index["ship"]["tank"] == "HSVA Hamburg"
+
+
+def test_the_dataset_list_is_the_builds(tmp_path, capsys):
+    """``python -m pipeline datasets`` lists what the build builds (pipeline.build.discover): hsva
+    only when the shared folder holds its files, a folder named 'local' never (the name of the files
+    straight in the raw root), hidden folders never."""
+    from pipeline.build import discover
+
+    raw, shared = tmp_path / "raw", tmp_path / "shared"
+    for name in ("mine", "_scratch", ".hidden", "local"):
+        (raw / name).mkdir(parents=True)
+    (raw / "zz20.csv").write_text("time,psi,r,delta\n0,0,0,0\n")
+    assert dataset_names(raw, shared) == ["virtual", "_scratch", "mine", "local"]
+    (shared / "data" / "kvlcc2_hsva").mkdir(parents=True)
+    (shared / "data" / "kvlcc2_hsva" / "z1.dat").write_text("x\n")
+    names = dataset_names(raw, shared)
+    assert names == ["virtual", "hsva", "_scratch", "mine", "local"]
+    assert names == [d.name for d in discover(raw, shared)]
+    assert main(["datasets", "--raw", str(raw), "--shared", str(shared)]) == 0
+    assert capsys.readouterr().out.splitlines() == names

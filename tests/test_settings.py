@@ -195,3 +195,58 @@ def test_paper_figures_are_literals_only_in_paper_module():
 def test_paper_figures_are_literals_only_in_paper_module_control():
     hits = _paper_literals([r for r in _sources() if r.startswith(LATER)])
     assert not hits, hits
+
+
+def _heading_in_radians(factor: float) -> pd.DataFrame:
+    """A weaving 60 s run at 0.08 s: r = 5 sin(0.2 t) deg/s, its heading logged in radians times
+    ``factor`` (1.10: 10 % off 1/57.3)."""
+    t = np.arange(750) * 0.08
+    r = 5.0 * np.sin(0.2 * t)
+    psi_deg = 25.0 * (1.0 - np.cos(0.2 * t))             # the integral of r
+    return pd.DataFrame({"time": t, "psi": np.deg2rad(psi_deg) * factor, "r": r,
+                         "delta": np.full(t.size, 10.0)})
+
+
+def test_unit_factor_tolerance_is_the_configured_one():
+    """A heading in radians, 10 % off: within the default 15 % band of 1/57.3 it is named as radians;
+    under a configured 5 % band only the general refusal (not d(psi)/dt) is left."""
+    frame = _heading_in_radians(1.10)
+    lines = np.arange(len(frame)) + 2
+    with pytest.raises(InputError, match="heading looks like radians"):
+        checks.check_units(frame, lines, {}, "weave.csv", IngestConfig())
+    strict = replace(IngestConfig(), checks=replace(IngestChecks(), unit_factor_tolerance=0.05))
+    with pytest.raises(InputError, match="yaw rate is not d\\(psi\\)/dt"):
+        checks.check_units(frame, lines, {}, "weave.csv", strict)
+
+
+def test_pinned_parameters_take_the_configured_one_sigma():
+    """Without v, b11 and a21 are held at their prior with FilterConfig.pin_std (their own units)."""
+    from pipeline.config import FilterConfig
+    from pipeline.identify import initial_state
+
+    y0 = np.array([np.nan, 0.1, 0.0])
+    for pin in (1e-9, 1e-6):
+        _, P0 = initial_state(y0, np.array([1, 2]), FilterConfig(pin_std=pin))
+        std = np.sqrt(np.diag(P0))
+        assert std[3 + 4] == pytest.approx(pin) and std[3 + 2] == pytest.approx(pin)
+        assert std[3] == FilterConfig().theta0_std[0]
+
+
+def test_process_noise_search_stops_at_the_configured_bisections():
+    """A zigzag simulated with process noise on v and r (0.02 m/s, 0.05 deg/s a step), so that the
+    least Q of the bracket leaves the filter over-confident: the mean-NIS match of Q evaluates the two
+    bracket ends and at most FilterConfig.process_max_bisections midpoints, and says it did not match
+    when they run out short of the tolerance."""
+    from pipeline.config import FilterConfig
+    from pipeline.identify import initial_state, synthetic
+    from pipeline.identify.core import estimate_process_noise
+
+    t, d, _, y = synthetic.zigzag(n=300, seed=5, process_noise=(0.02, 0.05, 0.0))
+    idx = np.array([0, 1, 2])
+    for most, matched in ((1, False), (3, False), (30, True)):
+        cfg = FilterConfig(process_max_bisections=most)
+        x0, P0 = initial_state(y[0], idx, cfg)
+        got = estimate_process_noise(x0, P0, y[1:], d[:-1], h=t[1] - t[0], cfg=cfg, meas_idx=idx)
+        assert got["matched"] is matched, (most, got)
+        assert got["evaluations"] == 2 + most if not matched else got["evaluations"] <= 2 + most
+        assert (abs(got["mean_nis"] / 3 - 1) <= cfg.process_nis_tolerance) is matched

@@ -19,6 +19,7 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
+from pipeline.config import ControlConfig
 from pipeline.errors import ModelError
 from pipeline.units import deg2rad
 
@@ -54,7 +55,8 @@ def wave_filter(num, den, dt: float) -> ct.StateSpace:
     return ct.c2d(ct.ss(ct.tf(num, den)), dt, method="zoh")
 
 
-def wave_sequence(n: int, dt: float, seed: int, num=(0.2386, 0.0), den=(1.0, 0.3593, 0.8067)) -> np.ndarray:
+def wave_sequence(n: int, dt: float, seed: int, num=ControlConfig.wave_num,
+                  den=ControlConfig.wave_den) -> np.ndarray:
     """Wave disturbance, deg of equivalent rudder, ``n`` samples at step ``dt`` s.
 
     Unit continuous white noise (N(0, 1/dt) samples from ``numpy.random.default_rng(seed)``, held
@@ -74,7 +76,7 @@ def wave_sequence(n: int, dt: float, seed: int, num=(0.2386, 0.0), den=(1.0, 0.3
     return out
 
 
-def wave_variance_theory(num=(0.2386, 0.0), den=(1.0, 0.3593, 0.8067)) -> float:
+def wave_variance_theory(num=ControlConfig.wave_num, den=ControlConfig.wave_den) -> float:
     """Continuous-time output variance for unit white noise, int |G(jw)|^2 dw/(2 pi), via Lyapunov."""
     sys = ct.ss(ct.tf(np.asarray(num, float), np.asarray(den, float)))
     if np.any(np.abs(np.asarray(sys.D)) > 0):
@@ -83,7 +85,7 @@ def wave_variance_theory(num=(0.2386, 0.0), den=(1.0, 0.3593, 0.8067)) -> float:
     return float((np.asarray(sys.C) @ p @ np.asarray(sys.C).T)[0, 0])
 
 
-def wave_variance_discrete(dt: float, num=(0.2386, 0.0), den=(1.0, 0.3593, 0.8067)) -> float:
+def wave_variance_discrete(dt: float, num=ControlConfig.wave_num, den=ControlConfig.wave_den) -> float:
     """Exact stationary variance of :func:`wave_sequence` output (discrete Lyapunov, input var 1/dt)."""
     sysd = wave_filter(num, den, dt)
     a, b, c, d = (np.asarray(m, dtype=float) for m in (sysd.A, sysd.B, sysd.C, sysd.D))

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.config import ControlConfig
 from pipeline.errors import InputError
 
 #: How "worse" reads for each metric over seeds: 'max' (larger is worse), 'min', or 'absmax'.
@@ -64,7 +65,7 @@ def first_time_fraction(t, psi, start: float, target: float, fraction: float) ->
     return float(t[idx[0]]) if idx.size else float("nan")
 
 
-def rudder_reversals(delta, threshold: float = 0.1) -> int:
+def rudder_reversals(delta, threshold: float = ControlConfig.reversal_threshold) -> int:
     """Number of reversals of the direction of rudder motion, each swing at least ``threshold`` deg.
 
     Hysteresis count: a direction is established once the rudder has moved ``threshold`` from its
@@ -95,8 +96,9 @@ def rudder_reversals(delta, threshold: float = 0.1) -> int:
     return int(count)
 
 
-def course_metrics(t, psi, delta, setpoint: float, *, band: float = 0.05, steady_start: float = 100.0,
-                   reversal_threshold: float = 0.1) -> dict:
+def course_metrics(t, psi, delta, setpoint: float, *, band: float = ControlConfig.settle_band,
+                   steady_start: float = ControlConfig.steady_start,
+                   reversal_threshold: float = ControlConfig.reversal_threshold) -> dict:
     """All course and rudder metrics of one run (definitions in the module docstring).
 
     ``t`` s, ``psi`` deg, ``delta`` deg (actual rudder), ``setpoint`` deg.  The steady window is

@@ -39,7 +39,6 @@ from pipeline.model import PARAM_NAMES, STATE_NAMES, nomoto_indices
 from pipeline.results import Result, optional, spread
 
 ALGORITHMS = ("srukf-ffm", "ffm-ukf")
-PIN_STD = 1e-9          # one-sigma of a parameter held fixed (hidden-v case)
 STATE9 = STATE_NAMES + PARAM_NAMES
 
 _FAIL_WHAT = {1: "time update (point 0 downdate)", 2: "innovation factor (point 0 downdate)",
@@ -97,11 +96,11 @@ def initial_state(y0: np.ndarray, meas_idx, cfg: FilterConfig) -> tuple[np.ndarr
     if 0 not in list(meas_idx):
         # v hidden: (v, r) -> (c v + d r, r) leaves r and psi unchanged, so two parameters are
         # unobservable and a free filter drifts along them until its covariance breaks down.  Pin
-        # them: b11 = 0 and a21 = theta0's a21 (one-sigma PIN_STD, no process noise).  Every
+        # them: b11 = 0 and a21 = theta0's a21 (one-sigma cfg.pin_std, no process noise).  Every
         # rudder-to-yaw transfer function K (1 + T3 s) / ((1 + T1 s)(1 + T2 s)) stays reachable.
         x0[3 + 4] = 0.0
-        std[3 + 4] = PIN_STD
-        std[3 + 2] = PIN_STD
+        std[3 + 4] = cfg.pin_std
+        std[3 + 2] = cfg.pin_std
     return x0, np.diag(std ** 2)
 
 
@@ -362,8 +361,9 @@ def estimate_process_noise(x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, *, h:
     right on average when the mean NIS equals m, the number of measured channels (Bar-Shalom, Li &
     Kirubarajan 2001, sec. 5.4); the mean NIS falls as c grows (more process noise, wider predicted
     innovations), so c is found by bisection on log c within ``cfg.process_scale_bracket`` until the
-    mean NIS is within ``cfg.process_nis_tolerance`` of m (at most 30 halvings).  When the bracket does
-    not hold the crossing, the end nearer to it is taken and ``matched`` is False.
+    mean NIS is within ``cfg.process_nis_tolerance`` of m (at most ``cfg.process_max_bisections``
+    halvings).  When the bracket does not hold the crossing, the end nearer to it is taken and
+    ``matched`` is False.
 
     Parameters
     ----------
@@ -398,13 +398,15 @@ def estimate_process_noise(x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, *, h:
         c, nis, matched = hi, n_hi, abs(n_hi / m - 1) <= cfg.process_nis_tolerance
     else:
         c, nis = hi, n_hi
-        for _ in range(30):
+        for _ in range(cfg.process_max_bisections):
             c = float(np.sqrt(lo * hi))
             nis = nis_of(c)
             evals += 1
             if abs(nis / m - 1) <= cfg.process_nis_tolerance:
                 break
             lo, hi = (c, hi) if nis > m else (lo, c)
+        # the bisections ran out before the mean NIS came within the tolerance: not matched
+        matched = abs(nis / m - 1) <= cfg.process_nis_tolerance
     q = q_of(c)
     return {"method": ("covariance matching of the mean NIS: q of each measured state = c x its "
                        "measurement noise, c by bisection so that the mean NIS of the identification "

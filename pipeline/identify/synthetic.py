@@ -12,16 +12,18 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from pipeline.config import TankConfig
+from pipeline.config import FilterConfig, TankConfig
 from pipeline.io import Run
 from pipeline.model import PAPER_TABLE4, as_theta
 
 
-def zigzag(theta=None, *, rudder: float = 20.0, heading: float = 20.0, n: int = 1200, h: float = 0.08,
-           rate: float = TankConfig.rudder_rate, noise=(0.02, 0.02, 0.01), seed: int = 0, first: int = 1,
-           process_noise=None):
+def zigzag(theta=None, *, rudder: float = 20.0, heading: float = 20.0, n: int = 1200,
+           h: float = FilterConfig.dt, rate: float = TankConfig.rudder_rate, noise=FilterConfig.r_std,
+           seed: int = 0, first: int = 1, process_noise=None):
     """Simulate a zigzag.  Returns (time s, delta deg, clean (n, 3), noisy (n, 3)) of v m/s, r deg/s,
-    psi deg.  ``first`` = +1 starts with positive rudder (positive delta makes r positive)."""
+    psi deg.  ``first`` = +1 starts with positive rudder (positive delta makes r positive).  The
+    step ``h`` (s) and the logger noise (one-sigma of v m/s, r deg/s, psi deg) default to the filter's
+    step and measurement noise (:class:`pipeline.config.FilterConfig`), the paper's setting."""
     th = as_theta(PAPER_TABLE4 if theta is None else theta)
     a11, a12, a21, a22, b11, b21 = th
     rng = np.random.default_rng(seed)
@@ -50,7 +52,7 @@ def zigzag(theta=None, *, rudder: float = 20.0, heading: float = 20.0, n: int = 
 
 
 def zigzag_run(run_id: str, theta=None, *, rudder: float = 20.0, heading: float = 20.0, n: int = 1200,
-               h: float = 0.08, seed: int = 0, noise=(0.02, 0.02, 0.01), with_v: bool = True,
+               h: float = FilterConfig.dt, seed: int = 0, noise=FilterConfig.r_std, with_v: bool = True,
                process_noise=None) -> Run:
     """A processed :class:`~pipeline.io.Run` of a simulated zigzag (provenance 'virtual')."""
     t, d, _, y = zigzag(theta, rudder=rudder, heading=heading, n=n, h=h, seed=seed, noise=noise,

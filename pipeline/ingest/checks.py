@@ -117,7 +117,8 @@ def rudder_phases(t: np.ndarray, delta: np.ndarray, level: float = 0.5) -> list[
     return merged
 
 
-def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray) -> dict[str, Any]:
+def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray, *,
+                           checks: IngestChecks = DEFAULT_CHECKS) -> dict[str, Any]:
     """What the rudder signal says the test is, when the title does not.
 
     Zigzag: at least two held phases of alternating side; rudder = median of their largest angles;
@@ -144,12 +145,12 @@ def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray) ->
         execs = []
         for a, b, _ in ph[:-1]:
             held = float(np.median(delta[a:b + 1]))
-            at = np.flatnonzero(np.abs(delta[a:b + 1] - held) <= 0.05 * peak)
+            at = np.flatnonzero(np.abs(delta[a:b + 1] - held) <= checks.held_rudder_share * peak)
             execs.append(a + int(at[-1]) if at.size else b)
         psi0 = psi[ph[0][0]]
         trig = [abs(psi[k] - psi0) for k in execs]
         out["heading_deg"] = float(np.round(np.median(trig))) if trig else None
-    elif len(set(signs)) == 1 and np.ptp(psi[ph[0][0]:ph[-1][1] + 1]) >= 90.0:
+    elif len(set(signs)) == 1 and np.ptp(psi[ph[0][0]:ph[-1][1] + 1]) >= checks.turning_min_heading_deg:
         out["kind"] = "turning"         # one side held while the ship turns through 90 deg or more
     return out
 
@@ -250,15 +251,15 @@ def check_units(frame: pd.DataFrame, lines: np.ndarray, meta: dict, name: str, c
         if s is not None and abs(s - 1.0) > checks.r_tolerance:
             deg = 180.0 / np.pi
             hint = " (declare the unit in the header, e.g. 'psi [rad]', or convert)"
-            if abs(s * deg - 1.0) <= 0.15:
+            if abs(s * deg - 1.0) <= checks.unit_factor_tolerance:
                 raise InputError(f"heading looks like radians while r is in deg/s (the heading changes "
                                  f"{s:.3g} times the integral of r, 1/57.3 expected for radians){hint}",
                                  file=name, column="psi")
-            if abs(s / deg - 1.0) <= 0.15:
+            if abs(s / deg - 1.0) <= checks.unit_factor_tolerance:
                 hint_r = " (declare the unit in the header, e.g. 'r [rad/s]', or convert)"
                 raise InputError(f"yaw rate looks like rad/s while psi is in deg (the heading changes "
                                  f"{s:.3g} times the integral of r){hint_r}", file=name, column="r")
-            if abs(s + 1.0) <= 0.15:
+            if abs(s + 1.0) <= checks.unit_factor_tolerance:
                 raise InputError("yaw rate has the opposite sign of d(psi)/dt (r must be d(psi)/dt, "
                                  "positive to starboard)", file=name, column="r")
             raise InputError(f"yaw rate is not d(psi)/dt: the heading changes {s:.3g} times the integral "
@@ -270,7 +271,8 @@ def check_units(frame: pd.DataFrame, lines: np.ndarray, meta: dict, name: str, c
     rud = meta.get("rudder_deg")
     amax = float(np.max(np.abs(delta))) if delta.size else 0.0
     if "delta" not in declared:
-        if rud and rud >= 5 and amax < 0.2 * rud and amax <= checks.rad_rudder_max:
+        if (rud and rud >= checks.min_test_rudder_deg and amax < checks.rad_rudder_share * rud
+                and amax <= checks.rad_rudder_max):
             raise InputError(f"rudder looks like radians (largest {amax:.3g} for a {rud:g} deg test): "
                              "declare 'delta [rad]' in the header or convert", file=name, column="delta")
         if (0 < amax <= checks.rad_rudder_max and change >= checks.min_zigzag_heading_deg
@@ -289,7 +291,8 @@ def check_units(frame: pd.DataFrame, lines: np.ndarray, meta: dict, name: str, c
             raise InputError(f"heading changes by only {change:.3g} during a zigzag that needs {need:g} deg "
                              "to trigger its rudder: heading (and yaw rate) probably in radians; declare "
                              "'psi [rad]' in the header or convert", file=name, column="psi")
-    elif kind == "turning" and amax >= 5 and change < checks.min_turn_heading_deg and t[-1] - t[0] > 20:
+    elif (kind == "turning" and amax >= checks.min_test_rudder_deg and change < checks.min_turn_heading_deg
+          and t[-1] - t[0] > checks.min_turn_check_s):
         raise InputError(f"heading changes by only {change:.3g} during a turning circle (at least "
                          f"{checks.min_turn_heading_deg:g} deg expected): heading probably in radians",
                          file=name, column="psi")

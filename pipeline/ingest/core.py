@@ -303,7 +303,7 @@ def _validate(table: RawTable, name: str, scale: float, config: IngestConfig) ->
         raise InputError(f"time goes backwards ({t[k - 1]:g} s then {t[k]:g} s)", file=name,
                          row=int(lines[k]), column="time")
     if table.time_quantised:
-        t = _rebuild_step(t, lines, name)
+        t = _rebuild_step(t, lines, name, limits=config.checks)
     else:
         rep = np.flatnonzero(dtt == 0)
         if rep.size:
@@ -328,7 +328,7 @@ def _validate(table: RawTable, name: str, scale: float, config: IngestConfig) ->
     return frame
 
 
-def _rebuild_step(t: np.ndarray, lines: np.ndarray, name: str) -> np.ndarray:
+def _rebuild_step(t: np.ndarray, lines: np.ndarray, name: str, *, limits: IngestChecks) -> np.ndarray:
     """Rebuild a uniform time base t_k = a + h k from a time column rounded to 3 significant digits.
 
     Each logged value pins t_k to within half a unit of its third digit.  The step h is the
@@ -345,7 +345,7 @@ def _rebuild_step(t: np.ndarray, lines: np.ndarray, name: str) -> np.ndarray:
     q = np.where(mag > 0, 0.5 * 10.0 ** (np.floor(np.log10(np.where(mag > 0, mag, 1.0))) - 2), 0.0)
     q = q * (1 + 1e-9) + 1e-12
     res = t - (a + h * k)
-    if np.any(np.abs(res) > q + 0.25 * h):
+    if np.any(np.abs(res) > q + limits.time_jitter_share * h):
         j = int(np.argmax(np.abs(np.diff(res)))) + 1      # a gap or jump is a step in the residual
         raise InputError("time column is not a uniform step even allowing for its rounding "
                          f"(jump from {t[j - 1]:g} s to {t[j]:g} s)", file=name, row=int(lines[j]),
@@ -396,14 +396,14 @@ def gap_note(t: np.ndarray, *, limits: IngestChecks = DEFAULT_CONFIG.checks) -> 
         return None
     w = limits.gap_window
     holes, longest = [], -1
-    for k in np.flatnonzero(steps > 1.5 * np.median(steps)):
+    for k in np.flatnonzero(steps > limits.gap_step_factor * np.median(steps)):
         prev, nxt = steps[max(0, k - w):k], steps[k + 1:k + 1 + w]
         h = max(float(np.median(prev)) if prev.size else 0.0, float(np.median(nxt)) if nxt.size else 0.0)
-        if h <= 0 or steps[k] <= 1.5 * h:
+        if h <= 0 or steps[k] <= limits.gap_step_factor * h:
             continue
         j0, j1 = np.arange(max(0, k - w + 1), k + 1), np.arange(k + 1, min(len(t), k + 1 + w))
         if min(j0.size, j1.size) < limits.gap_edge:
-            if steps[k] <= 1.9 * h:
+            if steps[k] <= limits.gap_unmeasured_factor * h:
                 continue
         else:
             j = np.concatenate([j0, j1]).astype(float)
@@ -446,13 +446,13 @@ def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.D
     t, psi, delta = (frame[c].to_numpy(dtype=float) for c in ("time", "psi", "delta"))
     if kind is not None and test["kind"] == "other":
         # the description says what the test is; its angles and side come from the rudder signal
-        guess = checks.infer_test_from_rudder(t, delta, psi)
+        guess = checks.infer_test_from_rudder(t, delta, psi, checks=limits)
         meta.update(kind=kind, rudder_deg=guess["rudder_deg"] if kind != "other" else None,
                     heading_deg=guess["heading_deg"] if kind == "zigzag" else None,
                     first_side=guess["first_side"] if kind != "other" else None,
                     test_from="dataset.toml [runs] kind", first_side_from="rudder")
     elif test["kind"] == "other":
-        guess = checks.infer_test_from_rudder(t, delta, psi)
+        guess = checks.infer_test_from_rudder(t, delta, psi, checks=limits)
         if guess["kind"] != "other":
             meta.update(guess)
             meta["test_from"] = "rudder signal"
@@ -461,7 +461,7 @@ def _base_meta(table: RawTable, name: str, raw: bytes, scale: float, frame: pd.D
             note = f"test read from the rudder signal: {guess['kind']} {guess['rudder_deg']:g} deg{why}"
             meta.setdefault("ingest_notes", []).append(note)
     elif test["kind"] == "turning" and test["rudder_deg"] is None:
-        guess = checks.infer_test_from_rudder(t, delta, psi)
+        guess = checks.infer_test_from_rudder(t, delta, psi, checks=limits)
         meta["rudder_deg"] = guess["rudder_deg"]
         meta["rudder_from"] = "rudder signal"
     if meta.get("first_side") is None and meta["kind"] in ("zigzag", "turning"):
