@@ -327,7 +327,7 @@ def run_stage(stage: str, dataset: str | None, options: Options) -> int:
     return 0
 
 
-def build_dataset(ds: Dataset, root: Path = Path("data/processed"), until: str | None = None,
+def build_dataset(ds: Dataset, root: Path = Path("data/processed"), *, until: str | None = None,
                   run: Runner = run_stage,
                   say: Callable[[str], None] = print,
                   on_stage: Callable[[str, str, str, float], None] | None = None) -> list[str]:

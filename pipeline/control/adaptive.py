@@ -151,13 +151,14 @@ def run_once(start: AdaptiveStart, seed: int, cfg: ControlConfig, *, adapt: bool
     dt, n = cfg.dt, int(round(cfg.adaptive_duration / cfg.dt)) + 1
     t = np.arange(n) * dt
     ref = course_schedule(t, cfg)
-    wave = wave_sequence(n, dt, seed, cfg.wave_num, cfg.wave_den) if cfg.wave else np.zeros(n)
+    wave = wave_sequence(n, dt, seed, num=cfg.wave_num, den=cfg.wave_den) if cfg.wave else np.zeros(n)
     wind = wind_from_config(cfg)
     tank = TankConfig()
     noise_sd = np.array([tank.noise_v, tank.noise_r, tank.noise_psi])
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, seed, 5]))
     if ship is None:
-        ship = make_kcs_ship(cfg.rudder_max, cfg.rudder_rate, cfg.dead_time, cfg.servo_time_constant)
+        ship = make_kcs_ship(cfg.rudder_max, cfg.rudder_rate, dead_time=cfg.dead_time,
+                                 servo_time_constant=cfg.servo_time_constant)
         slow = _slow_down
     else:
         def slow(s, share):

@@ -55,7 +55,7 @@ def wave_filter(num, den, dt: float) -> ct.StateSpace:
     return ct.c2d(ct.ss(ct.tf(num, den)), dt, method="zoh")
 
 
-def wave_sequence(n: int, dt: float, seed: int, num=ControlConfig.wave_num,
+def wave_sequence(n: int, dt: float, seed: int, *, num=ControlConfig.wave_num,
                   den=ControlConfig.wave_den) -> np.ndarray:
     """Wave disturbance, deg of equivalent rudder, ``n`` samples at step ``dt`` s.
 
@@ -76,7 +76,7 @@ def wave_sequence(n: int, dt: float, seed: int, num=ControlConfig.wave_num,
     return out
 
 
-def wave_variance_theory(num=ControlConfig.wave_num, den=ControlConfig.wave_den) -> float:
+def wave_variance_theory(*, num=ControlConfig.wave_num, den=ControlConfig.wave_den) -> float:
     """Continuous-time output variance for unit white noise, int |G(jw)|^2 dw/(2 pi), via Lyapunov."""
     sys = ct.ss(ct.tf(np.asarray(num, float), np.asarray(den, float)))
     if np.any(np.abs(np.asarray(sys.D)) > 0):
@@ -85,7 +85,7 @@ def wave_variance_theory(num=ControlConfig.wave_num, den=ControlConfig.wave_den)
     return float((np.asarray(sys.C) @ p @ np.asarray(sys.C).T)[0, 0])
 
 
-def wave_variance_discrete(dt: float, num=ControlConfig.wave_num, den=ControlConfig.wave_den) -> float:
+def wave_variance_discrete(dt: float, *, num=ControlConfig.wave_num, den=ControlConfig.wave_den) -> float:
     """Exact stationary variance of :func:`wave_sequence` output (discrete Lyapunov, input var 1/dt)."""
     sysd = wave_filter(num, den, dt)
     a, b, c, d = (np.asarray(m, dtype=float) for m in (sysd.A, sysd.B, sysd.C, sysd.D))

@@ -107,7 +107,8 @@ def robustness(designs: dict, control_model: dict, cfg: ControlConfig, extra: di
             row[key]["plant"] = {k: m[k] for k in ("K", "T1", "T2", "T3")}
         if extra.get("kcs"):
             for share in (1.0, *cfg.reduced_speeds):
-                ship = make_kcs_ship(cfg.rudder_max, cfg.rudder_rate, cfg.dead_time, cfg.servo_time_constant,
+                ship = make_kcs_ship(cfg.rudder_max, cfg.rudder_rate, dead_time=cfg.dead_time,
+                                     servo_time_constant=cfg.servo_time_constant,
                                      speed_share=share)
                 row[f"step_kcs_{share:.2f}"] = _step(d, ship, cfg)
         out["designs"][name] = row

@@ -146,7 +146,7 @@ def kcs_available() -> bool:
     return True
 
 
-def make_kcs_ship(rudder_max: float, rudder_rate: float, dead_time: float = 0.0,
+def make_kcs_ship(rudder_max: float, rudder_rate: float, *, dead_time: float = 0.0,
                   servo_time_constant: float = 0.0, speed_share: float = 1.0):
     """The virtual-tank KCS, noise-free, with the autopilot's steering gear (deg, deg/s, s, s) and its
     approach speed scaled by ``speed_share`` (propeller trimmed for it)."""

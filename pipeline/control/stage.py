@@ -359,7 +359,7 @@ def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plant
     seeds = wave_seeds(cfg)
     wind = wind_from_config(cfg)
     n = int(round(cfg.duration / cfg.dt)) + 1
-    waves = {s: (wave_sequence(n, cfg.dt, s, cfg.wave_num, cfg.wave_den) if cfg.wave else np.zeros(n))
+    waves = {s: (wave_sequence(n, cfg.dt, s, num=cfg.wave_num, den=cfg.wave_den) if cfg.wave else np.zeros(n))
              for s in seeds}
 
     # the paper's case: a CGSA from the identified K, T run on the identified (second-order) model
@@ -377,7 +377,8 @@ def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plant
 
     def make_ship(plant):
         if plant == "kcs":
-            return make_kcs_ship(cfg.rudder_max, cfg.rudder_rate, cfg.dead_time, cfg.servo_time_constant)
+            return make_kcs_ship(cfg.rudder_max, cfg.rudder_rate, dead_time=cfg.dead_time,
+                                 servo_time_constant=cfg.servo_time_constant)
         m = control_model if plant == "nomoto" else ident_vals
         return NomotoShip(m["K"], m["T1"], m["T2"], m["T3"], rudder_max=cfg.rudder_max,
                           rudder_rate=cfg.rudder_rate, servo_time_constant=cfg.servo_time_constant,
@@ -435,7 +436,7 @@ def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plant
         design_basis=basis,
         config=asdict(cfg),
         wind_rudder_deg=wind,
-        wave_variance_theory_deg2=wave_variance_theory(cfg.wave_num, cfg.wave_den),
+        wave_variance_theory_deg2=wave_variance_theory(num=cfg.wave_num, den=cfg.wave_den),
         seeds=seeds,
         models={"control_model": control_model, "graphical_model": graphical_model},
         definitions={

@@ -84,7 +84,7 @@ def make_filter(x0, P0, *, h: float, q_std, r_std, meas_idx, alpha: float, beta:
     return ukf, chol
 
 
-def run_ffm_ukf(ukf, chol, Y, delta_prev, fuzzy_cfg=None, chan: int = -1):
+def run_ffm_ukf(ukf, chol, Y, delta_prev, *, fuzzy_cfg=None, chan: int = -1):
     """Run the baseline over Y (N, m) with rudder delta_prev (N,).  Returns a dict of arrays
     (x_prior, x, std, innov, nis, f, chol_failures cumulative) and the final x, P."""
     n, m = Y.shape

@@ -166,7 +166,7 @@ def run_filter(algorithm: str, x0, P0, Y3: np.ndarray, delta_prev: np.ndarray, *
         ukf, chol = make_filter(x0, P0, h=h, q_std=cfg.q_std, r_std=np.asarray(cfg.r_std, float)[meas_idx],
                                 meas_idx=meas_idx, alpha=cfg.alpha, beta=cfg.beta, kappa=cfg.kappa)
         t0 = _time.perf_counter()
-        out, xf, Pf = run_ffm_ukf(ukf, chol, Y, dp, cfg.fuzzy if chan >= 0 else None, chan)
+        out, xf, Pf = run_ffm_ukf(ukf, chol, Y, dp, fuzzy_cfg=cfg.fuzzy if chan >= 0 else None, chan=chan)
         secs = _time.perf_counter() - t0
         innov3[:, meas_idx] = out["innov"]
         return FilterOutput(out["x_prior"], out["x"], out["std"], innov3, out["nis"], out["f"], xf, Pf,

@@ -47,8 +47,8 @@ def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def read_raw(path: str | Path, fmt: str | None = None, scale: float | None = None,
-             config: IngestConfig = DEFAULT_CONFIG, *, rudder_sign: int = 1, ship: str | None = None,
+def read_raw(path: str | Path, *, fmt: str | None = None, scale: float | None = None,
+             config: IngestConfig = DEFAULT_CONFIG, rudder_sign: int = 1, ship: str | None = None,
              lpp_full: float | None = None, model_scale: float | None = None,
              test_name: str | None = None, kind: str | None = None, columns=None) -> Run:
     """Read one raw tank file into a :class:`Run` at its original sampling.

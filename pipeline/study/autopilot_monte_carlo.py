@@ -77,7 +77,8 @@ def run_case(params: dict, seed: int, cfg: AutopilotStudyConfig) -> dict[str, An
     design = _design(cfg, float(params["tw"]), ctl)
     n = int(round(ctl.duration / ctl.dt)) + 1
     wave_seed = int(seed % (2**32))
-    wave = wave_sequence(n, ctl.dt, wave_seed, ctl.wave_num, ctl.wave_den) if ctl.wave else np.zeros(n)
+    wave = (wave_sequence(n, ctl.dt, wave_seed, num=ctl.wave_num, den=ctl.wave_den) if ctl.wave
+            else np.zeros(n))
     if params["plant"] == "nomoto":
         ship = NomotoShip(cfg.K, cfg.T1, cfg.T2, cfg.T3, rudder_max=ctl.rudder_max,
                           rudder_rate=ctl.rudder_rate)
