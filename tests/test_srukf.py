@@ -150,8 +150,9 @@ def _both_kernels(y, d, cfg, idx):
         x, S = np.array(x0, float), np.linalg.cholesky(P0)
         outs = (np.empty((n, 9)), np.empty((n, 9)), np.empty((n, 9)), np.empty((n, m)), np.empty(n),
                 np.empty(n))
-        st, k = kernel(x, S, Y, dp, H, sq_q, fast.nonzero_columns(sq_q), sq_r, fast.nonzero_columns(sq_r),
-                       idx, w.wm, w.wc, w.gamma, chan >= 0, chan, fz, RULES, fast.workspace(m), *outs)
+        p = (H, sq_q, fast.nonzero_columns(sq_q), sq_r, fast.nonzero_columns(sq_r), idx, w.wm, w.wc, w.gamma,
+             chan >= 0, chan, fz, RULES)
+        st, k = kernel(x, S, (Y, dp), p, fast.workspace(m), outs)
         assert st == 0 and k == n
         res.append((outs, x, S))
     return res
@@ -260,9 +261,9 @@ def test_written_out_step_block_equals_the_loop_blocks_bit_for_bit():
         x, S = np.array(x0, float), np.linalg.cholesky(P0)
         outs = (np.empty((n, 9)), np.empty((n, 9)), np.empty((n, 9)), np.empty((n, 3)), np.empty(n),
                 np.empty(n))
-        st, k = fast._steps_rw(x, S, Y, dp, H, sq_q, fast.nonzero_columns(sq_q), sq_r,
-                               fast.nonzero_columns(sq_r), IDX, w.wm, w.wc, w.gamma, True, chan, fz, RULES,
-                               fast.workspace(3), *outs, written_out)
+        p = (H, sq_q, fast.nonzero_columns(sq_q), sq_r, fast.nonzero_columns(sq_r), IDX, w.wm, w.wc, w.gamma,
+             True, chan, fz, RULES)
+        st, k = fast._steps_rw(x, S, (Y, dp), p, fast.workspace(3), outs, written_out)
         assert st == 0 and k == n
         res.append((x, S, outs))
     (xa, Sa, a), (xb, Sb, b) = res

@@ -43,8 +43,8 @@ def test_filter_step_makes_no_heap_allocation(nrt_stats):
                 np.empty(n))
         Y, dp = np.ascontiguousarray(y[1:n + 1]), np.ascontiguousarray(d[:n])
         before = nrt_stats()
-        st, k = fast.srukf_steps(x, S, Y, dp, H, sq_q, q_cols, sq_r, r_cols, idx, w.wm, w.wc, w.gamma,
-                                 True, 1, fz, RULES, ws, *outs)
+        p = (H, sq_q, q_cols, sq_r, r_cols, idx, w.wm, w.wc, w.gamma, True, 1, fz, RULES)
+        st, k = fast.srukf_steps(x, S, (Y, dp), p, ws, outs)
         used = nrt_stats() - before
         assert st == 0 and k == n and np.all(np.isfinite(outs[1]))
         assert np.any(outs[5] < 1.0)                 # the fuzzy factor path did run

@@ -62,9 +62,10 @@ SQRT_EPS = math.sqrt(np.finfo(np.float64).eps)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _f3(v, r, psi, a11, a12, a21, a22, b11, b21, delta, h):
+def _f3(v, r, psi, th, delta, h):
     """The model's step (docs/contract.md#the-identification-model) for one point: (v, r, psi) after
-    h s with rudder delta."""
+    h s with rudder delta, parameters ``th`` = (a11, a12, a21, a22, b11, b21)."""
+    a11, a12, a21, a22, b11, b21 = th
     return (v + h * (a11 * v + a12 * r + b11 * delta),
             r + h * (a21 * v + a22 * r + b21 * delta),
             psi + h * r)
@@ -73,8 +74,9 @@ def _f3(v, r, psi, a11, a12, a21, a22, b11, b21, delta, h):
 @njit(cache=True, error_model="numpy")
 def _fx(X, npts, delta, h, out):
     for i in range(npts):
-        out[0, i], out[1, i], out[2, i] = _f3(X[0, i], X[1, i], X[2, i], X[3, i], X[4, i], X[5, i],
-                                              X[6, i], X[7, i], X[8, i], delta, h)
+        out[0, i], out[1, i], out[2, i] = _f3(X[0, i], X[1, i], X[2, i],
+                                              (X[3, i], X[4, i], X[5, i], X[6, i], X[7, i], X[8, i]),
+                                              delta, h)
         for j in range(3, NX):
             out[j, i] = X[j, i]
 
@@ -161,14 +163,16 @@ def _tria(M, n, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _factor(D, npts, sq_noise, noise_cols, wc, A, x, out):
+def _factor(D, npts, noise, wc, work, out):
     """Lower factor of sum_{i>=1} wc_i D_i D_i^T + N N^T + wc_0 D_0 D_0^T.
 
     ``noise_cols`` lists the non-zero columns of N (the others add nothing).  Point 0 joins the QR as
     one more column when wc_0 > 0 (the same factor as the reference path's rank-one update, without
     its n square roots and divisions in a chain); a negative wc_0 is a downdate, done by cholupdate
-    after the QR as in the reference path.  A (n, >= npts + len(noise_cols)) and x (n,) are work
-    arrays."""
+    after the QR as in the reference path.  ``noise`` = (sq_noise, noise_cols); ``work`` = (A (n, >=
+    npts + len(noise_cols)), x (n,)), the work arrays."""
+    sq_noise, noise_cols = noise
+    A, x = work
     n = D.shape[0]
     s1 = math.sqrt(wc[1])
     nc = noise_cols.shape[0]
@@ -211,10 +215,12 @@ def workspace(m):
 
 
 @njit(cache=True, error_model="numpy")
-def _steps_plain(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
-                 use_fuzzy, chan, fz, rules, ws,
-                 x_prior_out, x_out, std_out, innov_out, nis_out, f_out):
-    """The SR-UKF-FFM step by step as written in :mod:`.srukf` (any Q, any measured states)."""
+def _steps_plain(x, S, data, p, ws, outs):
+    """The SR-UKF-FFM step by step as written in :mod:`.srukf` (any Q, any measured states); ``p``,
+    ``ws`` and ``outs`` as :func:`srukf_steps`."""
+    Y, delta_prev = data
+    h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma, use_fuzzy, chan, fz, rules = p
+    x_prior_out, x_out, std_out, innov_out, nis_out, f_out = outs
     X, Xp, xm, Sm, Ax, Ay, DY, ym, Sy, Pxy, Z, K, innov, u, zt, xw, yw, me, md, _, _, _, _, _, _, _, pe = ws
     n = Y.shape[0]
     m = Y.shape[1]
@@ -238,7 +244,7 @@ def _steps_plain(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, w
         for i in range(NX):
             for p in range(npts):
                 Xp[i, p] -= xm[i]
-        if not _factor(Xp, npts, sq_q, q_cols, wc, Ax, xw, Sm):
+        if not _factor(Xp, npts, (sq_q, q_cols), wc, (Ax, xw), Sm):
             return 1, k
         # ---- measurement update: redraw sigma points from (xm, Sm); DX = X - xm = +-gamma Sm
         for i in range(NX):
@@ -254,7 +260,7 @@ def _steps_plain(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, w
             ym[a] = acc
             for p in range(npts):
                 DY[a, p] = xm[idx] + X[idx, p] - acc
-        if not _factor(DY, npts, sq_r, r_cols, wc, Ay, yw, Sy):
+        if not _factor(DY, npts, (sq_r, r_cols), wc, (Ay, yw), Sy):
             return 2, k
         # Pxy = sum_p wc_p DX_p DY_p^T with DX_0 = 0, DX_{1+c} = -DX_{1+NX+c} = gamma Sm[:, c] (Sm lower
         # triangular: c <= i) and equal weights wc_1 = ... = wc_2L
@@ -311,7 +317,7 @@ def _steps_plain(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, w
         f = 1.0
         if use_fuzzy and chan >= 0:
             e = innov[chan]
-            f = fuzzy_factor_ws(e, e - prev_e, fz[0], fz[1], fz[2], fz[3], fz[4], fz[5], rules, me, md)
+            f = fuzzy_factor_ws(e, e - prev_e, fz, rules, me, md)
             prev_e = e
             sc = 1.0 / math.sqrt(f)
             for i in range(NX):
@@ -332,9 +338,7 @@ def _steps_plain(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, w
 
 
 @njit(cache=True, error_model="numpy")
-def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
-              use_fuzzy, chan, fz, rules, ws,
-              x_prior_out, x_out, std_out, innov_out, nis_out, f_out, written_out=True):
+def _steps_rw(x, S, data, p, ws, outs, written_out=True):
     """:func:`_steps_plain` when the parameters are a random walk without process noise and only v,
     r, psi are measured (the paper's filter): the same sigma points (from the same lower factor S,
     states in the same order), equal in exact arithmetic, with the work the structure makes known in
@@ -360,6 +364,9 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
     column down keeps S+ lower triangular with a positive diagonal (the unique factor).  No downdate,
     so nothing fails by cancellation; the reference path's downdate fails when r_a / s_a is below
     round-off, and the step reports that case as the same failure (status 3): r_a < eps s_a."""
+    Y, delta_prev = data
+    h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma, use_fuzzy, chan, fz, rules = p
+    x_prior_out, x_out, std_out, innov_out, nis_out, f_out = outs
     (X, Xp, xm, Sm, Ax, Ay, DY, ym, Sy, Pxy, Z, K, innov, u, zt, xw, yw, me, md,
      xq, Sq, Xd, Ad, Ld, dw, Ayq, pe) = ws
     n = Y.shape[0]
@@ -376,7 +383,7 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
     for k in range(n):
         dl = delta_prev[k]
         # ---- time update: sigma points through the model, dynamic rows only (Xd[:, p], p as in X)
-        Xd[0, 0], Xd[1, 0], Xd[2, 0] = _f3(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], dl, h)
+        Xd[0, 0], Xd[1, 0], Xd[2, 0] = _f3(x[0], x[1], x[2], (x[3], x[4], x[5], x[6], x[7], x[8]), dl, h)
         for j in range(NX):
             g0 = gamma * S[0, j]
             g1 = gamma * S[1, j]
@@ -388,11 +395,11 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
             g7 = gamma * S[7, j]
             g8 = gamma * S[8, j]
             Xd[0, 1 + j], Xd[1, 1 + j], Xd[2, 1 + j] = _f3(
-                x[0] + g0, x[1] + g1, x[2] + g2, x[3] + g3, x[4] + g4, x[5] + g5, x[6] + g6, x[7] + g7,
-                x[8] + g8, dl, h)
+                x[0] + g0, x[1] + g1, x[2] + g2,
+                (x[3] + g3, x[4] + g4, x[5] + g5, x[6] + g6, x[7] + g7, x[8] + g8), dl, h)
             Xd[0, 1 + NX + j], Xd[1, 1 + NX + j], Xd[2, 1 + NX + j] = _f3(
-                x[0] - g0, x[1] - g1, x[2] - g2, x[3] - g3, x[4] - g4, x[5] - g5, x[6] - g6, x[7] - g7,
-                x[8] - g8, dl, h)
+                x[0] - g0, x[1] - g1, x[2] - g2,
+                (x[3] - g3, x[4] - g4, x[5] - g5, x[6] - g6, x[7] - g7, x[8] - g8), dl, h)
         for i in range(ND, NX):
             xm[i] = x[i]
         # the rotated compound: Ax (9 x 12) = [[M_d, L_N], [S_p, 0]]; Ad (3 x ncol) the columns with
@@ -427,7 +434,7 @@ def _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, 
         sc = 1.0
         if use_fuzzy and chan >= 0:
             e = innov[chan]
-            f = fuzzy_factor_ws(e, e - prev_e, fz[0], fz[1], fz[2], fz[3], fz[4], fz[5], rules, me, md)
+            f = fuzzy_factor_ws(e, e - prev_e, fz, rules, me, md)
             prev_e = e
             sc = 1.0 / math.sqrt(f)
         for i in range(NX):
@@ -527,47 +534,48 @@ def _diagonal(sq_r):
 
 
 @njit(cache=True, error_model="numpy")
-def srukf_steps(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
-                use_fuzzy, chan, fz, rules, ws,
-                x_prior_out, x_out, std_out, innov_out, nis_out, f_out):
-    """Run the SR-UKF-FFM over the N samples of Y, updating the posterior (x, S) in place.
+def srukf_steps(x, S, data, p, ws, outs):
+    """Run the SR-UKF-FFM over the N samples of ``data`` = (Y (N, m) measurements, delta_prev (N,)
+    rudder over the step into each sample, deg), updating the posterior (x, S) in place.
 
-    ``ws`` is :func:`workspace` (m); q_cols / r_cols the non-zero columns of sq_q / sq_r
-    (:func:`nonzero_columns`).  No allocation happens here.  Returns (status, step).
+    ``p`` = (h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma, use_fuzzy, chan, fz, rules)
+    (:meth:`KernelSettings.steps_tuple`; q_cols / r_cols the non-zero columns of sq_q / sq_r,
+    :func:`nonzero_columns`); ``ws`` is :func:`workspace` (m); ``outs`` = (x_prior, x, std, innov,
+    nis, f), N rows each, filled in place.  No allocation happens here.  Returns (status, step).
     The paper's filter (parameters without process noise, v r psi measured, R diagonal) runs
     :func:`_steps_rw`; any other Q or R runs :func:`_steps_plain`.
     """
+    sq_q, sq_r, meas_idx = p[1], p[3], p[5]
     if not _structured(sq_q, meas_idx) or not _diagonal(sq_r):
-        return _steps_plain(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
-                            use_fuzzy, chan, fz, rules, ws,
-                            x_prior_out, x_out, std_out, innov_out, nis_out, f_out)
-    return _steps_rw(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
-                     use_fuzzy, chan, fz, rules, ws,
-                     x_prior_out, x_out, std_out, innov_out, nis_out, f_out)
+        return _steps_plain(x, S, data, p, ws, outs)
+    return _steps_rw(x, S, data, p, ws, outs)
 
 
 @njit(cache=True, error_model="numpy")
-def srukf_kernel(x0, S0, Y, delta_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
-                 use_fuzzy, chan, fz, rules,
-                 x_prior_out, x_out, std_out, innov_out, nis_out, f_out):
+def _with_columns(k):
+    """:meth:`KernelSettings.kernel_tuple` ``k`` with the non-zero columns of sq_q and sq_r added: the
+    ``p`` of :func:`srukf_steps`."""
+    h, sq_q, sq_r, meas_idx, wm, wc, gamma, use_fuzzy, chan, fz, rules = k
+    return (h, sq_q, _nonzero_cols(sq_q), sq_r, _nonzero_cols(sq_r), meas_idx, wm, wc, gamma, use_fuzzy,
+            chan, fz, rules)
+
+
+@njit(cache=True, error_model="numpy")
+def srukf_kernel(x0, S0, data, k, outs):
     """Run the SR-UKF-FFM over N samples from posterior (x0, S0).
 
-    Y (N, m) measurements; delta_prev (N,) rudder over the step into each sample, deg; h s;
-    sq_q (9, 9), sq_r (m, m) square roots of Q and R; meas_idx (m,) measured state indices;
-    wm, wc, gamma weights; use_fuzzy; chan = position in meas_idx of the fuzzy channel (-1: none);
-    fz = (e_lo, e_hi, de_lo, de_hi, f_lo, f_hi); rules (5, 5).
-    Outputs (filled in place, N rows): x_prior, x, std (one-sigma of x), innov, nis, f.
+    ``data`` = (Y (N, m) measurements, delta_prev (N,) rudder over the step into each sample, deg);
+    ``k`` = (h s, sq_q (9, 9), sq_r (m, m) square roots of Q and R, meas_idx (m,) measured state
+    indices, wm, wc, gamma weights, use_fuzzy, chan = position in meas_idx of the fuzzy channel (-1:
+    none), fz = (e_lo, e_hi, de_lo, de_hi, f_lo, f_hi), rules (5, 5)): :meth:`KernelSettings.kernel_tuple`.
+    ``outs`` (filled in place, N rows): x_prior, x, std (one-sigma of x), innov, nis, f.
     Returns (status, step, x, S).  Work arrays are allocated once here, none per step.
     """
     x = x0.copy()
     S = S0.copy()
-    ws = workspace(Y.shape[1])
-    q_cols = _nonzero_cols(sq_q)
-    r_cols = _nonzero_cols(sq_r)
-    st, k = srukf_steps(x, S, Y, delta_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
-                        use_fuzzy, chan, fz, rules, ws,
-                        x_prior_out, x_out, std_out, innov_out, nis_out, f_out)
-    return st, k, x, S
+    ws = workspace(data[0].shape[1])
+    st, step = srukf_steps(x, S, data, _with_columns(k), ws, outs)
+    return st, step, x, S
 
 
 @njit(cache=True, error_model="numpy")
@@ -590,57 +598,49 @@ def _nonzero_cols(M):
 
 
 @njit(cache=True, error_model="numpy")
-def _batch_range(lo, hi, x0s, S0, Ys, deltas_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc, gamma,
-                 use_fuzzy, chan, fz, rules, x_final, S_final, status):
+def _batch_range(lo, hi, starts, runs, p, finals):
+    x0s, S0 = starts
+    Ys, deltas_prev = runs
+    x_final, S_final, status = finals
     n = Ys.shape[1]
     m = Ys.shape[2]
     ws = workspace(m)
-    xp = np.empty((n, NX))
-    xo = np.empty((n, NX))
-    so = np.empty((n, NX))
-    io = np.empty((n, m))
-    ni = np.empty(n)
-    fo = np.empty(n)
+    outs = (np.empty((n, NX)), np.empty((n, NX)), np.empty((n, NX)), np.empty((n, m)), np.empty(n),
+            np.empty(n))
     x = np.empty(NX)
     S = np.empty((NX, NX))
     for r in range(lo, hi):
         x[:] = x0s[r]
         S[:, :] = S0
         ws[-1][0] = 0.0                  # each run starts its fuzzy memory afresh
-        st, _ = srukf_steps(x, S, Ys[r], deltas_prev[r], h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc,
-                            gamma, use_fuzzy, chan, fz, rules, ws, xp, xo, so, io, ni, fo)
+        st, _ = srukf_steps(x, S, (Ys[r], deltas_prev[r]), p, ws, outs)
         status[r] = st
         x_final[r] = x
         S_final[r] = S
 
 
 @njit(cache=True, error_model="numpy")
-def srukf_batch_kernel(x0s, S0, Ys, deltas_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
-                       use_fuzzy, chan, fz, rules, x_final, S_final, status):
-    """Run the kernel over R runs of equal length: Ys (R, N, m), deltas_prev (R, N), x0s (R, 9).
+def srukf_batch_kernel(x0s, S0, runs, k, finals):
+    """Run the kernel over R runs of equal length from x0s (R, 9) and one S0: ``runs`` = (Ys (R, N,
+    m), deltas_prev (R, N) deg); ``k`` as :func:`srukf_kernel`.
 
-    Writes the final posterior of each run into x_final (R, 9), S_final (R, 9, 9), and its status.
-    Serial; one workspace for all runs.
+    Writes the final posterior of each run into ``finals`` = (x_final (R, 9), S_final (R, 9, 9),
+    status (R,)).  Serial; one workspace for all runs.
     """
-    _batch_range(0, Ys.shape[0], x0s, S0, Ys, deltas_prev, h, sq_q, _nonzero_cols(sq_q), sq_r,
-                 _nonzero_cols(sq_r), meas_idx, wm, wc, gamma, use_fuzzy, chan, fz, rules,
-                 x_final, S_final, status)
+    _batch_range(0, runs[0].shape[0], (x0s, S0), runs, _with_columns(k), finals)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def srukf_batch_kernel_parallel(x0s, S0, Ys, deltas_prev, h, sq_q, sq_r, meas_idx, wm, wc, gamma,
-                                use_fuzzy, chan, fz, rules, x_final, S_final, status, chunks):
+def srukf_batch_kernel_parallel(x0s, S0, runs, k, finals, chunks):
     """:func:`srukf_batch_kernel` with the runs split into ``chunks`` contiguous blocks run on numba's
     threads (one workspace per block).  Each run's numbers are those of the serial kernel: runs are
     independent and each is computed by the same serial code."""
-    nr = Ys.shape[0]
-    q_cols = _nonzero_cols(sq_q)
-    r_cols = _nonzero_cols(sq_r)
+    nr = runs[0].shape[0]
+    p = _with_columns(k)
     for c in prange(chunks):
         lo = (nr * c) // chunks
         hi = (nr * (c + 1)) // chunks
-        _batch_range(lo, hi, x0s, S0, Ys, deltas_prev, h, sq_q, q_cols, sq_r, r_cols, meas_idx, wm, wc,
-                     gamma, use_fuzzy, chan, fz, rules, x_final, S_final, status)
+        _batch_range(lo, hi, (x0s, S0), runs, p, finals)
 
 
 # ------------------------------------------------------------------------------ Python wrappers
@@ -670,19 +670,17 @@ class KernelSettings:
     fz: np.ndarray
     rules: np.ndarray = dataclasses.field(default_factory=lambda: RULES)
 
-    def _tail(self) -> tuple:
-        w = self.model.weights
-        return (self.model.meas_idx, w.wm, w.wc, w.gamma, self.chan >= 0, self.chan, self.fz, self.rules)
+    def kernel_tuple(self) -> tuple:
+        """The settings as :func:`srukf_kernel` and the batch kernels read them (``k``)."""
+        m, w = self.model, self.model.weights
+        return (float(m.h), m.sq_q, m.sq_r, m.meas_idx, w.wm, w.wc, float(w.gamma), self.chan >= 0,
+                int(self.chan), self.fz, self.rules)
 
-    def kernel_args(self) -> tuple:
-        """The settings in the positional order of :func:`srukf_kernel` and the batch kernels."""
-        return (self.model.sq_q, self.model.sq_r, *self._tail())
-
-    def steps_args(self) -> tuple:
-        """The settings in the positional order of :func:`srukf_steps` (after Y and delta_prev): h,
-        the noise factors with their non-zero columns, then as :meth:`kernel_args`."""
-        m = self.model
-        return (m.h, m.sq_q, nonzero_columns(m.sq_q), m.sq_r, nonzero_columns(m.sq_r), *self._tail())
+    def steps_tuple(self) -> tuple:
+        """The settings as :func:`srukf_steps` reads them (``p``): :meth:`kernel_tuple` with the
+        non-zero columns of the noise factors."""
+        h, sq_q, sq_r, *rest = self.kernel_tuple()
+        return (h, sq_q, nonzero_columns(sq_q), sq_r, nonzero_columns(sq_r), *rest)
 
 
 @dataclass(frozen=True)
@@ -711,8 +709,7 @@ def run(x0: np.ndarray, S0: np.ndarray, Y: np.ndarray, delta_prev: np.ndarray,
     n, m = Y.shape
     outs = (np.empty((n, NX)), np.empty((n, NX)), np.empty((n, NX)), np.empty((n, m)), np.empty(n),
             np.empty(n))
-    status, k, x, S = srukf_kernel(np.asarray(x0, float), S0, Y, delta_prev, settings.model.h,
-                                   *settings.kernel_args(), *outs)
+    status, k, x, S = srukf_kernel(np.asarray(x0, float), S0, (Y, delta_prev), settings.kernel_tuple(), outs)
     return KernelRun(int(status), int(k), x, S, *outs)
 
 
@@ -727,10 +724,9 @@ def run_batch(x0s: np.ndarray, S0: np.ndarray, Ys: np.ndarray, deltas_prev: np.n
     xf = np.empty((nr, NX))
     Sf = np.empty((nr, NX, NX))
     st = np.zeros(nr, dtype=np.int64)
-    h = settings.model.h
     if chunks is None:
-        srukf_batch_kernel(x0s, S0, Ys, deltas_prev, h, *settings.kernel_args(), xf, Sf, st)
+        srukf_batch_kernel(x0s, S0, (Ys, deltas_prev), settings.kernel_tuple(), (xf, Sf, st))
     else:
-        srukf_batch_kernel_parallel(x0s, S0, Ys, deltas_prev, h, *settings.kernel_args(), xf, Sf, st,
+        srukf_batch_kernel_parallel(x0s, S0, (Ys, deltas_prev), settings.kernel_tuple(), (xf, Sf, st),
                                     chunks)
     return xf, Sf, st

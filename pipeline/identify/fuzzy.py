@@ -60,15 +60,19 @@ def _memberships(x, lo, hi, out):
 
 
 @njit(cache=True)
-def fuzzy_factor_nb(e, de, e_lo, e_hi, de_lo, de_hi, f_lo, f_hi, rules):
-    """Forgetting factor f in [f_lo, f_hi] from e and de (see module docstring).  Numba-compiled."""
-    return fuzzy_factor_ws(e, de, e_lo, e_hi, de_lo, de_hi, f_lo, f_hi, rules, np.empty(5), np.empty(5))
+def fuzzy_factor_nb(e, de, fz, rules):
+    """Forgetting factor f in [f_lo, f_hi] from e and de (see module docstring).  Numba-compiled.
+
+    ``fz`` = (e_lo, e_hi, de_lo, de_hi, f_lo, f_hi): the domains of e and de (the channel's unit,
+    deg/s for the yaw rate) and the range of f; ``rules`` the (5, 5) table :data:`RULES`."""
+    return fuzzy_factor_ws(e, de, fz, rules, np.empty(5), np.empty(5))
 
 
 @njit(cache=True)
-def fuzzy_factor_ws(e, de, e_lo, e_hi, de_lo, de_hi, f_lo, f_hi, rules, me, md):
+def fuzzy_factor_ws(e, de, fz, rules, me, md):
     """:func:`fuzzy_factor_nb` with caller-owned work arrays ``me``, ``md`` (5,): no allocation, for
     the filter kernel's inner loop (pipeline.identify.fast)."""
+    e_lo, e_hi, de_lo, de_hi, f_lo, f_hi = fz[0], fz[1], fz[2], fz[3], fz[4], fz[5]
     _memberships(e, e_lo, e_hi, me)
     _memberships(de, de_lo, de_hi, md)
     step = (f_hi - f_lo) / 4.0
@@ -109,6 +113,5 @@ def forgetting_factor(e: float, de: float, cfg: FuzzyConfig | None = None) -> fl
     cfg = cfg or FuzzyConfig()
     if not (np.isfinite(e) and np.isfinite(de)):
         return float(cfg.f_range[1])
-    return float(fuzzy_factor_nb(float(e), float(de), float(cfg.e_domain[0]), float(cfg.e_domain[1]),
-                                 float(cfg.de_domain[0]), float(cfg.de_domain[1]),
-                                 float(cfg.f_range[0]), float(cfg.f_range[1]), RULES))
+    fz = np.array([*cfg.e_domain, *cfg.de_domain, *cfg.f_range], dtype=float)
+    return float(fuzzy_factor_nb(float(e), float(de), fz, RULES))

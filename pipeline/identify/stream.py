@@ -51,7 +51,7 @@ class StreamingIdentifier:
             raise FilterError("initial covariance is not positive definite") from None
         settings = kernel_settings(cfg, self.meas_idx, self.h)
         self.sq_q, self.sq_r = settings.model.sq_q, settings.model.sq_r
-        self._args = settings.steps_args()
+        self._p = settings.steps_tuple()
         self._ws = fast.workspace(m)
         self._out = (np.empty((1, 9)), np.empty((1, 9)), np.empty((1, 9)), np.empty((1, m)), np.empty(1),
                      np.empty(1))
@@ -69,7 +69,7 @@ class StreamingIdentifier:
                              f"{', '.join(('v', 'r', 'psi')[i] for i in self.meas_idx)}") from None
         if not np.all(np.isfinite(y)) or not np.isfinite(dp[0]):
             raise InputError(f"sample {self.steps}: NaN or infinite measurement or rudder")
-        st, _ = fast.srukf_steps(self.x, self.S, y, dp, *self._args, self._ws, *self._out)
+        st, _ = fast.srukf_steps(self.x, self.S, (y, dp), self._p, self._ws, self._out)
         if st != 0:
             raise FilterError(f"SR-UKF {_FAIL_WHAT[st]} failed at streamed sample {self.steps}: covariance "
                               "lost positive definiteness")
