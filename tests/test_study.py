@@ -83,11 +83,11 @@ def test_case_seed_depends_on_study_seed_and_params_only():
 
 
 def test_clopper_pearson_known_values():
-    lo, hi = clopper_pearson(0, 10, 0.95)
+    lo, hi = clopper_pearson(0, 10, confidence=0.95)
     assert lo == 0.0 and hi == pytest.approx(1 - 0.025 ** (1 / 10), rel=1e-9)
-    lo, hi = clopper_pearson(10, 10, 0.95)
+    lo, hi = clopper_pearson(10, 10, confidence=0.95)
     assert hi == 1.0 and lo == pytest.approx(0.025 ** (1 / 10), rel=1e-9)
-    lo, hi = clopper_pearson(5, 10, 0.95)                 # tabulated: 0.1871, 0.8129
+    lo, hi = clopper_pearson(5, 10, confidence=0.95)                 # tabulated: 0.1871, 0.8129
     assert lo == pytest.approx(0.18709, abs=1e-4) and hi == pytest.approx(0.81291, abs=1e-4)
 
 

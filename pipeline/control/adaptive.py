@@ -301,7 +301,7 @@ def _paired(start: AdaptiveStart, seeds: list[int], cfg: ControlConfig, *, q_std
             "K_tracking": tracking}, id_secs
 
 
-def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int], cfg: ControlConfig, q_std=None,
+def adaptive_block(theta0, cov0, K0: float, T0: float, seeds: list[int], cfg: ControlConfig, *, q_std=None,
                    pid_start: tuple[float, float] | None = None) -> tuple[dict[str, Any], float]:
     """The ``adaptive`` block of control/metrics.json (adaptive against fixed gains on the same seeds)
     and the seconds spent in the streaming identifier's updates of the adaptive CGSA runs (for the

@@ -103,7 +103,7 @@ class CGSADesign:
         return out
 
 
-def design_first_order(K: float, T: float, Tw: float, name: str = "cgsa1") -> CGSADesign:
+def design_first_order(K: float, T: float, Tw: float, *, name: str = "cgsa1") -> CGSADesign:
     """First-order CGSA: Kp = 1/(K Tw), Kd = T/(K Tw).  K 1/s, T s, Tw s (all > 0, else ModelError)."""
     K = _positive("K", K)
     T = _positive("T", T)
@@ -115,7 +115,7 @@ def design_first_order(K: float, T: float, Tw: float, name: str = "cgsa1") -> CG
                       model=nomoto_tf(K, T))
 
 
-def design_second_order(K: float, T1: float, T2: float, T3: float, Tw: float, filter_tau: float,
+def design_second_order(K: float, T1: float, T2: float, T3: float, Tw: float, filter_tau: float, *,
                         name: str = "cgsa2") -> CGSADesign:
     """Second-order CGSA made proper by a filter pole.
 
@@ -150,7 +150,7 @@ def is_proper(sys: ct.TransferFunction) -> bool:
     return len(num) <= len(den)
 
 
-def loop_analysis(loop: ct.TransferFunction, omega: np.ndarray | None = None) -> dict:
+def loop_analysis(loop: ct.TransferFunction, *, omega: np.ndarray | None = None) -> dict:
     """Margins and closed-loop figures of an open loop L(s) (unity feedback).
 
     Returns gain_margin (absolute, inf when the phase never crosses -180 deg) and gain_margin_db,
@@ -190,7 +190,7 @@ def open_loop(design: CGSADesign, plant: ct.TransferFunction | None = None) -> c
     return ct.minreal(design.controller * (design.model if plant is None else plant), verbose=False)
 
 
-def setpoint_response_tf(design: CGSADesign, plant: ct.TransferFunction | None = None,
+def setpoint_response_tf(design: CGSADesign, plant: ct.TransferFunction | None = None, *,
                          derivative_on: str = "measurement") -> ct.TransferFunction:
     """Course set-point -> heading transfer function.
 
@@ -206,7 +206,7 @@ def setpoint_response_tf(design: CGSADesign, plant: ct.TransferFunction | None =
     raise ValueError(f"derivative_on must be 'error' or 'measurement', not {derivative_on!r}")
 
 
-def bode_data(loop: ct.TransferFunction, n: int = 200, wmin: float = 1e-3, wmax: float = 1e2) -> dict:
+def bode_data(loop: ct.TransferFunction, *, n: int = 200, wmin: float = 1e-3, wmax: float = 1e2) -> dict:
     """Bode data of L: omega rad/s, magnitude dB, phase deg (unwrapped)."""
     omega = np.logspace(np.log10(wmin), np.log10(wmax), int(n))
     h = np.asarray(ct.frequency_response(loop, omega).complex).reshape(-1)

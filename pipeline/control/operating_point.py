@@ -81,7 +81,7 @@ def _margins(design, m: dict, cfg: ControlConfig) -> dict:
                                 "stable")}
 
 
-def operating_point(design_model: dict, indices: dict, cfg: ControlConfig,
+def operating_point(design_model: dict, indices: dict, cfg: ControlConfig, *,
                     straight_ahead: dict | None = None) -> dict[str, Any]:
     """The ``operating_point`` block of control/metrics.json (module docstring).
 

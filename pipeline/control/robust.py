@@ -148,7 +148,7 @@ def _crossings(x: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.signbit(x[:-1]) != np.signbit(x[1:]))
 
 
-def discrete_margins(loop: ct.StateSpace | ct.TransferFunction, n_grid: int = 1500) -> dict:
+def discrete_margins(loop: ct.StateSpace | ct.TransferFunction, *, n_grid: int = 1500) -> dict:
     """Margins of a sampled open loop L(z) under unity negative feedback (module docstring).
 
     ``loop`` is SISO and discrete (its ``dt`` the sample time, s).  On a log grid of ``n_grid``

@@ -115,7 +115,7 @@ def robustness(designs: dict, control_model: dict, cfg: ControlConfig, extra: di
     return out
 
 
-def nyquist_for(designs: dict, control_model: dict, cfg: ControlConfig, n: int = 300) -> dict[str, dict]:
+def nyquist_for(designs: dict, control_model: dict, cfg: ControlConfig, *, n: int = 300) -> dict[str, dict]:
     """Nyquist and sensitivity data of every design's sampled loop on the design model."""
     cm = control_model
     return {name: nyquist_data(d, cm["K"], cm["T1"], cm["T2"], cm["T3"], cfg.dt,

@@ -181,7 +181,7 @@ def design_table(designs: dict[str, CGSADesign | PIDDesign], control_model: dict
             out[name] = {**d.summary(), "flags": []}
             continue
         loop_plant = open_loop(d, plant)
-        step_tf = setpoint_response_tf(d, plant, "measurement")
+        step_tf = setpoint_response_tf(d, plant, derivative_on="measurement")
         out[name] = {
             **d.summary(),
             "loop_design_model": loop_analysis(open_loop(d)),
@@ -312,7 +312,7 @@ def _run_control(indices: dict, cfg: ControlConfig | None, *, source: str, plant
     base = designs["graphical" if primary_name(control_model) == "graphical" else "identified"]
     lin = (robustness or {}).get("linearised") or {}
     straight = next((m for share, m in lin.items() if float(share) == 1.0), None)
-    op = operating_point(control_model, indices, cfg, straight)
+    op = operating_point(control_model, indices, cfg, straight_ahead=straight)
     op_model = op["models"][op["used"]]
     designs["autopilot"] = design_pid(op_model["K"], op_model["T"], cfg.tw, rudder_max=cfg.rudder_max,
                                       zeta=cfg.pid_zeta, ki_ratio=cfg.pid_ki_ratio,

@@ -84,14 +84,14 @@ def _chi2_ppf(q: float, dof: float) -> float:
     return 2.0 * float(gammaincinv(dof / 2.0, q))
 
 
-def nis_band(m: int, n_eff: float, level: float = 0.95) -> list[float]:
+def nis_band(m: int, n_eff: float, *, level: float = 0.95) -> list[float]:
     """Two-sided ``level`` band of the mean NIS of m channels over n_eff independent steps."""
     a = 1.0 - level
     dof = m * n_eff
     return [_chi2_ppf(a / 2, dof) / n_eff, _chi2_ppf(1 - a / 2, dof) / n_eff]
 
 
-def whiteness(innov: np.ndarray, names: list[str], level: float = 0.95) -> dict[str, Any]:
+def whiteness(innov: np.ndarray, names: list[str], *, level: float = 0.95) -> dict[str, Any]:
     """Lag-1 autocorrelation of each channel's innovations against +- z(1 - a/(2m))/sqrt(N)."""
     from scipy.special import ndtri
 
@@ -111,7 +111,8 @@ def whiteness(innov: np.ndarray, names: list[str], level: float = 0.95) -> dict[
     return out
 
 
-def consistency(nis: np.ndarray, innov: np.ndarray, names: list[str], level: float = 0.95) -> dict[str, Any]:
+def consistency(nis: np.ndarray, innov: np.ndarray, names: list[str], *,
+                level: float = 0.95) -> dict[str, Any]:
     """The numbers the identify stage records about the filter's consistency (module docstring).
 
     nis (N,) normalised innovation squared per step; innov (N, m) innovations of the m measured
@@ -125,10 +126,10 @@ def consistency(nis: np.ndarray, innov: np.ndarray, names: list[str], level: flo
     return {
         "nis_mean": float(np.mean(nis)), "nis_expected": float(m), "nis_steps": n,
         "nis_autocorrelation_sum": rho_sum, "nis_n_eff": n_eff,
-        "nis_95_band": nis_band(m, n_eff, level),
-        "nis_95_band_white": nis_band(m, n, level),
+        "nis_95_band": nis_band(m, n_eff, level=level),
+        "nis_95_band_white": nis_band(m, n, level=level),
         "nis_fraction_above_chi2_95": float(np.mean(nis > _chi2_ppf(0.95, m))) if n else None,
-        "whiteness": whiteness(innov, names, level),
+        "whiteness": whiteness(innov, names, level=level),
         "level": level,
     }
 

@@ -289,7 +289,7 @@ def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: Fi
     steps = n - 1
     trace = make_trace(time, delta, Y3, x0, np.sqrt(np.diag(P0)), out)
     names = [STATE_NAMES[i] for i in meas_idx]
-    consistency = filter_consistency(out.nis, out.innov[:, meas_idx], names, cfg.consistency_level)
+    consistency = filter_consistency(out.nis, out.innov[:, meas_idx], names, level=cfg.consistency_level)
     consistency["innovation_rms"] = {STATE_NAMES[i]: float(np.sqrt(np.mean(out.innov[:, i] ** 2)))
                                      for i in meas_idx}
     consistency["f_mean"], consistency["f_min"] = float(np.mean(out.f)), float(np.min(out.f))

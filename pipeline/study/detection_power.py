@@ -274,7 +274,7 @@ def summarise(frame: pd.DataFrame, cfg: DetectionPowerConfig, study_seed: int) -
             for m in mags:
                 g = sub[sub["magnitude"] == m]
                 k, n = int(g["detected"].astype(bool).sum()), len(g)
-                lo, hi = clopper_pearson(k, n, conf)
+                lo, hi = clopper_pearson(k, n, confidence=conf)
                 named = int(g["named"].astype(bool).sum())
                 # what the diagnosis named instead, when not this effect: in a zigzag the drift follows
                 # the turn, so a hull effect may be carried by another (the rates stay strict)
@@ -305,7 +305,7 @@ def summarise(frame: pd.DataFrame, cfg: DetectionPowerConfig, study_seed: int) -
         if g.empty:
             continue
         k, n = int(g["false_positive"].astype(bool).sum()), len(g)
-        lo, hi = clopper_pearson(k, n, conf)
+        lo, hi = clopper_pearson(k, n, confidence=conf)
         causes = g["cause"].value_counts().sort_index()
         clean["false_positive_rate"][plant] = {
             "value": k / n, "interval": [lo, hi], "false_positives": k, "n": n,

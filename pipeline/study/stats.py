@@ -11,7 +11,7 @@ from scipy.optimize import minimize
 from scipy.stats import beta
 
 
-def clopper_pearson(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+def clopper_pearson(k: int, n: int, *, confidence: float = 0.95) -> tuple[float, float]:
     """Exact (Clopper-Pearson) two-sided interval of a binomial proportion k / n."""
     if n <= 0:
         return (0.0, 1.0)
