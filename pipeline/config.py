@@ -153,6 +153,12 @@ class IngestChecks:
     # deg: one rudder side held while the heading turns through at least this much is a turning
     # circle (a zigzag's heading reverses within its trigger, 5-20 deg; a quarter turn is no zigzag)
     turning_min_heading_deg: float = 90.0
+    # deg: a rudder that never reaches this angle tells no test from the signal (a course-keeping trim
+    # moves by a degree or less; every manoeuvring test uses 5 deg or more)
+    min_infer_rudder_deg: float = 1.0
+    # s: a rudder phase shorter than this is the servo passing through, not a held rudder (a test
+    # holds its rudder for seconds; the servo crosses a half-angle level in a fraction of one)
+    min_held_phase_s: float = 0.5
 
 
 @dataclass(frozen=True)

@@ -128,9 +128,9 @@ def infer_test_from_rudder(t: np.ndarray, delta: np.ndarray, psi: np.ndarray, *,
     Returns ``{"kind", "rudder_deg", "heading_deg", "first_side"}`` (kind 'other' when neither).
     """
     out: dict[str, Any] = {"kind": "other", "rudder_deg": None, "heading_deg": None, "first_side": None}
-    if delta.size < 5 or np.max(np.abs(delta)) < 1.0:
+    if delta.size < 5 or np.max(np.abs(delta)) < checks.min_infer_rudder_deg:
         return out
-    ph = [p for p in rudder_phases(t, delta) if t[p[1]] - t[p[0]] >= 0.5]
+    ph = [p for p in rudder_phases(t, delta) if t[p[1]] - t[p[0]] >= checks.min_held_phase_s]
     if not ph:
         return out
     out["first_side"] = "starboard" if ph[0][2] > 0 else "port"
