@@ -26,10 +26,12 @@ Time scale T_ship (:func:`ship_time_scale`): |T| of a first-order Nomoto model r
 fitted by equation error on the training runs; for a course-unstable ship it is the time scale of
 the divergence.  Dimensionless under Froude scaling, so a run at full scale gives the same T/duration.
 
-Speed, the same numbers bit for bit (tests/test_diagnose_speed.py, tests/test_model_definition.py):
-the forward-difference Jacobian's columns are evaluated in one numba call (:func:`oe_batch` handed to
-least_squares as its ``workers`` map; SciPy still forms steps and differences), and within one
+Speed (docs/performance.md): the output-error residuals of a parameter vector are one numba call
+(:func:`oe_batch`, the bits of :func:`_oe_residuals`: tests/test_model_definition.py), and their
+Jacobian is exact, the sensitivities of the discrete RK4 solution computed in the same kernel
+(:func:`jacobian`; held to finite differences by tests/test_diagnose_jacobian.py); within one
 diagnosis a fit of the same runs (by content), structure and start is made once (:func:`memoised`).
+:func:`plain_fits` is the same-run baseline: residuals from Python, SciPy's forward differences.
 """
 
 from __future__ import annotations
@@ -37,7 +39,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
-import inspect
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
@@ -47,7 +48,7 @@ from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
 from pipeline.diagnose.effects import BY_NAME, NAMES, Context, Terms
-from pipeline.diagnose.extended import OEBatch, predict_segments, simulate_terms
+from pipeline.diagnose.extended import OEBatch, kernel_vector, predict_segments, simulate_terms
 from pipeline.errors import InputError, ModelError
 from pipeline.io import Run
 from pipeline.model import PARAM_NAMES
@@ -802,30 +803,81 @@ def oe_batch(series: list[Series], sc: dict, layout: Layout, u_ref) -> OEBatch:
     return OEBatch(runs, (sc["psi"], sc["r"], sc["v"]), layout.unpack)
 
 
-#: least_squares takes a map-like ``workers`` for its finite-difference columns from SciPy 1.16 on
-_HAS_WORKERS = "workers" in inspect.signature(least_squares).parameters
+#: SciPy's forward-difference step: sqrt of the machine epsilon, relative (scipy.optimize._numdiff)
+_FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
 
 
-def _batched(batch: OEBatch, q: np.ndarray | None = None, free=None) -> dict:
-    """``workers`` for least_squares: its forward-difference Jacobian hands every perturbed parameter
-    vector to this map, which evaluates them all in one :class:`OEBatch` call.  SciPy still forms the
-    steps and the differences itself, so the Jacobian is the one it would compute column by column
-    (same residuals, same bits).  ``q``/``free``: the full vector when only ``free`` entries are fitted.
-    Empty (SciPy < 1.16): column by column, the same numbers, slower."""
-    if not _HAS_WORKERS or _PLAIN.get():
-        return {}
+def _fd_step(x: float, lo: float, hi: float) -> float:
+    """The forward-difference step SciPy's "2-point" scheme takes at ``x`` within [lo, hi]: relative
+    :data:`_FD_REL_STEP` of max(1, |x|), signed as x, reversed where it would leave the bounds; the
+    step as represented (x + h - x)."""
+    h = _FD_REL_STEP * (1.0 if x >= 0 else -1.0) * max(1.0, abs(x))
+    if not (lo <= x + h <= hi) and lo <= x - h <= hi:
+        h = -h
+    return (x + h) - x
 
-    def expand(x):
-        if q is None:
-            return x
-        z = q.copy()
-        z[free] = x
-        return z
 
-    def workers(_fun, xs):
-        return list(batch(np.array([expand(x) for x in xs])))
+def _kernel_map(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray):
+    """How the parameter vector ``p`` moves the kernel's parameters: (kernel columns touched, their
+    derivatives d(kernel vector)/dp (columns, len(p)), indices of the parameters that move a time
+    input instead), by a forward step of each parameter through ``batch.unpack``."""
+    th, tm, _ = batch.unpack(p)
+    k0, other0 = kernel_vector(th, tm)
+    dk = np.zeros((k0.size, p.size))
+    fd = []
+    for i in range(p.size):
+        q = p.copy()
+        q[i] = p[i] + _fd_step(float(p[i]), float(lo[i]), float(hi[i]))
+        th1, tm1, _ = batch.unpack(q)
+        k1, other1 = kernel_vector(th1, tm1)
+        if other1 != other0:
+            fd.append(i)
+        else:
+            dk[:, i] = (k1 - k0) / (q[i] - p[i])
+    ids = np.flatnonzero(np.any(dk != 0.0, axis=1))
+    return ids, dk[ids], fd
 
-    return {"workers": workers}
+
+def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=None, xs=()):
+    """(residuals, d residuals / d p, d residuals / d each run's start states ``xs``) of
+    :class:`OEBatch` ``batch`` at the parameter vector ``p`` (bounds ``lo``, ``hi``), from the runs'
+    starts ``x0`` (runs, 3; default their own); the last (residuals, len(xs) runs), run k's columns
+    after run k - 1's.
+
+    A parameter that moves only kernel parameters with sensitivities (theta, feature coefficients,
+    rudder offset, asymmetry, cubic, sway bias: :func:`~pipeline.diagnose.extended.kernel_vector`) has
+    its column exactly, the sensitivities of the discrete RK4 solution (:meth:`OEBatch.jacobian`)
+    along d(kernel vector)/dp (:func:`_kernel_map`; kept for the batch where it is the same at two
+    points, i.e. the unpacking is affine, as for every parameter of the catalogue, which enter as
+    themselves).  A time input (dead time, servo lag, speed exponent: the rudder's time shift, the
+    sub-steps and the speed factor's power have no sensitivity in the kernel) gets SciPy's forward
+    difference through the batch.  docs/performance.md, "Analytic Jacobian"."""
+    p = np.asarray(p, dtype=float)
+    cached = batch.__dict__.get("_kernel_map")
+    if cached is not None and cached[0] == (p.size, lo.tobytes(), hi.tobytes()):
+        kmap = cached[1]
+    else:
+        kmap = _kernel_map(batch, p, lo, hi)
+        box = np.isfinite(lo) & np.isfinite(hi)
+        mid = np.clip(p, lo, hi)
+        mid[box] = 0.5 * (lo[box] + hi[box])
+        other = _kernel_map(batch, np.clip(0.5 * (p + mid), lo, hi), lo, hi)
+        affine = (np.array_equal(kmap[0], other[0]) and np.array_equal(kmap[1], other[1])
+                  and kmap[2] == other[2])
+        batch.__dict__["_kernel_map"] = ((p.size, lo.tobytes(), hi.tobytes()), kmap) if affine else None
+    ids, dk, fd = kmap
+    res, jk = batch.jacobian(p, ids, xs, x0)
+    jp = jk[:, : ids.size] @ dk
+    if fd:
+        xx = None if x0 is None else np.broadcast_to(np.asarray(x0, dtype=float), (len(fd), *np.shape(x0)))
+        qs = []
+        for i in fd:
+            q = p.copy()
+            q[i] = p[i] + _fd_step(float(p[i]), float(lo[i]), float(hi[i]))
+            qs.append(q)
+        for i, q, row in zip(fd, qs, batch(np.array(qs), xx), strict=True):
+            jp[:, i] = (row - res) / (q[i] - p[i])
+    return res, jp, jk[:, ids.size:]
 
 
 #: trust-region sub-problem solver: "exact", an SVD of the Jacobian per iteration (6 to ~16 columns,
@@ -853,8 +905,9 @@ _PLAIN: ContextVar[bool] = ContextVar("diagnose_plain_fits", default=False)
 
 @contextmanager
 def plain_fits():
-    """Within: fits as before the speed devices (residuals and finite-difference columns one by
-    one from Python, no memo); the same numbers, for the benchmark's same-run baseline and tests."""
+    """Within: fits without the speed devices (residuals one run at a time from Python, SciPy's
+    forward-difference Jacobian, no memo): the benchmark's same-run baseline.  The same model up to
+    the optimiser's tolerance (another Jacobian takes other steps to the same optimum)."""
     token = _PLAIN.set(True)
     try:
         yield
@@ -984,11 +1037,16 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
     msg = [f"prediction-error start over {horizon} steps"] if horizon else []
     batch = oe_batch(series, sc, layout, u_ref)
 
+    plain = _PLAIN.get()
+
     def oe(p):
-        if _PLAIN.get():
+        if plain:
             th, tm, _ = layout.unpack(p)
             return _oe_residuals(series, sc, th, tm, u_ref)
         return batch(p)[0]
+
+    def oe_jac(p):
+        return jacobian(batch, p, lo, hi)[1]
 
     if horizon:
         def pe(p):
@@ -1012,32 +1070,38 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
                 z[free] = x
                 return oe(z)
 
+            def jac(x, q=q, free=free):
+                z = q.copy()
+                z[free] = x
+                return oe_jac(z)[:, free]
+
             rr = least_squares(
                 fun,
                 q[free],
+                jac="2-point" if plain else jac,
                 bounds=(lo[free], hi[free]),
                 x_scale="jac",
                 max_nfev=max(6, max_nfev // 25),
                 method="trf",
                 tr_solver=_TR,
                 **_TOL,
-                **_batched(batch, q, free),
             )
             if np.isfinite(rr.cost) and rr.cost < best_cost:
                 best_cost = rr.cost
                 best = q.copy()
                 best[free] = rr.x
         p0 = best
-    joint = _JointStarts(series, len(names), layout, sc, u_ref, batch)
+    joint = _JointStarts(series, len(names), layout, sc, u_ref, batch, (lo, hi), plain)
     if joint.free:
         # the polish with each training run's own start, jointly (the docstring says why)
-        res = least_squares(joint, joint.extend(p0, z0), bounds=joint.bounds(lo, hi), x_scale="jac",
-                            max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL, **joint.workers())
+        res = least_squares(joint, joint.extend(p0, z0), jac="2-point" if plain else joint.jac,
+                            bounds=joint.bounds(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
+                            tr_solver=_TR, **_TOL)
         msg.append("output-error polish from each training run's own start (within its box)"
                    + ("" if res.success else f" (stopped: {res.message})"))
     else:
-        res = least_squares(oe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
-                            tr_solver=_TR, **_TOL, **_batched(batch))
+        res = least_squares(oe, p0, jac="2-point" if plain else oe_jac, bounds=(lo, hi), x_scale="jac",
+                            max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL)
         msg.append("output-error polish" + ("" if res.success else f" (stopped: {res.message})"))
     if not (np.all(np.isfinite(res.x)) and np.isfinite(res.cost)):
         raise ModelError("the diagnosis fit produced no finite result")
@@ -1085,12 +1149,15 @@ class _JointStarts:
     """Output-error residuals of (model parameters, each training run's start): the start of run k is
     its estimate plus z_k times the half-width of its box (``Start.box_sigma`` standard deviations of
     the estimate, :func:`boxed_initial_state`'s box), z_k in [-1, 1], for the states JOINT_STATES
-    names (r0); psi0 kept, as in the held-out evaluation.  A callable for least_squares with the numba
-    batch for its finite-difference columns (``workers``)."""
+    names (r0); psi0 kept, as in the held-out evaluation.  A callable for least_squares, with its
+    Jacobian (:meth:`jac`: the kernel's sensitivities, :func:`jacobian`).  ``bounds``: the model
+    parameters' (lo, hi); ``plain``: residuals one run at a time from Python (:func:`plain_fits`)."""
 
-    def __init__(self, series, n_p, layout, sc, u_ref, batch):
+    def __init__(self, series, n_p, layout, sc, u_ref, batch, bounds, plain=False):
         self.series, self.n_p, self.layout = series, n_p, layout
         self.sc, self.u_ref, self.batch = sc, u_ref, batch
+        self.lo, self.hi = bounds
+        self.plain = plain
         self.free = []      # (run, state index, half-width)
         for k, s in enumerate(series):
             box, sd = s.start.box_sigma or 0.0, s.start.std
@@ -1114,20 +1181,20 @@ class _JointStarts:
         return x0
 
     def __call__(self, pz):
-        if _PLAIN.get():
+        if self.plain:
             th, tm, _ = self.layout.unpack(pz[: self.n_p])
             return _oe_residuals(self.series, self.sc, th, tm, self.u_ref, self.starts(pz[self.n_p:]))
         return self.batch(pz[None, : self.n_p], self.starts(pz[self.n_p:])[None])[0]
 
-    def workers(self) -> dict:
-        if not _HAS_WORKERS or _PLAIN.get():
-            return {}
-
-        def run(_fun, xs):
-            xs = np.array(list(xs), dtype=float)
-            return list(self.batch(xs[:, : self.n_p], np.array([self.starts(x[self.n_p:]) for x in xs])))
-
-        return {"workers": run}
+    def jac(self, pz) -> np.ndarray:
+        """d residuals / d (model parameters, z): :func:`jacobian`, the starts' columns from the
+        kernel's sensitivities to each run's start times the half-width of its box."""
+        xs = sorted({i for _, i, _ in self.free})
+        _, jp, jx = jacobian(self.batch, pz[: self.n_p], self.lo, self.hi, self.starts(pz[self.n_p:]), xs)
+        jz = np.empty((jp.shape[0], len(self.free)))
+        for c, (k, i, w) in enumerate(self.free):
+            jz[:, c] = jx[:, len(xs) * k + xs.index(i)] * w
+        return np.hstack([jp, jz])
 
 
 def is_stable(theta) -> bool:
