@@ -477,12 +477,13 @@ def _sens_stage(v, r, e, a_in, s, th, codes, eqs, coefs, blk, kid, tab, sv, sr, 
 
 
 @njit(cache=True)
-def _run_sens(out, jac, rows, fac, jcol, n, x0, e0, s0, a_half, s_half, h, m, th, codes, eqs, coefs, blk,
+def _run_sens(out, jac, rows, fac, jcol, jsc, n, x0, e0, s0, a_half, s_half, h, m, th, codes, eqs, coefs, blk,
               kid):  # pragma: no cover
     """:func:`_run` from sample 0 to n - 1 (the same operations on the state, so the same bits in
     ``out``) and, alongside, the exact derivatives of the discrete RK4 solution along the kernel
     parameters kid[j] (:func:`_sens_stage`), from ``s0`` (columns, 3) at the start: d(psi, r, v)_k /
-    d(column j) times fac[0..2] is written to jac[rows[0..2] + k, jcol[j]] (rows[2] < 0: no v rows).
+    d(column j) times fac[0..2] jsc[j] is written to jac[rows[0..2] + k, jcol[j]] (rows[2] < 0: no v
+    rows; jcol[j] < 0: not written).
     A clipped state (a diverging trial model) has derivative 0."""
     nc = s0.shape[0]
     tab = np.zeros((2, 6 + codes.shape[0] + S_VBIAS + 2))       # the last slot: zero (a start, the bias)
@@ -498,11 +499,12 @@ def _run_sens(out, jac, rows, fac, jcol, n, x0, e0, s0, a_half, s_half, h, m, th
         out[k, 1] = r
         out[k, 2] = psi
         for j in range(nc):
-            jac[rows[0] + k, jcol[j]] = fac[0] * sp[j]
-            jac[rows[1] + k, jcol[j]] = fac[1] * sr[j]
-        if rows[2] >= 0:
-            for j in range(nc):
-                jac[rows[2] + k, jcol[j]] = fac[2] * sv[j]
+            c = jcol[j]
+            if c >= 0:
+                jac[rows[0] + k, c] = fac[0] * jsc[j] * sp[j]
+                jac[rows[1] + k, c] = fac[1] * jsc[j] * sr[j]
+                if rows[2] >= 0:
+                    jac[rows[2] + k, c] = fac[2] * jsc[j] * sv[j]
         if k == n - 1:
             break
         for jj in range(m):
@@ -554,26 +556,27 @@ def _run_sens(out, jac, rows, fac, jcol, n, x0, e0, s0, a_half, s_half, h, m, th
 
 @njit(cache=True)
 def _oe_jac(res, jac, th, coefs, blk, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off, x0s, runs, data, sc,
-            scratch, ids, xs):  # pragma: no cover - compiled; held to finite differences by tests
-    """Residuals of ONE parameter vector (as :func:`_oe_batch`, the same bits) and their derivatives
-    ``jac`` (residuals, len(ids) + len(xs) runs): along the kernel columns ``ids`` (theta 0-5, the
-    feature coefficients, then the rudder block's offset, asymmetry, cubic and the sway reading's bias
-    at :data:`S_OFFSET`... from 6 + nf), then along each run's start states ``xs`` (indices of v0, r0,
-    psi0), run k's after run k - 1's."""
+            scratch, ids, cols, xcols, xscale):  # pragma: no cover - compiled; held to finite differences
+    """Residuals of ONE parameter vector (as :func:`_oe_batch`, the same bits) and their derivatives,
+    written into the columns of ``jac`` (residuals, columns; zeros on entry): the derivative along
+    kernel parameter ids[j] (theta 0-5, the feature coefficients, then the rudder block's offset,
+    asymmetry, cubic and the sway reading's bias at :data:`S_OFFSET`... from 6 + nf) into column
+    cols[j]; along run k's start state i (v0, r0, psi0) times xscale[k, i] into column xcols[k, i]
+    (-1: none)."""
     nf = coefs.shape[0]
     pm = ids.shape[0]
-    nx = xs.shape[0]
     zero = 6 + nf + S_VBIAS + 1          # the zero slot of _sens_stage's table
-    kid = np.empty(pm + nx, dtype=np.int64)
+    kid = np.empty(pm + 3, dtype=np.int64)
     for j in range(pm):
         kid[j] = ids[j] if ids[j] != 6 + nf + S_VBIAS else zero
     kid[pm:] = zero
-    jcol = np.empty(pm + nx, dtype=np.int64)
-    s0 = np.zeros((pm + nx, 3))
+    jcol = np.empty(pm + 3, dtype=np.int64)
+    jsc = np.ones(pm + 3)
+    jcol[:pm] = cols
+    s0 = np.zeros((pm + 3, 3))
     x0 = np.empty(3)
     rows = np.empty(3, dtype=np.int64)
     fac = np.empty(3)
-    jac[:, :] = 0.0
     vb = blk[B_VBIAS]
     ivb = -1
     for j in range(pm):
@@ -591,22 +594,21 @@ def _oe_jac(res, jac, th, coefs, blk, lags, ms, codes, eqs, a_buf, a_off, s_buf,
         s0[:, :] = 0.0
         if ivb >= 0:
             s0[ivb, 0] = -data[3, mo]       # the start is a reading: the ship's v0 = reading - vb q
-        for j in range(pm):
-            jcol[j] = j
-        for j in range(nx):
-            s0[pm + j, xs[j]] = 1.0
-            jcol[pm + j] = pm + nx * k + j
+        for i in range(3):
+            s0[pm + i, i] = 1.0
+            jcol[pm + i] = xcols[k, i]
+            jsc[pm + i] = xscale[k, i]
         blk[B_LAG] = lags[k]
         w = 1.0 / np.sqrt(n)
         o = runs[k, 2]
         rows[0], rows[1], rows[2] = o, o + n, (o + 2 * n if runs[k, 3] else -1)
         fac[0], fac[1], fac[2] = w / sc[0], w / sc[1], w / sc[2]
-        _run_sens(sim, jac, rows, fac, jcol, n, x0, a_half[0], s0, a_half, s_half, data[4, mo], ms[k], th,
-                  codes, eqs, coefs, blk, kid)
+        _run_sens(sim, jac, rows, fac, jcol, jsc, n, x0, a_half[0], s0, a_half, s_half, data[4, mo], ms[k],
+                  th, codes, eqs, coefs, blk, kid)
         _residuals(res, sim, k, runs, data, sc, vb)
         if runs[k, 3] and ivb >= 0:         # the reading's bias: v read = v + vb q
             for i in range(n):
-                jac[rows[2] + i, ivb] += fac[2] * data[3, mo + i]
+                jac[rows[2] + i, cols[ivb]] += fac[2] * data[3, mo + i]
 
 
 class OEBatch:
@@ -714,21 +716,26 @@ class OEBatch:
         _oe_batch(res, *packed, X0, self.runs, self.data, self.sc, self.scratch)
         return res
 
-    def jacobian(self, p, ids, xs=(), x0=None) -> tuple[np.ndarray, np.ndarray]:
-        """(residuals (n_res,), their derivatives (n_res, len(ids) + len(xs) runs)) of the parameter
-        vector ``p`` from the runs' starts ``x0`` (runs, 3; default their own): the residuals are
-        :meth:`__call__`'s bits; the columns are :func:`_oe_jac`'s, along the kernel's parameters
-        ``ids`` (:func:`kernel_vector`'s order) and each run's start states ``xs`` (0 v0, 1 r0, 2 psi0),
-        not along ``p``: :func:`pipeline.diagnose.fit.jacobian` maps them."""
+    def jacobian(self, p, ids, cols, width: int, starts=(), x0=None) -> tuple[np.ndarray, np.ndarray]:
+        """(residuals (n_res,), derivatives (n_res, ``width``)) of the parameter vector ``p`` from the
+        runs' starts ``x0`` (runs, 3; default their own): the residuals are :meth:`__call__`'s bits;
+        column cols[j] holds the derivative along the kernel parameter ids[j] (:func:`kernel_vector`'s
+        order), column width - len(starts) + c the derivative along start state i of run k times w
+        for starts[c] = (k, i, w) (:func:`_oe_jac`); other columns are zero."""
         th, terms = self.unpack(np.asarray(p, dtype=float))[:2]
         x0 = self.x0s if x0 is None else np.ascontiguousarray(x0, dtype=float)
-        ids = np.asarray(ids, dtype=np.int64)
-        xs = np.asarray(xs, dtype=np.int64)
+        nk = len(self.t)
+        xcols = np.full((nk, 3), -1, dtype=np.int64)
+        xscale = np.zeros((nk, 3))
+        for c, (k, i, w) in enumerate(starts):
+            xcols[k, i] = width - len(starts) + c
+            xscale[k, i] = w
         thetas, coefs, blks, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off = self._pack([(th, terms)])
         res = np.empty(self.n_res)
-        jac = np.empty((self.n_res, ids.size + xs.size * len(self.t)))
+        jac = np.zeros((self.n_res, width))
         _oe_jac(res, jac, thetas[0], coefs[0], blks[0], lags[0], ms[0], codes, eqs, a_buf, a_off[0], s_buf,
-                s_off[0], x0, self.runs, self.data, self.sc, self.scratch, ids, xs)
+                s_off[0], x0, self.runs, self.data, self.sc, self.scratch, np.asarray(ids, dtype=np.int64),
+                np.asarray(cols, dtype=np.int64), xcols, xscale)
         return res, jac
 
 

@@ -838,11 +838,11 @@ def _kernel_map(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray):
     return ids, dk[ids], fd
 
 
-def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=None, xs=()):
-    """(residuals, d residuals / d p, d residuals / d each run's start states ``xs``) of
-    :class:`OEBatch` ``batch`` at the parameter vector ``p`` (bounds ``lo``, ``hi``), from the runs'
-    starts ``x0`` (runs, 3; default their own); the last (residuals, len(xs) runs), run k's columns
-    after run k - 1's.
+def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=None, starts=()):
+    """(residuals, Jacobian) of :class:`OEBatch` ``batch`` at the parameter vector ``p`` (bounds
+    ``lo``, ``hi``) from the runs' starts ``x0`` (runs, 3; default their own): the Jacobian's columns
+    are d residuals / d p, then, for each (k, i, w) of ``starts``, w d residuals / d (start state i of
+    run k).
 
     A parameter that moves only kernel parameters with sensitivities (theta, feature coefficients,
     rudder offset, asymmetry, cubic, sway bias: :func:`~pipeline.diagnose.extended.kernel_vector`) has
@@ -853,8 +853,9 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
     sub-steps and the speed factor's power have no sensitivity in the kernel) gets SciPy's forward
     difference through the batch.  docs/performance.md, "Analytic Jacobian"."""
     p = np.asarray(p, dtype=float)
+    key = (p.size, lo.tobytes(), hi.tobytes())
     cached = batch.__dict__.get("_kernel_map")
-    if cached is not None and cached[0] == (p.size, lo.tobytes(), hi.tobytes()):
+    if cached is not None and cached[0] == key:
         kmap = cached[1]
     else:
         kmap = _kernel_map(batch, p, lo, hi)
@@ -862,12 +863,23 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
         mid = np.clip(p, lo, hi)
         mid[box] = 0.5 * (lo[box] + hi[box])
         other = _kernel_map(batch, np.clip(0.5 * (p + mid), lo, hi), lo, hi)
-        affine = (np.array_equal(kmap[0], other[0]) and np.array_equal(kmap[1], other[1])
-                  and kmap[2] == other[2])
-        batch.__dict__["_kernel_map"] = ((p.size, lo.tobytes(), hi.tobytes()), kmap) if affine else None
+        if (np.array_equal(kmap[0], other[0]) and np.array_equal(kmap[1], other[1])
+                and kmap[2] == other[2]):
+            batch.__dict__["_kernel_map"] = (key, kmap)
     ids, dk, fd = kmap
-    res, jk = batch.jacobian(p, ids, xs, x0)
-    jp = jk[:, : ids.size] @ dk
+    width = p.size + len(starts)
+    # each kernel parameter moved by one parameter of p with slope 1 (the catalogue's case): its
+    # sensitivity is that parameter's column as it stands
+    direct = (dk.shape[0] == 0 or (np.all(np.count_nonzero(dk, axis=1) == 1) and np.all(dk[dk != 0] == 1.0)
+                                   and np.all(np.count_nonzero(dk, axis=0) <= 1)))
+    if direct:
+        cols = np.argmax(dk != 0, axis=1) if dk.shape[0] else np.zeros(0, dtype=np.int64)
+        res, jac = batch.jacobian(p, ids, cols, width, starts, x0)
+    else:
+        res, jk = batch.jacobian(p, ids, np.arange(ids.size), ids.size + len(starts), starts, x0)
+        jac = np.zeros((res.size, width))
+        jac[:, : p.size] = jk[:, : ids.size] @ dk
+        jac[:, p.size:] = jk[:, ids.size:]
     if fd:
         xx = None if x0 is None else np.broadcast_to(np.asarray(x0, dtype=float), (len(fd), *np.shape(x0)))
         qs = []
@@ -876,8 +888,8 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
             q[i] = p[i] + _fd_step(float(p[i]), float(lo[i]), float(hi[i]))
             qs.append(q)
         for i, q, row in zip(fd, qs, batch(np.array(qs), xx), strict=True):
-            jp[:, i] = (row - res) / (q[i] - p[i])
-    return res, jp, jk[:, ids.size:]
+            jac[:, i] = (row - res) / (q[i] - p[i])
+    return res, jac
 
 
 #: trust-region sub-problem solver: "exact", an SVD of the Jacobian per iteration (6 to ~16 columns,
@@ -1189,12 +1201,8 @@ class _JointStarts:
     def jac(self, pz) -> np.ndarray:
         """d residuals / d (model parameters, z): :func:`jacobian`, the starts' columns from the
         kernel's sensitivities to each run's start times the half-width of its box."""
-        xs = sorted({i for _, i, _ in self.free})
-        _, jp, jx = jacobian(self.batch, pz[: self.n_p], self.lo, self.hi, self.starts(pz[self.n_p:]), xs)
-        jz = np.empty((jp.shape[0], len(self.free)))
-        for c, (k, i, w) in enumerate(self.free):
-            jz[:, c] = jx[:, len(xs) * k + xs.index(i)] * w
-        return np.hstack([jp, jz])
+        x0 = self.starts(pz[self.n_p:])
+        return jacobian(self.batch, pz[: self.n_p], self.lo, self.hi, x0, self.free)[1]
 
 
 def is_stable(theta) -> bool:
