@@ -121,7 +121,7 @@ def test_the_starts_columns_are_the_derivative_too(setting):
     for p in _points(layout, batch, 2):
         pz = joint.extend(p, RNG.uniform(-0.5, 0.5, len(joint.free)))
         names = layout.names + [f"z{k}" for k in range(len(joint.free))]
-        _check(joint.jac(pz), _central(joint, pz, jlo, jhi), names)
+        _check(joint.fun_jac(pz)[1], _central(joint, pz, jlo, jhi), names)
 
 
 @pytest.mark.parametrize("lag_s", [0.001, 0.03, 0.6])
@@ -152,3 +152,29 @@ def test_a_wrong_partial_derivative_is_caught(setting, monkeypatch):
     jp[:, layout.names.index("offset_deg")] *= 1.001
     with pytest.raises(AssertionError, match="offset_deg"):
         _check(jp, _central(lambda q: batch(q)[0], p, lo, hi), layout.names)
+
+
+@pytest.mark.parametrize("run", [0, 1], ids=["with sway", "without sway"])
+def test_the_held_out_start_jacobian_is_the_derivative_too(setting, run):
+    """boxed_initial_state's Jacobian (its residuals, channels interleaved, along the free start
+    states) from the kernel's sensitivities, for a fitted extended model, with and without a sway
+    channel."""
+    from pipeline.diagnose.fit import _start_jacobian, fit_structure, simulate_terms
+
+    series, ctx, *_ = setting
+    fit = fit_structure(series, structure_of("rudder_offset", "nonlinear_yaw_damping"), ctx, max_nfev=20)
+    s = series[run]
+    x = np.array(s.x0, dtype=float)
+    free = [0, 1] if s.v is not None else [1]
+    w = np.array([1.0 / np.std(s.v) if s.v is not None else 0.0, 1.0 / np.std(s.r), 1.0 / np.std(s.psi)])
+    meas = np.column_stack([s.v if s.v is not None else np.zeros_like(s.r), s.r, s.psi])
+    ur = None if fit.u_ref is None else s.u_smooth() / fit.u_ref
+
+    def resid(z):
+        q = x.copy()
+        q[free] = z
+        return ((simulate_terms(fit.theta, fit.terms, q, s.t, s.delta, ur) - meas) * w).ravel()
+
+    z = x[free] + 0.01
+    big = np.full(len(free), np.inf)
+    _check(_start_jacobian(fit, s, x, free, w)(z), _central(resid, z, -big, big), [f"x{i}" for i in free])

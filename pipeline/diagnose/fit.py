@@ -44,6 +44,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import qr_multiply
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
@@ -628,13 +629,38 @@ def boxed_initial_state(fit: FitResult, s: Series, half_width: np.ndarray) -> np
         q[free] = z
         return ((simulate_terms(fit.theta, fit.terms, q, s.t, s.delta, ur) - meas) * w).ravel()
 
+    jac = "2-point" if _PLAIN.get() else _start_jacobian(fit, s, x, free, w)
     lo, hi = x[free] - half_width[free], x[free] + half_width[free]
-    r = least_squares(resid, x[free], bounds=(lo, hi), x_scale=half_width[free], max_nfev=20,
+    r = least_squares(resid, x[free], jac=jac, bounds=(lo, hi), x_scale=half_width[free], max_nfev=20,
                       method="trf", **_TOL)
     e0, e1 = resid(x[free]), r.fun
     if np.all(np.isfinite(e1)) and e1 @ e1 < e0 @ e0:
         x[free] = r.x
     return x
+
+
+def _start_jacobian(fit: FitResult, s: Series, x: np.ndarray, free: list[int], w: np.ndarray):
+    """The Jacobian, for :func:`boxed_initial_state`, of its residuals ((free run - measured) w per
+    sample, channels v, r, psi interleaved) along the start states ``free`` (the rest of the start as
+    in ``x``): the kernel's sensitivities to the start (:meth:`OEBatch.jacobian`), whose rows are
+    (1/sqrt(n)) (free run - measured) / spread in blocks psi, r, v, brought to that layout."""
+    n = s.t.size
+    sc = [1.0 / w[2], 1.0 / w[1], 1.0 / w[0] if w[0] > 0 else 1.0]
+    batch = OEBatch([(s.t, s.delta, x, s.psi, s.r, s.v, _u_ratio(s, fit.u_ref), 1.0 / np.sqrt(n))], sc,
+                    lambda _p: (fit.theta, fit.terms, None))
+    starts = [(0, i, float(np.sqrt(n))) for i in free]
+    blocks = (2, 1, 0) if s.v is not None else (2, 1)
+
+    def jac(z):
+        q = x.copy()
+        q[free] = z
+        _, jb = batch.jacobian(np.zeros(0), [], [], len(free), starts, q[None])
+        out = np.zeros((3 * n, len(free)))
+        for b, ch in enumerate(blocks):
+            out[ch::3] = jb[b * n:(b + 1) * n]
+        return out
+
+    return jac
 
 
 def _scales(series: list[Series]) -> dict[str, float]:
@@ -892,6 +918,40 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
     return res, jac
 
 
+def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int):
+    """least_squares (trust-region reflective, :data:`_TR`, :data:`_TOL`, ``x_scale="jac"``) of the
+    residuals f(x) whose Jacobian J(x) comes with them (``fj(x)`` -> (f, J), one kernel call), posed in
+    their QR-compressed form: J = Q R, the residuals (Q^T f, |f - Q Q^T f|) and the Jacobian (R; 0).
+
+    The same problem, step for step: the cost 0.5 |f|^2, the gradient J^T f = R^T Q^T f, the
+    trust-region model |J p + f|^2 = |R p + Q^T f|^2 + |f - Q Q^T f|^2 and the column norms of the
+    Jacobian (``x_scale="jac"``) are those of the full residuals, so the iterates are the same up to
+    rounding; but SciPy's SVD per iteration is of an (n + 1) x n matrix instead of the thousands of
+    rows of f, which took a third of the fit's time (docs/performance.md).  Every evaluation makes
+    its Jacobian (an accepted point needs it next; a rejected one pays it for nothing).  Returns
+    SciPy's result with ``fun`` and ``jac`` the full residuals and Jacobian at its ``x``."""
+    made: dict = {}
+
+    def fun(x):
+        f, jx = fj(x)
+        made.clear()
+        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(jx))):
+            return np.full(x.size + 1, np.nan)      # a trial point SciPy rejects (shrinks its region)
+        qtf, r = qr_multiply(jx, f, mode="right")
+        made[x.tobytes()] = np.vstack([r, np.zeros((1, x.size))])
+        return np.append(qtf, np.sqrt(max(float(f @ f) - float(qtf @ qtf), 0.0)))
+
+    def jac(x, _f=None):
+        if x.tobytes() not in made:
+            fun(x)
+        return made[x.tobytes()]
+
+    res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
+                        tr_solver=_TR, **_TOL)
+    res.fun, res.jac = fj(res.x)
+    return res
+
+
 #: trust-region sub-problem solver: "exact", an SVD of the Jacobian per iteration (6 to ~16 columns,
 #: a few thousand rows), the solver SciPy recommends for a small dense problem.  "lsmr" (iterative,
 #: matrix-vector products from Python) was used while a multithreaded BLAS made the SVD 90 % of the
@@ -1057,9 +1117,6 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
             return _oe_residuals(series, sc, th, tm, u_ref)
         return batch(p)[0]
 
-    def oe_jac(p):
-        return jacobian(batch, p, lo, hi)[1]
-
     if horizon:
         def pe(p):
             th, tm, _ = layout.unpack(p)
@@ -1082,22 +1139,18 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
                 z[free] = x
                 return oe(z)
 
-            def jac(x, q=q, free=free):
+            def fj(x, q=q, free=free):
                 z = q.copy()
                 z[free] = x
-                return oe_jac(z)[:, free]
+                f, jz = jacobian(batch, z, lo, hi)
+                return f, jz[:, free]
 
-            rr = least_squares(
-                fun,
-                q[free],
-                jac="2-point" if plain else jac,
-                bounds=(lo[free], hi[free]),
-                x_scale="jac",
-                max_nfev=max(6, max_nfev // 25),
-                method="trf",
-                tr_solver=_TR,
-                **_TOL,
-            )
+            top = max(6, max_nfev // 25)
+            if plain:
+                rr = least_squares(fun, q[free], bounds=(lo[free], hi[free]), x_scale="jac", max_nfev=top,
+                                   method="trf", tr_solver=_TR, **_TOL)
+            else:
+                rr = _compressed_lsq(fj, q[free], lo[free], hi[free], top)
             if np.isfinite(rr.cost) and rr.cost < best_cost:
                 best_cost = rr.cost
                 best = q.copy()
@@ -1106,14 +1159,19 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
     joint = _JointStarts(series, len(names), layout, sc, u_ref, batch, (lo, hi), plain)
     if joint.free:
         # the polish with each training run's own start, jointly (the docstring says why)
-        res = least_squares(joint, joint.extend(p0, z0), jac="2-point" if plain else joint.jac,
-                            bounds=joint.bounds(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
-                            tr_solver=_TR, **_TOL)
+        if plain:
+            res = least_squares(joint, joint.extend(p0, z0), bounds=joint.bounds(lo, hi), x_scale="jac",
+                                max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL)
+        else:
+            res = _compressed_lsq(joint.fun_jac, joint.extend(p0, z0), *joint.bounds(lo, hi), max_nfev)
         msg.append("output-error polish from each training run's own start (within its box)"
                    + ("" if res.success else f" (stopped: {res.message})"))
     else:
-        res = least_squares(oe, p0, jac="2-point" if plain else oe_jac, bounds=(lo, hi), x_scale="jac",
-                            max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL)
+        if plain:
+            res = least_squares(oe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
+                                tr_solver=_TR, **_TOL)
+        else:
+            res = _compressed_lsq(lambda p: jacobian(batch, p, lo, hi), p0, lo, hi, max_nfev)
         msg.append("output-error polish" + ("" if res.success else f" (stopped: {res.message})"))
     if not (np.all(np.isfinite(res.x)) and np.isfinite(res.cost)):
         raise ModelError("the diagnosis fit produced no finite result")
@@ -1198,11 +1256,12 @@ class _JointStarts:
             return _oe_residuals(self.series, self.sc, th, tm, self.u_ref, self.starts(pz[self.n_p:]))
         return self.batch(pz[None, : self.n_p], self.starts(pz[self.n_p:])[None])[0]
 
-    def jac(self, pz) -> np.ndarray:
-        """d residuals / d (model parameters, z): :func:`jacobian`, the starts' columns from the
-        kernel's sensitivities to each run's start times the half-width of its box."""
+    def fun_jac(self, pz) -> tuple[np.ndarray, np.ndarray]:
+        """(residuals, d residuals / d (model parameters, z)) in one kernel call (:func:`jacobian`):
+        the starts' columns are the kernel's sensitivities to each run's start times the half-width of
+        its box."""
         x0 = self.starts(pz[self.n_p:])
-        return jacobian(self.batch, pz[: self.n_p], self.lo, self.hi, x0, self.free)[1]
+        return jacobian(self.batch, pz[: self.n_p], self.lo, self.hi, x0, self.free)
 
 
 def is_stable(theta) -> bool:
