@@ -105,6 +105,37 @@ def _stage_inputs(x_half, i0, j, m):  # pragma: no cover
     return x0, x1, x2
 
 
+@njit(cache=True, inline="always")
+def _rk4_step(v, r, psi, e, a0, a1, a2, q0, q1, q2, hs, th, codes, eqs, coefs, blk):  # pragma: no cover
+    """One classical RK4 step of ``hs`` s of the state (v, r, psi, lag state e), the rudder ``a`` and
+    speed factor ``q`` at the step's start, middle and end: (v, r, psi, e after it; the stage
+    derivatives k1, k2, k3 of v, r, e that made it; whether the heading increment was clipped).  A
+    diverging trial model: the RK4 stages themselves can explode (r^3 of a clipped r), so the heading
+    increment and the lag state are clipped as well as v and r (residuals stay finite and large)."""
+    k1v, k1r, k1p, k1e = _deriv(v, r, e, a0, q0, th, codes, eqs, coefs, blk)
+    k2v, k2r, k2p, k2e = _deriv(v + 0.5 * hs * k1v, r + 0.5 * hs * k1r, e + 0.5 * hs * k1e,
+                                a1, q1, th, codes, eqs, coefs, blk)
+    k3v, k3r, k3p, k3e = _deriv(v + 0.5 * hs * k2v, r + 0.5 * hs * k2r, e + 0.5 * hs * k2e,
+                                a1, q1, th, codes, eqs, coefs, blk)
+    k4v, k4r, k4p, k4e = _deriv(v + hs * k3v, r + hs * k3r, e + hs * k3e,
+                                a2, q2, th, codes, eqs, coefs, blk)
+    v = v + hs / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+    r = r + hs / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
+    dpsi = hs / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
+    clip_psi = not (abs(dpsi) < _CLIP_R * hs)
+    if clip_psi:
+        dpsi = _CLIP_R * hs if dpsi > 0 else -_CLIP_R * hs
+    psi = psi + dpsi
+    e = e + hs / 6.0 * (k1e + 2.0 * k2e + 2.0 * k3e + k4e)
+    if not (abs(e) < _CLIP_D):
+        e = _CLIP_D if e > 0 else -_CLIP_D
+    if not (abs(v) < _CLIP_V):
+        v = _CLIP_V if v > 0 else -_CLIP_V
+    if not (abs(r) < _CLIP_R):
+        r = _CLIP_R if r > 0 else -_CLIP_R
+    return v, r, psi, e, k1v, k1r, k1e, k2v, k2r, k2e, k3v, k3r, k3e, clip_psi
+
+
 @njit(cache=True)
 def _run(out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, blk):  # pragma: no cover
     """RK4 from sample k0 (state x0, lag state e0) to k1 - 1, writing samples k0 .. k1-1 to rows
@@ -121,28 +152,8 @@ def _run(out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, blk):
         for j in range(m):
             a0, a1, a2 = _stage_inputs(a_half, 2 * k, j, m)
             s0, s1, s2 = _stage_inputs(s_half, 2 * k, j, m)
-            k1v, k1r, k1p, k1e = _deriv(v, r, e, a0, s0, th, codes, eqs, coefs, blk)
-            k2v, k2r, k2p, k2e = _deriv(v + 0.5 * hs * k1v, r + 0.5 * hs * k1r, e + 0.5 * hs * k1e,
-                                        a1, s1, th, codes, eqs, coefs, blk)
-            k3v, k3r, k3p, k3e = _deriv(v + 0.5 * hs * k2v, r + 0.5 * hs * k2r, e + 0.5 * hs * k2e,
-                                        a1, s1, th, codes, eqs, coefs, blk)
-            k4v, k4r, k4p, k4e = _deriv(v + hs * k3v, r + hs * k3r, e + hs * k3e,
-                                        a2, s2, th, codes, eqs, coefs, blk)
-            v = v + hs / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
-            r = r + hs / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
-            dpsi = hs / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
-            # a diverging trial model: the RK4 stages themselves can explode (r^3 of a clipped r), so
-            # the heading increment and the lag state are clipped too (residuals stay finite and large)
-            if not (abs(dpsi) < _CLIP_R * hs):
-                dpsi = _CLIP_R * hs if dpsi > 0 else -_CLIP_R * hs
-            psi = psi + dpsi
-            e = e + hs / 6.0 * (k1e + 2.0 * k2e + 2.0 * k3e + k4e)
-            if not (abs(e) < _CLIP_D):
-                e = _CLIP_D if e > 0 else -_CLIP_D
-            if not (abs(v) < _CLIP_V):
-                v = _CLIP_V if v > 0 else -_CLIP_V
-            if not (abs(r) < _CLIP_R):
-                r = _CLIP_R if r > 0 else -_CLIP_R
+            step = _rk4_step(v, r, psi, e, a0, a1, a2, s0, s1, s2, hs, th, codes, eqs, coefs, blk)
+            v, r, psi, e = step[0], step[1], step[2], step[3]
 
 
 @njit(cache=True)
@@ -476,6 +487,14 @@ def _sens_stage(v, r, e, a_in, s, th, codes, eqs, coefs, blk, kid, tab, sv, sr, 
         dkr[j] = arv * sv[j] + arr * sr[j] + tab[1, kid[j]]
 
 
+@njit(cache=True, inline="always")
+def _stage_sens(tv, tr, sv, sr, c, dv, dr):  # pragma: no cover - compiled
+    """A stage state's sensitivities: (sv, sr) + c (dv, dr) into (tv, tr)."""
+    for j in range(sv.shape[0]):
+        tv[j] = sv[j] + c * dv[j]
+        tr[j] = sr[j] + c * dr[j]
+
+
 @njit(cache=True)
 def _run_sens(out, jac, rows, fac, jcol, jsc, n, x0, e0, s0, a_half, s_half, h, m, th, codes, eqs, coefs, blk,
               kid):  # pragma: no cover
@@ -510,48 +529,30 @@ def _run_sens(out, jac, rows, fac, jcol, jsc, n, x0, e0, s0, a_half, s_half, h, 
         for jj in range(m):
             a0, a1, a2 = _stage_inputs(a_half, 2 * k, jj, m)
             q0, q1, q2 = _stage_inputs(s_half, 2 * k, jj, m)
-            k1v, k1r, k1p, k1e = _deriv(v, r, e, a0, q0, th, codes, eqs, coefs, blk)
+            (vn, rn, psi, en, k1v, k1r, k1e, k2v, k2r, k2e, k3v, k3r, k3e,
+             clip_psi) = _rk4_step(v, r, psi, e, a0, a1, a2, q0, q1, q2, hs, th, codes, eqs, coefs, blk)
+            # the stages' sensitivities at the stages' own states (the same expressions as the step's)
             _sens_stage(v, r, e, a0, q0, th, codes, eqs, coefs, blk, kid, tab, sv, sr, d1v, d1r)
-            y2v, y2r, y2e = v + 0.5 * hs * k1v, r + 0.5 * hs * k1r, e + 0.5 * hs * k1e
-            k2v, k2r, k2p, k2e = _deriv(y2v, y2r, y2e, a1, q1, th, codes, eqs, coefs, blk)
-            for j in range(nc):
-                t2v[j] = sv[j] + 0.5 * hs * d1v[j]
-                t2r[j] = sr[j] + 0.5 * hs * d1r[j]
-            _sens_stage(y2v, y2r, y2e, a1, q1, th, codes, eqs, coefs, blk, kid, tab, t2v, t2r, d2v, d2r)
-            y3v, y3r, y3e = v + 0.5 * hs * k2v, r + 0.5 * hs * k2r, e + 0.5 * hs * k2e
-            k3v, k3r, k3p, k3e = _deriv(y3v, y3r, y3e, a1, q1, th, codes, eqs, coefs, blk)
-            for j in range(nc):
-                t3v[j] = sv[j] + 0.5 * hs * d2v[j]
-                t3r[j] = sr[j] + 0.5 * hs * d2r[j]
-            _sens_stage(y3v, y3r, y3e, a1, q1, th, codes, eqs, coefs, blk, kid, tab, t3v, t3r, d3v, d3r)
-            y4v, y4r, y4e = v + hs * k3v, r + hs * k3r, e + hs * k3e
-            k4v, k4r, k4p, k4e = _deriv(y4v, y4r, y4e, a2, q2, th, codes, eqs, coefs, blk)
-            for j in range(nc):
-                t4v[j] = sv[j] + hs * d3v[j]
-                t4r[j] = sr[j] + hs * d3r[j]
-            _sens_stage(y4v, y4r, y4e, a2, q2, th, codes, eqs, coefs, blk, kid, tab, t4v, t4r, d4v, d4r)
-            v = v + hs / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
-            r = r + hs / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
-            dpsi = hs / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
-            clip_psi = not (abs(dpsi) < _CLIP_R * hs)
-            if clip_psi:
-                dpsi = _CLIP_R * hs if dpsi > 0 else -_CLIP_R * hs
-            psi = psi + dpsi
-            e = e + hs / 6.0 * (k1e + 2.0 * k2e + 2.0 * k3e + k4e)
-            if not (abs(e) < _CLIP_D):
-                e = _CLIP_D if e > 0 else -_CLIP_D
+            _stage_sens(t2v, t2r, sv, sr, 0.5 * hs, d1v, d1r)
+            _sens_stage(v + 0.5 * hs * k1v, r + 0.5 * hs * k1r, e + 0.5 * hs * k1e, a1, q1, th, codes, eqs,
+                        coefs, blk, kid, tab, t2v, t2r, d2v, d2r)
+            _stage_sens(t3v, t3r, sv, sr, 0.5 * hs, d2v, d2r)
+            _sens_stage(v + 0.5 * hs * k2v, r + 0.5 * hs * k2r, e + 0.5 * hs * k2e, a1, q1, th, codes, eqs,
+                        coefs, blk, kid, tab, t3v, t3r, d3v, d3r)
+            _stage_sens(t4v, t4r, sv, sr, hs, d3v, d3r)
+            _sens_stage(v + hs * k3v, r + hs * k3r, e + hs * k3e, a2, q2, th, codes, eqs, coefs, blk, kid,
+                        tab, t4v, t4r, d4v, d4r)
             c6 = hs / 6.0
             for j in range(nc):     # dpsi/dt = r: the heading's stages are the rate's stage states
                 if not clip_psi:
                     sp[j] = sp[j] + c6 * (sr[j] + 2.0 * t2r[j] + 2.0 * t3r[j] + t4r[j])
                 sv[j] = sv[j] + c6 * (d1v[j] + 2.0 * d2v[j] + 2.0 * d3v[j] + d4v[j])
                 sr[j] = sr[j] + c6 * (d1r[j] + 2.0 * d2r[j] + 2.0 * d3r[j] + d4r[j])
-            if not (abs(v) < _CLIP_V):
-                v = _CLIP_V if v > 0 else -_CLIP_V
+            if not (abs(vn) < _CLIP_V):     # clipped (_rk4_step): derivative 0
                 sv[:] = 0.0
-            if not (abs(r) < _CLIP_R):
-                r = _CLIP_R if r > 0 else -_CLIP_R
+            if not (abs(rn) < _CLIP_R):
                 sr[:] = 0.0
+            v, r, e = vn, rn, en
 
 
 @njit(cache=True)
