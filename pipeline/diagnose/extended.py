@@ -41,6 +41,16 @@ _CLIP_R = 500.0  # deg/s: a diverging trial model is clipped here so residuals s
 _CLIP_V = 100.0  # m/s
 _CLIP_D = 1000.0  # deg, lag state
 
+#: The rudder block: every effect on the rudder force angle, the servo and the sway reading reaches the
+#: kernels as ONE float64 vector read by these indices (:func:`rudder_block` fills it from
+#: :class:`~pipeline.diagnose.effects.base.Terms`; docs/performance.md, "The kernels' parameters").
+#: A new rudder effect is an index here, its line in :func:`rudder_block` and its use in
+#: :func:`_deriv` (and in :func:`_sens_stage`'s partial derivatives), never a new kernel argument.
+#: B_OFFSET deg, B_ASYM dimensionless, B_CUBIC 1/deg^2, B_LAG s (the lag as integrated: 0 below h/20,
+#: :func:`_lag_and_substeps`), B_VBIAS m/s (the sway reading's bias at U_ref).
+B_OFFSET, B_ASYM, B_CUBIC, B_LAG, B_VBIAS = 0, 1, 2, 3, 4
+BLOCK_SIZE = 5
+
 
 @njit(cache=True, inline="always")
 def _feature(code, v, r, s=1.0):  # pragma: no cover - compiled; held to effects.base.feature_value
@@ -66,11 +76,13 @@ def _feature(code, v, r, s=1.0):  # pragma: no cover - compiled; held to effects
 
 
 @njit(cache=True, inline="always")
-def _deriv(v, r, e, a_in, s, th, codes, eqs, coefs, lag, offset, asym, cubic):  # pragma: no cover
-    """(dv/dt, dr/dt, dpsi/dt, de/dt) of the extended model (module docstring)."""
-    ang = (e if lag > 0.0 else a_in) + offset
+def _deriv(v, r, e, a_in, s, th, codes, eqs, coefs, blk):  # pragma: no cover
+    """(dv/dt, dr/dt, dpsi/dt, de/dt) of the extended model (module docstring); ``blk``: the rudder
+    block (B_* indices)."""
+    lag = blk[B_LAG]
+    ang = (e if lag > 0.0 else a_in) + blk[B_OFFSET]
     sg = 1.0 if ang > 0.0 else (-1.0 if ang < 0.0 else 0.0)
-    g = ang * (1.0 + asym * sg) + cubic * ang * ang * ang
+    g = ang * (1.0 + blk[B_ASYM] * sg) + blk[B_CUBIC] * ang * ang * ang
     dv = s * (th[0] * v + th[1] * r) + s * s * th[4] * g
     dr = s * (th[2] * v + th[3] * r) + s * s * th[5] * g
     for j in range(codes.shape[0]):
@@ -93,10 +105,39 @@ def _stage_inputs(x_half, i0, j, m):  # pragma: no cover
     return x0, x1, x2
 
 
+@njit(cache=True, inline="always")
+def _rk4_step(v, r, psi, e, a0, a1, a2, q0, q1, q2, hs, th, codes, eqs, coefs, blk):  # pragma: no cover
+    """One classical RK4 step of ``hs`` s of the state (v, r, psi, lag state e), the rudder ``a`` and
+    speed factor ``q`` at the step's start, middle and end: (v, r, psi, e after it; the stage
+    derivatives k1, k2, k3 of v, r, e that made it; whether the heading increment was clipped).  A
+    diverging trial model: the RK4 stages themselves can explode (r^3 of a clipped r), so the heading
+    increment and the lag state are clipped as well as v and r (residuals stay finite and large)."""
+    k1v, k1r, k1p, k1e = _deriv(v, r, e, a0, q0, th, codes, eqs, coefs, blk)
+    k2v, k2r, k2p, k2e = _deriv(v + 0.5 * hs * k1v, r + 0.5 * hs * k1r, e + 0.5 * hs * k1e,
+                                a1, q1, th, codes, eqs, coefs, blk)
+    k3v, k3r, k3p, k3e = _deriv(v + 0.5 * hs * k2v, r + 0.5 * hs * k2r, e + 0.5 * hs * k2e,
+                                a1, q1, th, codes, eqs, coefs, blk)
+    k4v, k4r, k4p, k4e = _deriv(v + hs * k3v, r + hs * k3r, e + hs * k3e,
+                                a2, q2, th, codes, eqs, coefs, blk)
+    v = v + hs / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+    r = r + hs / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
+    dpsi = hs / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
+    clip_psi = not (abs(dpsi) < _CLIP_R * hs)
+    if clip_psi:
+        dpsi = _CLIP_R * hs if dpsi > 0 else -_CLIP_R * hs
+    psi = psi + dpsi
+    e = e + hs / 6.0 * (k1e + 2.0 * k2e + 2.0 * k3e + k4e)
+    if not (abs(e) < _CLIP_D):
+        e = _CLIP_D if e > 0 else -_CLIP_D
+    if not (abs(v) < _CLIP_V):
+        v = _CLIP_V if v > 0 else -_CLIP_V
+    if not (abs(r) < _CLIP_R):
+        r = _CLIP_R if r > 0 else -_CLIP_R
+    return v, r, psi, e, k1v, k1r, k1e, k2v, k2r, k2e, k3v, k3r, k3e, clip_psi
+
+
 @njit(cache=True)
-def _run(
-    out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic
-):  # pragma: no cover
+def _run(out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, blk):  # pragma: no cover
     """RK4 from sample k0 (state x0, lag state e0) to k1 - 1, writing samples k0 .. k1-1 to rows
     0 .. k1-k0-1 of ``out``.
     ``a_half``/``s_half``: rudder (pre-lag) and speed factor on the half-step grid (index 2k = t_k)."""
@@ -111,67 +152,8 @@ def _run(
         for j in range(m):
             a0, a1, a2 = _stage_inputs(a_half, 2 * k, j, m)
             s0, s1, s2 = _stage_inputs(s_half, 2 * k, j, m)
-            k1v, k1r, k1p, k1e = _deriv(v, r, e, a0, s0, th, codes, eqs, coefs, lag, offset, asym, cubic)
-            k2v, k2r, k2p, k2e = _deriv(
-                v + 0.5 * hs * k1v,
-                r + 0.5 * hs * k1r,
-                e + 0.5 * hs * k1e,
-                a1,
-                s1,
-                th,
-                codes,
-                eqs,
-                coefs,
-                lag,
-                offset,
-                asym,
-                cubic,
-            )
-            k3v, k3r, k3p, k3e = _deriv(
-                v + 0.5 * hs * k2v,
-                r + 0.5 * hs * k2r,
-                e + 0.5 * hs * k2e,
-                a1,
-                s1,
-                th,
-                codes,
-                eqs,
-                coefs,
-                lag,
-                offset,
-                asym,
-                cubic,
-            )
-            k4v, k4r, k4p, k4e = _deriv(
-                v + hs * k3v,
-                r + hs * k3r,
-                e + hs * k3e,
-                a2,
-                s2,
-                th,
-                codes,
-                eqs,
-                coefs,
-                lag,
-                offset,
-                asym,
-                cubic,
-            )
-            v = v + hs / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
-            r = r + hs / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
-            dpsi = hs / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
-            # a diverging trial model: the RK4 stages themselves can explode (r^3 of a clipped r), so
-            # the heading increment and the lag state are clipped too (residuals stay finite and large)
-            if not (abs(dpsi) < _CLIP_R * hs):
-                dpsi = _CLIP_R * hs if dpsi > 0 else -_CLIP_R * hs
-            psi = psi + dpsi
-            e = e + hs / 6.0 * (k1e + 2.0 * k2e + 2.0 * k3e + k4e)
-            if not (abs(e) < _CLIP_D):
-                e = _CLIP_D if e > 0 else -_CLIP_D
-            if not (abs(v) < _CLIP_V):
-                v = _CLIP_V if v > 0 else -_CLIP_V
-            if not (abs(r) < _CLIP_R):
-                r = _CLIP_R if r > 0 else -_CLIP_R
+            step = _rk4_step(v, r, psi, e, a0, a1, a2, s0, s1, s2, hs, th, codes, eqs, coefs, blk)
+            v, r, psi, e = step[0], step[1], step[2], step[3]
 
 
 @njit(cache=True)
@@ -198,55 +180,35 @@ def _lag_history(a_half, h, m, lag):  # pragma: no cover
 
 
 @njit(cache=True)
-def _segments(
-    out, starts, length, xs, a_half, s_half, h, m, th, codes, eqs, coefs, lag, offset, asym, cubic
-):  # pragma: no cover
+def _segments(out, starts, length, xs, a_half, s_half, h, m, th, codes, eqs, coefs, blk):  # pragma: no cover
     """Prediction over ``length`` samples from each measured state xs[starts[i]] (rows of out[i]); the
     lag state at each start is the servo's own from the run's start (:func:`_lag_history`)."""
-    e_hist = _lag_history(a_half, h, m, lag)
+    e_hist = _lag_history(a_half, h, m, blk[B_LAG])
     for i in range(starts.shape[0]):
         k0 = starts[i]
-        _run(
-            out[i],
-            k0,
-            k0 + length,
-            xs[k0],
-            e_hist[k0],
-            a_half,
-            s_half,
-            h,
-            m,
-            th,
-            codes,
-            eqs,
-            coefs,
-            lag,
-            offset,
-            asym,
-            cubic,
-        )
+        _run(out[i], k0, k0 + length, xs[k0], e_hist[k0], a_half, s_half, h, m, th, codes, eqs, coefs, blk)
+
+
+def rudder_block(terms: Terms, lag_s: float | None = None) -> np.ndarray:
+    """The rudder block (B_* indices) of ``terms``; ``lag_s``: the lag as integrated (s,
+    :func:`_lag_and_substeps`), default ``terms.lag_s``."""
+    blk = np.empty(BLOCK_SIZE)
+    blk[B_OFFSET] = float(terms.offset_deg)
+    blk[B_ASYM] = float(terms.asymmetry)
+    blk[B_CUBIC] = float(terms.rudder_cubic_per_deg2)
+    blk[B_LAG] = float(terms.lag_s if lag_s is None else lag_s)
+    blk[B_VBIAS] = float(terms.v_bias_m_s)
+    return blk
 
 
 def deriv(x, e, a_in, s, theta, terms: Terms) -> np.ndarray:
     """Python entry to the kernel's right-hand side: (dv/dt, dr/dt, dpsi/dt, de/dt) at state x =
-    (v, r, psi), lag state ``e``, pre-lag rudder ``a_in`` deg and speed factor ``s`` (for tests)."""
+    (v m/s, r deg/s, psi deg), lag state ``e`` deg, pre-lag rudder ``a_in`` deg and speed factor ``s``
+    (for tests)."""
     codes, eqs, coefs = _arrays(terms)
     return np.array(
-        _deriv(
-            float(x[0]),
-            float(x[1]),
-            float(e),
-            float(a_in),
-            float(s),
-            as_theta(theta),
-            codes,
-            eqs,
-            coefs,
-            float(terms.lag_s),
-            float(terms.offset_deg),
-            float(terms.asymmetry),
-            float(terms.rudder_cubic_per_deg2),
-        )
+        _deriv(float(x[0]), float(x[1]), float(e), float(a_in), float(s), as_theta(theta), codes, eqs, coefs,
+               rudder_block(terms))
     )
 
 
@@ -321,25 +283,7 @@ def simulate_terms(theta, terms: Terms, x0, t, delta, u_ratio=None, substeps: in
     if bias is not None:  # the reading's start -> the ship's (module docstring)
         x0[0] = x0[0] - bias[0]
     out = np.empty((d.size, 3))
-    _run(
-        out,
-        0,
-        d.size,
-        x0,
-        a_half[0],
-        a_half,
-        s_half,
-        h,
-        m,
-        th,
-        codes,
-        eqs,
-        coefs,
-        lag,
-        float(terms.offset_deg),
-        float(terms.asymmetry),
-        float(terms.rudder_cubic_per_deg2),
-    )
+    _run(out, 0, d.size, x0, a_half[0], a_half, s_half, h, m, th, codes, eqs, coefs, rudder_block(terms, lag))
     if bias is not None:  # the ship's sway velocity -> the reading
         out[:, 0] = out[:, 0] + bias
     return out
@@ -379,24 +323,8 @@ def predict_segments(
     if bias is not None:  # the readings at the restarts -> the ship's states (module docstring)
         xs[:, 0] = xs[:, 0] - bias
     out = np.empty((len(starts), length, 3))
-    _segments(
-        out,
-        starts,
-        int(length),
-        xs,
-        a_half,
-        s_half,
-        h,
-        m,
-        th,
-        codes,
-        eqs,
-        coefs,
-        lag,
-        float(terms.offset_deg),
-        float(terms.asymmetry),
-        float(terms.rudder_cubic_per_deg2),
-    )
+    _segments(out, starts, int(length), xs, a_half, s_half, h, m, th, codes, eqs, coefs,
+              rudder_block(terms, lag))
     if bias is not None:
         out[:, :, 0] = out[:, :, 0] + bias[starts[:, None] + np.arange(length)[None, :]]
     return out
@@ -436,100 +364,262 @@ def simulate_extended(
 
 
 @njit(cache=True)
-def _oe_batch(
-    res,
-    thetas,
-    coefs,
-    lags,
-    ms,
-    offsets,
-    asyms,
-    cubics,
-    codes,
-    eqs,
-    a_buf,
-    a_off,
-    s_buf,
-    s_off,
-    x0s,
-    hs,
-    ns,
-    m_off,
-    psi,
-    r,
-    v,
-    has_v,
-    ws,
-    sc_psi,
-    sc_r,
-    sc_v,
-    r_off,
-    scratch,
-    vbs,
-    q,
-):  # pragma: no cover - compiled; held to fit._oe_residuals bit for bit by tests/test_model_definition.py
+def _oe_batch(res, thetas, coefs, blks, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off, x0s, runs, data,
+              sc, scratch):  # pragma: no cover - compiled; held to fit._oe_residuals bit for bit by tests
     """Output-error residuals of every parameter vector (row c of ``res``) on every run k, in the
     layout of :func:`pipeline.diagnose.fit._oe_residuals`: per run w (psi_sim - psi)/sc_psi,
     w (r_sim - r)/sc_r and, when sway is measured, w (v_sim - v)/sc_v (same operations, same order,
-    so the same bits).  Row c starts run k from x0s[c, k].  Row c's rudder and speed factor on the
-    half grid of run k start at a_buf[a_off[c, k]] and s_buf[s_off[c, k]]; its lag and RK4 sub-steps
-    are lags[c, k], ms[c, k].  Row c's sway readings carry vbs[c] q (q = u/U_ref of every sample, the
-    runs one after another as psi): x0s are readings, and so are the sway velocities compared."""
+    so the same bits).  Row c starts run k from x0s[c, k] and has the rudder block blks[c]; its rudder
+    and speed factor on the half grid of run k start at a_buf[a_off[c, k]] and s_buf[s_off[c, k]]; its
+    lag as integrated and RK4 sub-steps are lags[c, k], ms[c, k].  ``runs`` (runs, 6) int: samples n,
+    first sample m_off in ``data``, first residual r_off, sway measured (1/0); ``data`` (5, samples):
+    psi, r, v, q = u/U_ref and the sample step h (s) of every sample, the runs one after another.
+    Row c's sway readings carry blks[c, B_VBIAS] q: x0s are readings, and so are the sway velocities
+    compared.  ``sc``: (psi, r, v) spreads; run weights w = 1/sqrt(n)."""
     x0 = np.empty(3)
+    blk = np.empty(BLOCK_SIZE)
     for c in range(thetas.shape[0]):
-        vb = vbs[c]
-        for k in range(ns.shape[0]):
-            n = ns[k]
+        for b in range(BLOCK_SIZE):
+            blk[b] = blks[c, b]
+        vb = blk[B_VBIAS]
+        for k in range(runs.shape[0]):
+            n, mo = runs[k, 0], runs[k, 1]
             nh = 2 * n - 1
             a_half = a_buf[a_off[c, k] : a_off[c, k] + nh]
             s_half = s_buf[s_off[c, k] : s_off[c, k] + nh]
             sim = scratch[:n]
-            mo = m_off[k]
-            x0[0] = x0s[c, k, 0] - vb * q[mo] if vb != 0.0 else x0s[c, k, 0]
+            x0[0] = x0s[c, k, 0] - vb * data[3, mo] if vb != 0.0 else x0s[c, k, 0]
             x0[1] = x0s[c, k, 1]
             x0[2] = x0s[c, k, 2]
-            _run(
-                sim,
-                0,
-                n,
-                x0,
-                a_half[0],
-                a_half,
-                s_half,
-                hs[k],
-                ms[c, k],
-                thetas[c],
-                codes,
-                eqs,
-                coefs[c],
-                lags[c, k],
-                offsets[c],
-                asyms[c],
-                cubics[c],
-            )
-            w = ws[k]
-            o = r_off[k]
+            blk[B_LAG] = lags[c, k]
+            _run(sim, 0, n, x0, a_half[0], a_half, s_half, data[4, mo], ms[c, k], thetas[c], codes, eqs,
+                 coefs[c], blk)
+            _residuals(res[c], sim, k, runs, data, sc, vb)
+
+
+@njit(cache=True, inline="always")
+def _residuals(res, sim, k, runs, data, sc, vb):  # pragma: no cover - compiled
+    """Run k's residuals of the simulated (v, r, psi) ``sim`` into ``res`` (:func:`_oe_batch`)."""
+    n, mo, o = runs[k, 0], runs[k, 1], runs[k, 2]
+    w = 1.0 / np.sqrt(n)
+    for i in range(n):
+        res[o + i] = w * (sim[i, 2] - data[0, mo + i]) / sc[0]
+    o += n
+    for i in range(n):
+        res[o + i] = w * (sim[i, 1] - data[1, mo + i]) / sc[1]
+    if runs[k, 3]:
+        o += n
+        for i in range(n):
+            sv = sim[i, 0] + vb * data[3, mo + i] if vb != 0.0 else sim[i, 0]
+            res[o + i] = w * (sv - data[2, mo + i]) / sc[2]
+
+
+# ---------------------------------------------------------------- sensitivities (the analytic Jacobian)
+
+
+@njit(cache=True, inline="always")
+def _feature_grad(code, v, r, s):  # pragma: no cover - compiled; held to finite differences by tests
+    """(d/dv, d/dr) of :func:`_feature` ``code`` at (v m/s, r deg/s, speed factor s)."""
+    if code == 0:
+        return 0.0, 3.0 * r * r
+    if code == 1:
+        return 0.0, 2.0 * abs(r)
+    if code == 2:
+        return 2.0 * abs(v), 0.0
+    if code == 3:
+        return 2.0 * v * r, v * v
+    if code == 4:
+        return r * r, 2.0 * v * r
+    if code == 5:
+        return abs(r), v * (1.0 if r > 0.0 else (-1.0 if r < 0.0 else 0.0))
+    if code == 6:
+        return (1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)) * r, abs(v)
+    if code == 8:
+        return 2.0 * v * r / s, v * v / s
+    if code == 9:
+        return r * r / s, 2.0 * v * r / s
+    return 3.0 * v * v, 0.0
+
+
+#: kernel columns of the sensitivities (:func:`_oe_jac`, :func:`kernel_vector`): theta (0-5), the feature
+#: coefficients (6 .. 5 + nf), then these, counted from 6 + nf: the rudder block's offset, asymmetry and
+#: cubic, and the sway reading's bias (the starts are columns of their own)
+S_OFFSET, S_ASYM, S_CUBIC, S_VBIAS = 0, 1, 2, 3
+
+
+@njit(cache=True, inline="always")
+def _sens_stage(v, r, e, a_in, s, th, codes, eqs, coefs, blk, kid, tab, sv, sr, dkv, dkr):  # pragma: no cover
+    """Derivatives of one RK4 stage's (dv/dt, dr/dt) (:func:`_deriv`) along every column j: dk = A S + B,
+    A = d(dv/dt, dr/dt)/d(v, r) at the stage's state, S = (sv, sr) the stage state's sensitivities,
+    B the direct partial derivative of kernel parameter kid[j] (theta, feature coefficients, then
+    :data:`S_OFFSET`... from 6 + nf; a start has none: kid = the zero slot of ``tab``, (2, slots)).
+    The lag state and the inputs depend on no column, so they carry no sensitivity."""
+    lag = blk[B_LAG]
+    asym, cubic = blk[B_ASYM], blk[B_CUBIC]
+    ang = (e if lag > 0.0 else a_in) + blk[B_OFFSET]
+    sg = 1.0 if ang > 0.0 else (-1.0 if ang < 0.0 else 0.0)
+    a3 = ang * ang * ang
+    g = ang * (1.0 + asym * sg) + cubic * a3
+    avv, avr = s * th[0], s * th[1]
+    arv, arr = s * th[2], s * th[3]
+    tab[0, 0], tab[0, 1], tab[1, 2], tab[1, 3] = s * v, s * r, s * v, s * r
+    tab[0, 4], tab[1, 5] = s * s * g, s * s * g
+    nf = codes.shape[0]
+    for j in range(nf):
+        fv, fr = _feature_grad(codes[j], v, r, s)
+        f = _feature(codes[j], v, r, s)
+        if eqs[j] == 0:
+            avv += coefs[j] * fv
+            avr += coefs[j] * fr
+            tab[0, 6 + j] = f
+        else:
+            arv += coefs[j] * fv
+            arr += coefs[j] * fr
+            tab[1, 6 + j] = f
+    o = 6 + nf
+    gv, gr = s * s * th[4], s * s * th[5]
+    dg = 1.0 + asym * sg + 3.0 * cubic * ang * ang
+    tab[0, o + S_OFFSET], tab[1, o + S_OFFSET] = gv * dg, gr * dg
+    tab[0, o + S_ASYM], tab[1, o + S_ASYM] = gv * ang * sg, gr * ang * sg
+    tab[0, o + S_CUBIC], tab[1, o + S_CUBIC] = gv * a3, gr * a3
+    for j in range(kid.shape[0]):
+        dkv[j] = avv * sv[j] + avr * sr[j] + tab[0, kid[j]]
+        dkr[j] = arv * sv[j] + arr * sr[j] + tab[1, kid[j]]
+
+
+@njit(cache=True, inline="always")
+def _stage_sens(tv, tr, sv, sr, c, dv, dr):  # pragma: no cover - compiled
+    """A stage state's sensitivities: (sv, sr) + c (dv, dr) into (tv, tr)."""
+    for j in range(sv.shape[0]):
+        tv[j] = sv[j] + c * dv[j]
+        tr[j] = sr[j] + c * dr[j]
+
+
+@njit(cache=True)
+def _run_sens(out, jac, rows, fac, jcol, jsc, n, x0, e0, s0, a_half, s_half, h, m, th, codes, eqs, coefs, blk,
+              kid):  # pragma: no cover
+    """:func:`_run` from sample 0 to n - 1 (the same operations on the state, so the same bits in
+    ``out``) and, alongside, the exact derivatives of the discrete RK4 solution along the kernel
+    parameters kid[j] (:func:`_sens_stage`), from ``s0`` (columns, 3) at the start: d(psi, r, v)_k /
+    d(column j) times fac[0..2] jsc[j] is written to jac[rows[0..2] + k, jcol[j]] (rows[2] < 0: no v
+    rows; jcol[j] < 0: not written).
+    A clipped state (a diverging trial model) has derivative 0."""
+    nc = s0.shape[0]
+    tab = np.zeros((2, 6 + codes.shape[0] + S_VBIAS + 2))       # the last slot: zero (a start, the bias)
+    v, r, psi, e = x0[0], x0[1], x0[2], e0
+    sv, sr, sp = s0[:, 0].copy(), s0[:, 1].copy(), s0[:, 2].copy()
+    d1v, d1r, d2v, d2r = np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc)
+    d3v, d3r, d4v, d4r = np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc)
+    t2v, t2r, t3v, t3r = np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc)
+    t4v, t4r = np.empty(nc), np.empty(nc)
+    hs = h / m
+    for k in range(n):
+        out[k, 0] = v
+        out[k, 1] = r
+        out[k, 2] = psi
+        for j in range(nc):
+            c = jcol[j]
+            if c >= 0:
+                jac[rows[0] + k, c] = fac[0] * jsc[j] * sp[j]
+                jac[rows[1] + k, c] = fac[1] * jsc[j] * sr[j]
+                if rows[2] >= 0:
+                    jac[rows[2] + k, c] = fac[2] * jsc[j] * sv[j]
+        if k == n - 1:
+            break
+        for jj in range(m):
+            a0, a1, a2 = _stage_inputs(a_half, 2 * k, jj, m)
+            q0, q1, q2 = _stage_inputs(s_half, 2 * k, jj, m)
+            (vn, rn, psi, en, k1v, k1r, k1e, k2v, k2r, k2e, k3v, k3r, k3e,
+             clip_psi) = _rk4_step(v, r, psi, e, a0, a1, a2, q0, q1, q2, hs, th, codes, eqs, coefs, blk)
+            # the stages' sensitivities at the stages' own states (the same expressions as the step's)
+            _sens_stage(v, r, e, a0, q0, th, codes, eqs, coefs, blk, kid, tab, sv, sr, d1v, d1r)
+            _stage_sens(t2v, t2r, sv, sr, 0.5 * hs, d1v, d1r)
+            _sens_stage(v + 0.5 * hs * k1v, r + 0.5 * hs * k1r, e + 0.5 * hs * k1e, a1, q1, th, codes, eqs,
+                        coefs, blk, kid, tab, t2v, t2r, d2v, d2r)
+            _stage_sens(t3v, t3r, sv, sr, 0.5 * hs, d2v, d2r)
+            _sens_stage(v + 0.5 * hs * k2v, r + 0.5 * hs * k2r, e + 0.5 * hs * k2e, a1, q1, th, codes, eqs,
+                        coefs, blk, kid, tab, t3v, t3r, d3v, d3r)
+            _stage_sens(t4v, t4r, sv, sr, hs, d3v, d3r)
+            _sens_stage(v + hs * k3v, r + hs * k3r, e + hs * k3e, a2, q2, th, codes, eqs, coefs, blk, kid,
+                        tab, t4v, t4r, d4v, d4r)
+            c6 = hs / 6.0
+            for j in range(nc):     # dpsi/dt = r: the heading's stages are the rate's stage states
+                if not clip_psi:
+                    sp[j] = sp[j] + c6 * (sr[j] + 2.0 * t2r[j] + 2.0 * t3r[j] + t4r[j])
+                sv[j] = sv[j] + c6 * (d1v[j] + 2.0 * d2v[j] + 2.0 * d3v[j] + d4v[j])
+                sr[j] = sr[j] + c6 * (d1r[j] + 2.0 * d2r[j] + 2.0 * d3r[j] + d4r[j])
+            if not (abs(vn) < _CLIP_V):     # clipped (_rk4_step): derivative 0
+                sv[:] = 0.0
+            if not (abs(rn) < _CLIP_R):
+                sr[:] = 0.0
+            v, r, e = vn, rn, en
+
+
+@njit(cache=True)
+def _oe_jac(res, jac, th, coefs, blk, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off, x0s, runs, data, sc,
+            scratch, ids, cols, xcols, xscale):  # pragma: no cover - compiled; held to finite differences
+    """Residuals of ONE parameter vector (as :func:`_oe_batch`, the same bits) and their derivatives,
+    written into the columns of ``jac`` (residuals, columns; zeros on entry): the derivative along
+    kernel parameter ids[j] (theta 0-5, the feature coefficients, then the rudder block's offset,
+    asymmetry, cubic and the sway reading's bias at :data:`S_OFFSET`... from 6 + nf) into column
+    cols[j]; along run k's start state i (v0, r0, psi0) times xscale[k, i] into column xcols[k, i]
+    (-1: none)."""
+    nf = coefs.shape[0]
+    pm = ids.shape[0]
+    zero = 6 + nf + S_VBIAS + 1          # the zero slot of _sens_stage's table
+    kid = np.empty(pm + 3, dtype=np.int64)
+    for j in range(pm):
+        kid[j] = ids[j] if ids[j] != 6 + nf + S_VBIAS else zero
+    kid[pm:] = zero
+    jcol = np.empty(pm + 3, dtype=np.int64)
+    jsc = np.ones(pm + 3)
+    jcol[:pm] = cols
+    s0 = np.zeros((pm + 3, 3))
+    x0 = np.empty(3)
+    rows = np.empty(3, dtype=np.int64)
+    fac = np.empty(3)
+    vb = blk[B_VBIAS]
+    ivb = -1
+    for j in range(pm):
+        if ids[j] == 6 + nf + S_VBIAS:
+            ivb = j
+    for k in range(runs.shape[0]):
+        n, mo = runs[k, 0], runs[k, 1]
+        nh = 2 * n - 1
+        a_half = a_buf[a_off[k] : a_off[k] + nh]
+        s_half = s_buf[s_off[k] : s_off[k] + nh]
+        sim = scratch[:n]
+        x0[0] = x0s[k, 0] - vb * data[3, mo] if vb != 0.0 else x0s[k, 0]
+        x0[1] = x0s[k, 1]
+        x0[2] = x0s[k, 2]
+        s0[:, :] = 0.0
+        if ivb >= 0:
+            s0[ivb, 0] = -data[3, mo]       # the start is a reading: the ship's v0 = reading - vb q
+        for i in range(3):
+            s0[pm + i, i] = 1.0
+            jcol[pm + i] = xcols[k, i]
+            jsc[pm + i] = xscale[k, i]
+        blk[B_LAG] = lags[k]
+        w = 1.0 / np.sqrt(n)
+        o = runs[k, 2]
+        rows[0], rows[1], rows[2] = o, o + n, (o + 2 * n if runs[k, 3] else -1)
+        fac[0], fac[1], fac[2] = w / sc[0], w / sc[1], w / sc[2]
+        _run_sens(sim, jac, rows, fac, jcol, jsc, n, x0, a_half[0], s0, a_half, s_half, data[4, mo], ms[k],
+                  th, codes, eqs, coefs, blk, kid)
+        _residuals(res, sim, k, runs, data, sc, vb)
+        if runs[k, 3] and ivb >= 0:         # the reading's bias: v read = v + vb q
             for i in range(n):
-                res[c, o + i] = w * (sim[i, 2] - psi[mo + i]) / sc_psi
-            o += n
-            for i in range(n):
-                res[c, o + i] = w * (sim[i, 1] - r[mo + i]) / sc_r
-            if has_v[k]:
-                o += n
-                for i in range(n):
-                    sv = sim[i, 0] + vb * q[mo + i] if vb != 0.0 else sim[i, 0]
-                    res[c, o + i] = w * (sv - v[mo + i]) / sc_v
+                jac[rows[2] + i, cols[ivb]] += fac[2] * data[3, mo + i]
 
 
 class OEBatch:
     """Output-error residuals of many parameter vectors of one structure on fixed runs, in one kernel
-    call (:func:`_oe_batch`): the finite-difference Jacobian of the fit needs one evaluation per
-    parameter, and evaluating them one by one from Python cost more than the simulations themselves.
+    call (:func:`_oe_batch`), and of one vector with their exact derivatives (:meth:`jacobian`).
 
-    ``runs``: per run (t s, delta deg, x0, psi deg, r deg/s, v m/s or None, u_ratio or None, weight);
-    ``scales``: (psi, r, v) spreads; ``unpack``: parameter vector -> (theta, Terms, values).
-    The inputs of every simulation are made by the same functions as :func:`simulate_terms` makes
-    them (:func:`half_grid`, :func:`speed_half`, :func:`_lag_and_substeps`)."""
+    ``runs``: per run (t s, delta deg, x0, psi deg, r deg/s, v m/s or None, u_ratio or None, weight
+    1/sqrt(samples)); ``scales``: (psi, r, v) spreads; ``unpack``: parameter vector -> (theta,
+    Terms, values).  The inputs of every simulation are made by the same functions as
+    :func:`simulate_terms` makes them (:func:`half_grid`, :func:`speed_half`, :func:`_lag_and_substeps`)."""
 
     def __init__(self, runs, scales, unpack):
         self.unpack = unpack
@@ -537,25 +627,30 @@ class OEBatch:
         self.d = [np.asarray(x[1], dtype=float) for x in runs]
         self.ratios = [x[6] for x in runs]
         self.x0s = np.ascontiguousarray([np.asarray(x[2], dtype=float).reshape(3) for x in runs])
-        self.ns = np.array([t.size for t in self.t], dtype=np.int64)
+        ns = np.array([t.size for t in self.t], dtype=np.int64)
+        for x, t in zip(runs, self.t, strict=True):
+            if float(x[7]) != 1.0 / np.sqrt(t.size):
+                raise ValueError("OEBatch weighs every run by 1/sqrt(samples)")
+        has_v = np.array([x[5] is not None for x in runs], dtype=np.int64)
+        sizes = ns * np.where(has_v, 3, 2)
+        self.runs = np.column_stack([
+            ns,
+            np.concatenate([[0], np.cumsum(ns)[:-1]]),
+            np.concatenate([[0], np.cumsum(sizes)[:-1]]),
+            has_v,
+        ]).astype(np.int64)
+        self.data = np.ascontiguousarray(np.vstack([
+            np.concatenate([np.asarray(x[3], dtype=float) for x in runs]),
+            np.concatenate([np.asarray(x[4], dtype=float) for x in runs]),
+            np.concatenate([np.zeros(t.size) if x[5] is None else np.asarray(x[5], dtype=float)
+                            for x, t in zip(runs, self.t, strict=True)]),
+            np.concatenate([reading_ratio(t.size, x[6]) for x, t in zip(runs, self.t, strict=True)]),
+            np.concatenate([np.full(t.size, float(t[1] - t[0])) for t in self.t]),
+        ]))
         self.hs = np.array([float(t[1] - t[0]) for t in self.t])
-        self.m_off = np.concatenate([[0], np.cumsum(self.ns)[:-1]]).astype(np.int64)
-        self.psi = np.concatenate([np.asarray(x[3], dtype=float) for x in runs])
-        self.r = np.concatenate([np.asarray(x[4], dtype=float) for x in runs])
-        self.v = np.concatenate(
-            [
-                np.zeros(t.size) if x[5] is None else np.asarray(x[5], dtype=float)
-                for x, t in zip(runs, self.t, strict=True)
-            ]
-        )
-        self.has_v = np.array([x[5] is not None for x in runs], dtype=np.bool_)
-        self.q = np.concatenate([reading_ratio(t.size, x[6]) for x, t in zip(runs, self.t, strict=True)])
-        self.ws = np.array([float(x[7]) for x in runs])
-        self.sc = tuple(float(x) for x in scales)
-        sizes = self.ns * np.where(self.has_v, 3, 2)
-        self.r_off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        self.sc = np.array([float(x) for x in scales])
         self.n_res = int(sizes.sum())
-        self.scratch = np.empty((int(self.ns.max()), 3))
+        self.scratch = np.empty((int(ns.max()), 3))
         self._seen: dict = {}
 
     def _inputs(self, terms: Terms, k: int):
@@ -576,21 +671,16 @@ class OEBatch:
             self._seen[key] = hit
         return hit
 
-    def __call__(self, P, X0=None) -> np.ndarray:
-        """Residuals (len(P), n_res) of the parameter vectors ``P`` (rows); ``X0`` (len(P), runs, 3):
-        each row's initial states of the runs (v m/s, r deg/s, psi deg), default the runs' own."""
-        P = np.atleast_2d(np.asarray(P, dtype=float))
-        nc, nk = P.shape[0], len(self.t)
-        if X0 is None:
-            X0 = np.broadcast_to(self.x0s, (nc, nk, 3))
-        X0 = np.ascontiguousarray(X0, dtype=float)
-        cols = [self.unpack(p)[:2] for p in P]
+    def _pack(self, cols):
+        """Kernel arrays of the (theta, Terms) ``cols``: thetas, coefs, blocks, lags, sub-steps, codes,
+        eqs, the rudder and speed half grids concatenated and each row's offsets into them."""
+        nc, nk = len(cols), len(self.t)
         codes, eqs, _ = _arrays(cols[0][1])
         thetas = np.empty((nc, 6))
         coefs = np.empty((nc, codes.size))
+        blks = np.empty((nc, BLOCK_SIZE))
         lags = np.empty((nc, nk))
         ms = np.empty((nc, nk), dtype=np.int64)
-        offsets, asyms, cubics, vbs = np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc)
         a_off = np.empty((nc, nk), dtype=np.int64)
         s_off = np.empty((nc, nk), dtype=np.int64)
         a_parts, s_parts, a_at, s_at = [], [], {}, {}
@@ -598,10 +688,7 @@ class OEBatch:
         for c, (th, terms) in enumerate(cols):
             thetas[c] = th
             coefs[c] = terms.feat_coef
-            offsets[c] = terms.offset_deg
-            asyms[c] = terms.asymmetry
-            cubics[c] = terms.rudder_cubic_per_deg2
-            vbs[c] = terms.v_bias_m_s
+            blks[c] = rudder_block(terms)
             for k in range(nk):
                 lags[c, k], ms[c, k], a, s = self._inputs(terms, k)
                 if id(a) not in a_at:
@@ -614,37 +701,53 @@ class OEBatch:
                     s_parts.append(s)
                     s_len += s.size
                 s_off[c, k] = s_at[id(s)]
+        return (thetas, coefs, blks, lags, ms, codes, eqs, np.concatenate(a_parts), a_off,
+                np.concatenate(s_parts), s_off)
+
+    def __call__(self, P, X0=None) -> np.ndarray:
+        """Residuals (len(P), n_res) of the parameter vectors ``P`` (rows); ``X0`` (len(P), runs, 3):
+        each row's initial states of the runs (v m/s, r deg/s, psi deg), default the runs' own."""
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        nc, nk = P.shape[0], len(self.t)
+        if X0 is None:
+            X0 = np.broadcast_to(self.x0s, (nc, nk, 3))
+        X0 = np.ascontiguousarray(X0, dtype=float)
+        packed = self._pack([self.unpack(p)[:2] for p in P])
         res = np.empty((nc, self.n_res))
-        _oe_batch(
-            res,
-            thetas,
-            coefs,
-            lags,
-            ms,
-            offsets,
-            asyms,
-            cubics,
-            codes,
-            eqs,
-            np.concatenate(a_parts),
-            a_off,
-            np.concatenate(s_parts),
-            s_off,
-            X0,
-            self.hs,
-            self.ns,
-            self.m_off,
-            self.psi,
-            self.r,
-            self.v,
-            self.has_v,
-            self.ws,
-            self.sc[0],
-            self.sc[1],
-            self.sc[2],
-            self.r_off,
-            self.scratch,
-            vbs,
-            self.q,
-        )
+        _oe_batch(res, *packed, X0, self.runs, self.data, self.sc, self.scratch)
         return res
+
+    def jacobian(self, p, ids, cols, width: int, starts=(), x0=None) -> tuple[np.ndarray, np.ndarray]:
+        """(residuals (n_res,), derivatives (n_res, ``width``)) of the parameter vector ``p`` from the
+        runs' starts ``x0`` (runs, 3; default their own): the residuals are :meth:`__call__`'s bits;
+        column cols[j] holds the derivative along the kernel parameter ids[j] (:func:`kernel_vector`'s
+        order), column width - len(starts) + c the derivative along start state i of run k times w
+        for starts[c] = (k, i, w) (:func:`_oe_jac`); other columns are zero."""
+        th, terms = self.unpack(np.asarray(p, dtype=float))[:2]
+        x0 = self.x0s if x0 is None else np.ascontiguousarray(x0, dtype=float)
+        nk = len(self.t)
+        xcols = np.full((nk, 3), -1, dtype=np.int64)
+        xscale = np.zeros((nk, 3))
+        for c, (k, i, w) in enumerate(starts):
+            xcols[k, i] = width - len(starts) + c
+            xscale[k, i] = w
+        thetas, coefs, blks, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off = self._pack([(th, terms)])
+        res = np.empty(self.n_res)
+        jac = np.zeros((self.n_res, width))
+        _oe_jac(res, jac, thetas[0], coefs[0], blks[0], lags[0], ms[0], codes, eqs, a_buf, a_off[0], s_buf,
+                s_off[0], x0, self.runs, self.data, self.sc, self.scratch, np.asarray(ids, dtype=np.int64),
+                np.asarray(cols, dtype=np.int64), xcols, xscale)
+        return res, jac
+
+
+def kernel_vector(theta, terms: Terms) -> tuple[np.ndarray, tuple]:
+    """(the kernel parameters with sensitivities, in :func:`_oe_jac`'s column order without the starts:
+    theta, feature coefficients, offset deg, asymmetry, cubic 1/deg^2, sway bias m/s; the inputs
+    without: (feature codes, equations, delay s, lag s, speed exponent)).  A parameter that moves only
+    the first has its Jacobian column from the sensitivities; one that moves the second, by a
+    finite difference."""
+    vec = np.concatenate([np.asarray(theta, dtype=float), np.asarray(terms.feat_coef, dtype=float),
+                          [terms.offset_deg, terms.asymmetry, terms.rudder_cubic_per_deg2, terms.v_bias_m_s]])
+    other = (tuple(terms.feat_code), tuple(terms.feat_eq), float(terms.delay_s), float(terms.lag_s),
+             float(terms.speed_exponent))
+    return vec, other

@@ -26,10 +26,12 @@ Time scale T_ship (:func:`ship_time_scale`): |T| of a first-order Nomoto model r
 fitted by equation error on the training runs; for a course-unstable ship it is the time scale of
 the divergence.  Dimensionless under Froude scaling, so a run at full scale gives the same T/duration.
 
-Speed, the same numbers bit for bit (tests/test_diagnose_speed.py, tests/test_model_definition.py):
-the forward-difference Jacobian's columns are evaluated in one numba call (:func:`oe_batch` handed to
-least_squares as its ``workers`` map; SciPy still forms steps and differences), and within one
+Speed (docs/performance.md): the output-error residuals of a parameter vector are one numba call
+(:func:`oe_batch`, the bits of :func:`_oe_residuals`: tests/test_model_definition.py), and their
+Jacobian is exact, the sensitivities of the discrete RK4 solution computed in the same kernel
+(:func:`jacobian`; held to finite differences by tests/test_diagnose_jacobian.py); within one
 diagnosis a fit of the same runs (by content), structure and start is made once (:func:`memoised`).
+:func:`plain_fits` is the same-run baseline: residuals from Python, SciPy's forward differences.
 """
 
 from __future__ import annotations
@@ -37,17 +39,17 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
-import inspect
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import qr_multiply
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
 from pipeline.diagnose.effects import BY_NAME, NAMES, Context, Terms
-from pipeline.diagnose.extended import OEBatch, predict_segments, simulate_terms
+from pipeline.diagnose.extended import OEBatch, kernel_vector, predict_segments, simulate_terms
 from pipeline.errors import InputError, ModelError
 from pipeline.io import Run
 from pipeline.model import PARAM_NAMES
@@ -627,13 +629,38 @@ def boxed_initial_state(fit: FitResult, s: Series, half_width: np.ndarray) -> np
         q[free] = z
         return ((simulate_terms(fit.theta, fit.terms, q, s.t, s.delta, ur) - meas) * w).ravel()
 
+    jac = "2-point" if _PLAIN.get() else _start_jacobian(fit, s, x, free, w)
     lo, hi = x[free] - half_width[free], x[free] + half_width[free]
-    r = least_squares(resid, x[free], bounds=(lo, hi), x_scale=half_width[free], max_nfev=20,
+    r = least_squares(resid, x[free], jac=jac, bounds=(lo, hi), x_scale=half_width[free], max_nfev=20,
                       method="trf", **_TOL)
     e0, e1 = resid(x[free]), r.fun
     if np.all(np.isfinite(e1)) and e1 @ e1 < e0 @ e0:
         x[free] = r.x
     return x
+
+
+def _start_jacobian(fit: FitResult, s: Series, x: np.ndarray, free: list[int], w: np.ndarray):
+    """The Jacobian, for :func:`boxed_initial_state`, of its residuals ((free run - measured) w per
+    sample, channels v, r, psi interleaved) along the start states ``free`` (the rest of the start as
+    in ``x``): the kernel's sensitivities to the start (:meth:`OEBatch.jacobian`), whose rows are
+    (1/sqrt(n)) (free run - measured) / spread in blocks psi, r, v, brought to that layout."""
+    n = s.t.size
+    sc = [1.0 / w[2], 1.0 / w[1], 1.0 / w[0] if w[0] > 0 else 1.0]
+    batch = OEBatch([(s.t, s.delta, x, s.psi, s.r, s.v, _u_ratio(s, fit.u_ref), 1.0 / np.sqrt(n))], sc,
+                    lambda _p: (fit.theta, fit.terms, None))
+    starts = [(0, i, float(np.sqrt(n))) for i in free]
+    blocks = (2, 1, 0) if s.v is not None else (2, 1)
+
+    def jac(z):
+        q = x.copy()
+        q[free] = z
+        _, jb = batch.jacobian(np.zeros(0), [], [], len(free), starts, q[None])
+        out = np.zeros((3 * n, len(free)))
+        for b, ch in enumerate(blocks):
+            out[ch::3] = jb[b * n:(b + 1) * n]
+        return out
+
+    return jac
 
 
 def _scales(series: list[Series]) -> dict[str, float]:
@@ -802,30 +829,127 @@ def oe_batch(series: list[Series], sc: dict, layout: Layout, u_ref) -> OEBatch:
     return OEBatch(runs, (sc["psi"], sc["r"], sc["v"]), layout.unpack)
 
 
-#: least_squares takes a map-like ``workers`` for its finite-difference columns from SciPy 1.16 on
-_HAS_WORKERS = "workers" in inspect.signature(least_squares).parameters
+#: SciPy's forward-difference step: sqrt of the machine epsilon, relative (scipy.optimize._numdiff)
+_FD_REL_STEP = float(np.sqrt(np.finfo(float).eps))
 
 
-def _batched(batch: OEBatch, q: np.ndarray | None = None, free=None) -> dict:
-    """``workers`` for least_squares: its forward-difference Jacobian hands every perturbed parameter
-    vector to this map, which evaluates them all in one :class:`OEBatch` call.  SciPy still forms the
-    steps and the differences itself, so the Jacobian is the one it would compute column by column
-    (same residuals, same bits).  ``q``/``free``: the full vector when only ``free`` entries are fitted.
-    Empty (SciPy < 1.16): column by column, the same numbers, slower."""
-    if not _HAS_WORKERS or _PLAIN.get():
-        return {}
+def _fd_step(x: float, lo: float, hi: float) -> float:
+    """The forward-difference step SciPy's "2-point" scheme takes at ``x`` within [lo, hi]: relative
+    :data:`_FD_REL_STEP` of max(1, |x|), signed as x, reversed where it would leave the bounds; the
+    step as represented (x + h - x)."""
+    h = _FD_REL_STEP * (1.0 if x >= 0 else -1.0) * max(1.0, abs(x))
+    if not (lo <= x + h <= hi) and lo <= x - h <= hi:
+        h = -h
+    return (x + h) - x
 
-    def expand(x):
-        if q is None:
-            return x
-        z = q.copy()
-        z[free] = x
-        return z
 
-    def workers(_fun, xs):
-        return list(batch(np.array([expand(x) for x in xs])))
+def _kernel_map(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray):
+    """How the parameter vector ``p`` moves the kernel's parameters: (kernel columns touched, their
+    derivatives d(kernel vector)/dp (columns, len(p)), indices of the parameters that move a time
+    input instead), by a forward step of each parameter through ``batch.unpack``."""
+    th, tm, _ = batch.unpack(p)
+    k0, other0 = kernel_vector(th, tm)
+    dk = np.zeros((k0.size, p.size))
+    fd = []
+    for i in range(p.size):
+        q = p.copy()
+        q[i] = p[i] + _fd_step(float(p[i]), float(lo[i]), float(hi[i]))
+        th1, tm1, _ = batch.unpack(q)
+        k1, other1 = kernel_vector(th1, tm1)
+        if other1 != other0:
+            fd.append(i)
+        else:
+            dk[:, i] = (k1 - k0) / (q[i] - p[i])
+    ids = np.flatnonzero(np.any(dk != 0.0, axis=1))
+    return ids, dk[ids], fd
 
-    return {"workers": workers}
+
+def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=None, starts=()):
+    """(residuals, Jacobian) of :class:`OEBatch` ``batch`` at the parameter vector ``p`` (bounds
+    ``lo``, ``hi``) from the runs' starts ``x0`` (runs, 3; default their own): the Jacobian's columns
+    are d residuals / d p, then, for each (k, i, w) of ``starts``, w d residuals / d (start state i of
+    run k).
+
+    A parameter that moves only kernel parameters with sensitivities (theta, feature coefficients,
+    rudder offset, asymmetry, cubic, sway bias: :func:`~pipeline.diagnose.extended.kernel_vector`) has
+    its column exactly, the sensitivities of the discrete RK4 solution (:meth:`OEBatch.jacobian`)
+    along d(kernel vector)/dp (:func:`_kernel_map`; kept for the batch where it is the same at two
+    points, i.e. the unpacking is affine, as for every parameter of the catalogue, which enter as
+    themselves).  A time input (dead time, servo lag, speed exponent: the rudder's time shift, the
+    sub-steps and the speed factor's power have no sensitivity in the kernel) gets SciPy's forward
+    difference through the batch.  docs/performance.md, "Analytic Jacobian"."""
+    p = np.asarray(p, dtype=float)
+    key = (p.size, lo.tobytes(), hi.tobytes())
+    cached = batch.__dict__.get("_kernel_map")
+    if cached is not None and cached[0] == key:
+        kmap = cached[1]
+    else:
+        kmap = _kernel_map(batch, p, lo, hi)
+        box = np.isfinite(lo) & np.isfinite(hi)
+        mid = np.clip(p, lo, hi)
+        mid[box] = 0.5 * (lo[box] + hi[box])
+        other = _kernel_map(batch, np.clip(0.5 * (p + mid), lo, hi), lo, hi)
+        if (np.array_equal(kmap[0], other[0]) and np.array_equal(kmap[1], other[1])
+                and kmap[2] == other[2]):
+            batch.__dict__["_kernel_map"] = (key, kmap)
+    ids, dk, fd = kmap
+    width = p.size + len(starts)
+    # each kernel parameter moved by one parameter of p with slope 1 (the catalogue's case): its
+    # sensitivity is that parameter's column as it stands
+    direct = (dk.shape[0] == 0 or (np.all(np.count_nonzero(dk, axis=1) == 1) and np.all(dk[dk != 0] == 1.0)
+                                   and np.all(np.count_nonzero(dk, axis=0) <= 1)))
+    if direct:
+        cols = np.argmax(dk != 0, axis=1) if dk.shape[0] else np.zeros(0, dtype=np.int64)
+        res, jac = batch.jacobian(p, ids, cols, width, starts, x0)
+    else:
+        res, jk = batch.jacobian(p, ids, np.arange(ids.size), ids.size + len(starts), starts, x0)
+        jac = np.zeros((res.size, width))
+        jac[:, : p.size] = jk[:, : ids.size] @ dk
+        jac[:, p.size:] = jk[:, ids.size:]
+    if fd:
+        xx = None if x0 is None else np.broadcast_to(np.asarray(x0, dtype=float), (len(fd), *np.shape(x0)))
+        qs = []
+        for i in fd:
+            q = p.copy()
+            q[i] = p[i] + _fd_step(float(p[i]), float(lo[i]), float(hi[i]))
+            qs.append(q)
+        for i, q, row in zip(fd, qs, batch(np.array(qs), xx), strict=True):
+            jac[:, i] = (row - res) / (q[i] - p[i])
+    return res, jac
+
+
+def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int):
+    """least_squares (trust-region reflective, :data:`_TR`, :data:`_TOL`, ``x_scale="jac"``) of the
+    residuals f(x) whose Jacobian J(x) comes with them (``fj(x)`` -> (f, J), one kernel call), posed in
+    their QR-compressed form: J = Q R, the residuals (Q^T f, |f - Q Q^T f|) and the Jacobian (R; 0).
+
+    The same problem, step for step: the cost 0.5 |f|^2, the gradient J^T f = R^T Q^T f, the
+    trust-region model |J p + f|^2 = |R p + Q^T f|^2 + |f - Q Q^T f|^2 and the column norms of the
+    Jacobian (``x_scale="jac"``) are those of the full residuals, so the iterates are the same up to
+    rounding; but SciPy's SVD per iteration is of an (n + 1) x n matrix instead of the thousands of
+    rows of f, which took a third of the fit's time (docs/performance.md).  Every evaluation makes
+    its Jacobian (an accepted point needs it next; a rejected one pays it for nothing).  Returns
+    SciPy's result with ``fun`` and ``jac`` the full residuals and Jacobian at its ``x``."""
+    made: dict = {}
+
+    def fun(x):
+        f, jx = fj(x)
+        made.clear()
+        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(jx))):
+            return np.full(x.size + 1, np.nan)      # a trial point SciPy rejects (shrinks its region)
+        qtf, r = qr_multiply(jx, f, mode="right")
+        made[x.tobytes()] = np.vstack([r, np.zeros((1, x.size))])
+        return np.append(qtf, np.sqrt(max(float(f @ f) - float(qtf @ qtf), 0.0)))
+
+    def jac(x, _f=None):
+        if x.tobytes() not in made:
+            fun(x)
+        return made[x.tobytes()]
+
+    res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
+                        tr_solver=_TR, **_TOL)
+    res.fun, res.jac = fj(res.x)
+    return res
 
 
 #: trust-region sub-problem solver: "exact", an SVD of the Jacobian per iteration (6 to ~16 columns,
@@ -853,8 +977,9 @@ _PLAIN: ContextVar[bool] = ContextVar("diagnose_plain_fits", default=False)
 
 @contextmanager
 def plain_fits():
-    """Within: fits as before the speed devices (residuals and finite-difference columns one by
-    one from Python, no memo); the same numbers, for the benchmark's same-run baseline and tests."""
+    """Within: fits without the speed devices (residuals one run at a time from Python, SciPy's
+    forward-difference Jacobian, no memo): the benchmark's same-run baseline.  The same model up to
+    the optimiser's tolerance (another Jacobian takes other steps to the same optimum)."""
     token = _PLAIN.set(True)
     try:
         yield
@@ -984,8 +1109,10 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
     msg = [f"prediction-error start over {horizon} steps"] if horizon else []
     batch = oe_batch(series, sc, layout, u_ref)
 
+    plain = _PLAIN.get()
+
     def oe(p):
-        if _PLAIN.get():
+        if plain:
             th, tm, _ = layout.unpack(p)
             return _oe_residuals(series, sc, th, tm, u_ref)
         return batch(p)[0]
@@ -1012,32 +1139,39 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
                 z[free] = x
                 return oe(z)
 
-            rr = least_squares(
-                fun,
-                q[free],
-                bounds=(lo[free], hi[free]),
-                x_scale="jac",
-                max_nfev=max(6, max_nfev // 25),
-                method="trf",
-                tr_solver=_TR,
-                **_TOL,
-                **_batched(batch, q, free),
-            )
+            def fj(x, q=q, free=free):
+                z = q.copy()
+                z[free] = x
+                f, jz = jacobian(batch, z, lo, hi)
+                return f, jz[:, free]
+
+            top = max(6, max_nfev // 25)
+            if plain:
+                rr = least_squares(fun, q[free], bounds=(lo[free], hi[free]), x_scale="jac", max_nfev=top,
+                                   method="trf", tr_solver=_TR, **_TOL)
+            else:
+                rr = _compressed_lsq(fj, q[free], lo[free], hi[free], top)
             if np.isfinite(rr.cost) and rr.cost < best_cost:
                 best_cost = rr.cost
                 best = q.copy()
                 best[free] = rr.x
         p0 = best
-    joint = _JointStarts(series, len(names), layout, sc, u_ref, batch)
+    joint = _JointStarts(series, len(names), layout, sc, u_ref, batch, (lo, hi), plain)
     if joint.free:
         # the polish with each training run's own start, jointly (the docstring says why)
-        res = least_squares(joint, joint.extend(p0, z0), bounds=joint.bounds(lo, hi), x_scale="jac",
-                            max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL, **joint.workers())
+        if plain:
+            res = least_squares(joint, joint.extend(p0, z0), bounds=joint.bounds(lo, hi), x_scale="jac",
+                                max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL)
+        else:
+            res = _compressed_lsq(joint.fun_jac, joint.extend(p0, z0), *joint.bounds(lo, hi), max_nfev)
         msg.append("output-error polish from each training run's own start (within its box)"
                    + ("" if res.success else f" (stopped: {res.message})"))
     else:
-        res = least_squares(oe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
-                            tr_solver=_TR, **_TOL, **_batched(batch))
+        if plain:
+            res = least_squares(oe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
+                                tr_solver=_TR, **_TOL)
+        else:
+            res = _compressed_lsq(lambda p: jacobian(batch, p, lo, hi), p0, lo, hi, max_nfev)
         msg.append("output-error polish" + ("" if res.success else f" (stopped: {res.message})"))
     if not (np.all(np.isfinite(res.x)) and np.isfinite(res.cost)):
         raise ModelError("the diagnosis fit produced no finite result")
@@ -1085,12 +1219,15 @@ class _JointStarts:
     """Output-error residuals of (model parameters, each training run's start): the start of run k is
     its estimate plus z_k times the half-width of its box (``Start.box_sigma`` standard deviations of
     the estimate, :func:`boxed_initial_state`'s box), z_k in [-1, 1], for the states JOINT_STATES
-    names (r0); psi0 kept, as in the held-out evaluation.  A callable for least_squares with the numba
-    batch for its finite-difference columns (``workers``)."""
+    names (r0); psi0 kept, as in the held-out evaluation.  A callable for least_squares, with its
+    Jacobian (:meth:`jac`: the kernel's sensitivities, :func:`jacobian`).  ``bounds``: the model
+    parameters' (lo, hi); ``plain``: residuals one run at a time from Python (:func:`plain_fits`)."""
 
-    def __init__(self, series, n_p, layout, sc, u_ref, batch):
+    def __init__(self, series, n_p, layout, sc, u_ref, batch, bounds, plain=False):
         self.series, self.n_p, self.layout = series, n_p, layout
         self.sc, self.u_ref, self.batch = sc, u_ref, batch
+        self.lo, self.hi = bounds
+        self.plain = plain
         self.free = []      # (run, state index, half-width)
         for k, s in enumerate(series):
             box, sd = s.start.box_sigma or 0.0, s.start.std
@@ -1114,20 +1251,17 @@ class _JointStarts:
         return x0
 
     def __call__(self, pz):
-        if _PLAIN.get():
+        if self.plain:
             th, tm, _ = self.layout.unpack(pz[: self.n_p])
             return _oe_residuals(self.series, self.sc, th, tm, self.u_ref, self.starts(pz[self.n_p:]))
         return self.batch(pz[None, : self.n_p], self.starts(pz[self.n_p:])[None])[0]
 
-    def workers(self) -> dict:
-        if not _HAS_WORKERS or _PLAIN.get():
-            return {}
-
-        def run(_fun, xs):
-            xs = np.array(list(xs), dtype=float)
-            return list(self.batch(xs[:, : self.n_p], np.array([self.starts(x[self.n_p:]) for x in xs])))
-
-        return {"workers": run}
+    def fun_jac(self, pz) -> tuple[np.ndarray, np.ndarray]:
+        """(residuals, d residuals / d (model parameters, z)) in one kernel call (:func:`jacobian`):
+        the starts' columns are the kernel's sensitivities to each run's start times the half-width of
+        its box."""
+        x0 = self.starts(pz[self.n_p:])
+        return jacobian(self.batch, pz[: self.n_p], self.lo, self.hi, x0, self.free)
 
 
 def is_stable(theta) -> bool:

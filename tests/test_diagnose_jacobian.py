@@ -1,0 +1,180 @@
+"""The fit's analytic Jacobian (the sensitivities of the discrete RK4 solution, computed in the numba
+kernel beside the simulation: pipeline.diagnose.extended._run_sens, fit.jacobian) is the derivative of
+the output-error residuals: held here to central finite differences of the residual kernel, for every
+form of every effect of the catalogue, all effects together, a run without sway, the training runs'
+fitted starts (fit._JointStarts) and a lag both dropped and sub-stepped."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+import pytest
+
+from pipeline.diagnose import TruthConfig, zigzag_truth
+from pipeline.diagnose.core import _context
+from pipeline.diagnose.effects import CATALOGUE
+from pipeline.diagnose.fit import (
+    Layout,
+    _JointStarts,
+    _scales,
+    jacobian,
+    oe_batch,
+    reference_speed,
+    series_from_run,
+    structure_of,
+    with_initial_states,
+)
+from pipeline.model import PAPER_TABLE4
+
+RNG = np.random.default_rng(42)
+#: central-difference step, relative to max(1, |p|): its truncation error (h^2 times the third
+#: derivative; measured 1e-8 of a column at 1e-5 on the cross terms, falling as h^2) and its rounding
+#: error (1e-16 / h of the residuals) both fall near 1e-10 of a column
+REL_STEP = 1e-6
+#: largest relative difference (column norm) allowed between the analytic and the central-difference
+#: column.  Where a parameter's column comes by forward difference itself (a time input) or a feature
+#: has a kink (|v|, |r|, the sign of the rudder angle), a sample crossing it within +-h moves a column
+#: by about h / (the run's samples) relative: 1e-5 / 1000; 1e-5 leaves room for both and would still
+#: catch a wrong partial derivative, which is off by the order of the column itself
+TOL = 1e-5
+
+
+@pytest.fixture(scope="module")
+def setting():
+    cfg = TruthConfig(seed=11, rudder_offset=1.0, speed_loss_k=0.2)
+    runs = [zigzag_truth(a, a, side, 30.0, dc.replace(cfg, seed=11 + j))
+            for j, (a, side) in enumerate([(20, "starboard"), (10, "port")])]
+    series = [series_from_run(r) for r in runs]
+    series[1] = dc.replace(series[1], v=None)
+    series = with_initial_states(series, 2.0, box_sigma=2.0)
+    ctx = _context(series)
+    return series, ctx, _scales(series), reference_speed(series)
+
+
+def _points(layout, batch, n=3):
+    """Parameter vectors near the paper's ship with every effect present at a moderate size, inside the
+    bounds, whose free runs follow the runs (every residual below 1, i.e. within a spread of the
+    measured channel): a diverging trial model is so nonlinear in its parameters that the central
+    differences themselves are off (measured: 7e-4 of a column at the step that gives 5e-9 elsewhere)."""
+    lo, hi = layout.bounds()
+    theta = np.array(list(PAPER_TABLE4.values()))
+    out = []
+    for _ in range(200):
+        extra = []
+        for a, b, name in zip(lo[6:], hi[6:], layout.names[6:], strict=True):
+            span = 0.02 if not name.endswith("_s") else 0.5        # coefficients small, times in s
+            extra.append(RNG.uniform(max(a, -span), min(b, span)) if a < b else a)
+        p = np.concatenate([theta * RNG.uniform(0.8, 1.2, 6), extra])
+        if np.max(np.abs(batch(p)[0])) < 1.0:
+            out.append(p)
+        if len(out) == n:
+            return out
+    raise AssertionError("no following trial model found")
+
+
+def _central(f, p, lo, hi):
+    cols = []
+    for i in range(p.size):
+        h = REL_STEP * max(1.0, abs(p[i]))
+        a, b = max(p[i] - h, lo[i]), min(p[i] + h, hi[i])
+        qa, qb = p.copy(), p.copy()
+        qa[i], qb[i] = a, b
+        cols.append((f(qb) - f(qa)) / (b - a))
+    return np.column_stack(cols)
+
+
+def _check(ja, jn, names):
+    for i, n in enumerate(names):
+        scale = max(np.linalg.norm(jn[:, i]), 1e-12)
+        err = np.linalg.norm(ja[:, i] - jn[:, i]) / scale
+        assert err < TOL, (n, err)
+
+
+STRUCTURES = [structure_of((e.name, f.name)) for e in CATALOGUE for f in e.forms] + [
+    structure_of(*[(e.name, e.forms[-1].name) for e in CATALOGUE])
+]
+
+
+@pytest.mark.parametrize("st", STRUCTURES, ids=lambda st: "+".join(f"{e}:{f}" for e, f in st))
+def test_analytic_jacobian_is_the_derivative_of_the_residuals(setting, st):
+    series, ctx, sc, u_ref = setting
+    layout = Layout(st, ctx)
+    lo, hi = layout.bounds()
+    batch = oe_batch(series, sc, layout, u_ref)
+    for p in _points(layout, batch):
+        res, jp = jacobian(batch, p, lo, hi)
+        assert np.array_equal(res, batch(p)[0])          # the same residuals, bit for bit
+        _check(jp, _central(lambda q: batch(q)[0], p, lo, hi), layout.names)
+
+
+def test_the_starts_columns_are_the_derivative_too(setting):
+    """The polish's joint fit of each training run's start (r0 within its box): its z columns."""
+    series, ctx, sc, u_ref = setting
+    st = structure_of("rudder_offset", "nonlinear_yaw_damping", "heading_misalignment")
+    layout = Layout(st, ctx)
+    lo, hi = layout.bounds()
+    batch = oe_batch(series, sc, layout, u_ref)
+    joint = _JointStarts(series, len(layout.names), layout, sc, u_ref, batch, (lo, hi))
+    assert len(joint.free) == 2                        # r0 of both runs
+    jlo, jhi = joint.bounds(lo, hi)
+    for p in _points(layout, batch, 2):
+        pz = joint.extend(p, RNG.uniform(-0.5, 0.5, len(joint.free)))
+        names = layout.names + [f"z{k}" for k in range(len(joint.free))]
+        _check(joint.fun_jac(pz)[1], _central(joint, pz, jlo, jhi), names)
+
+
+@pytest.mark.parametrize("lag_s", [0.001, 0.03, 0.6])
+def test_a_servo_lag_dropped_or_substepped(setting, lag_s):
+    """A lag below h/20 is taken as none, one below h/2 needs RK4 sub-steps: the sensitivities run the
+    same sub-steps (the lag's own column is a forward difference).  0.03 s, not 0.02: at h/(2 lag) = 2
+    exactly the sub-step count changes, and the residuals jump with it."""
+    series, ctx, sc, u_ref = setting
+    layout = Layout(structure_of("rudder_lag", "rudder_offset"), ctx)
+    lo, hi = layout.bounds()
+    batch = oe_batch(series, sc, layout, u_ref)
+    p = _points(layout, batch, 1)[0]
+    p[layout.names.index("lag_s")] = lag_s
+    _, jp = jacobian(batch, p, lo, hi)
+    _check(jp, _central(lambda q: batch(q)[0], p, lo, hi), layout.names)
+
+
+def test_a_wrong_partial_derivative_is_caught(setting, monkeypatch):
+    """The check can fail: the offset's column scaled by 1.001 is refused."""
+    import pipeline.diagnose.fit as fit
+
+    series, ctx, sc, u_ref = setting
+    layout = Layout(structure_of("rudder_offset"), ctx)
+    lo, hi = layout.bounds()
+    batch = oe_batch(series, sc, layout, u_ref)
+    p = _points(layout, batch, 1)[0]
+    _, jp = fit.jacobian(batch, p, lo, hi)
+    jp[:, layout.names.index("offset_deg")] *= 1.001
+    with pytest.raises(AssertionError, match="offset_deg"):
+        _check(jp, _central(lambda q: batch(q)[0], p, lo, hi), layout.names)
+
+
+@pytest.mark.parametrize("run", [0, 1], ids=["with sway", "without sway"])
+def test_the_held_out_start_jacobian_is_the_derivative_too(setting, run):
+    """boxed_initial_state's Jacobian (its residuals, channels interleaved, along the free start
+    states) from the kernel's sensitivities, for a fitted extended model, with and without a sway
+    channel."""
+    from pipeline.diagnose.fit import _start_jacobian, fit_structure, simulate_terms
+
+    series, ctx, *_ = setting
+    fit = fit_structure(series, structure_of("rudder_offset", "nonlinear_yaw_damping"), ctx, max_nfev=20)
+    s = series[run]
+    x = np.array(s.x0, dtype=float)
+    free = [0, 1] if s.v is not None else [1]
+    w = np.array([1.0 / np.std(s.v) if s.v is not None else 0.0, 1.0 / np.std(s.r), 1.0 / np.std(s.psi)])
+    meas = np.column_stack([s.v if s.v is not None else np.zeros_like(s.r), s.r, s.psi])
+    ur = None if fit.u_ref is None else s.u_smooth() / fit.u_ref
+
+    def resid(z):
+        q = x.copy()
+        q[free] = z
+        return ((simulate_terms(fit.theta, fit.terms, q, s.t, s.delta, ur) - meas) * w).ravel()
+
+    z = x[free] + 0.01
+    big = np.full(len(free), np.inf)
+    _check(_start_jacobian(fit, s, x, free, w)(z), _central(resid, z, -big, big), [f"x{i}" for i in free])
