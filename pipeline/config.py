@@ -444,6 +444,15 @@ class DiagnoseConfig:
     # flagged): the anchored form still refits the rudder gains b11, b21, the linear part's remaining
     # compensation (docs/diagnosis.md, "Known limits")
     anchor_small_motion: bool = False
+    anchor_always: bool = False
+    anchor_rudder: bool = False
+    # where the baseline is inadequate, fit the reference structure (pipeline.diagnose.effects.REFERENCE:
+    # rudder offset, the Abkowitz-type hull terms, speed-dependent coefficients) in every fold and
+    # report its held-out error beside the selection's (diagnosis.json ``reference``): the ceiling of
+    # the catalogue's terms told everything at once, so a verdict of none or a small gain can be read
+    # against what the terms carry (docs/diagnosis.md, "The reference fit").  One fit per fold (and one
+    # on all selection runs with --test runs); not made where the baseline is adequate
+    reference_fit: bool = True
     # the linear baseline is called inadequate (diagnosis.json baseline_adequate false) when its pooled
     # held-out MAE psi exceeds this many noise floors F = max(2 x heading noise, min_abs_gain_deg).  A
     # model that is right leaves the measurement noise, whose mean absolute value sqrt(2/pi) sigma is

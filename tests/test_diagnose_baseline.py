@@ -44,8 +44,11 @@ def test_the_baseline_is_the_unconstrained_fit_where_the_bound_cripples_it():
         base, other = s.linear(k), s.other_linear(k)
         assert not base.sign_bounds and other.sign_bounds
         assert "a21" in other.at_bound and base.at_bound == ()
-        # the selection's own linear rung keeps the bounds (every extension contains it)
-        assert s.fit(k, ()) is other
+        # the selection's family follows the baseline (every extension contains the baseline it is
+        # judged against): its linear rung is the unconstrained fit, the bounded one is beside it
+        assert s.fit(k, ()) is base and s.bounded(k) is other and s.family_bounds is False
+        assert s.linear_eval(k, bounded=True)[0]["mae_psi_deg"] == \
+            pytest.approx(evaluate(other, s.folds[k].val)[0]["mae_psi_deg"])
         mb = s.linear_eval(k)[0]["mae_psi_deg"]
         mo = evaluate(other, s.folds[k].val)[0]["mae_psi_deg"]
         assert mb < 0.7 * mo, (mb, mo)
