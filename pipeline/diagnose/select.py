@@ -228,19 +228,16 @@ class Search:
         self._linear_evals: dict = {}
 
     def fit(self, k: int, structure, start: FitResult | None = None) -> FitResult:
-        """Fold ``k``'s fit of ``structure`` (cached).  Every structure is fitted in the family of the
-        reported baseline: with the ship-sign bounds where the baseline keeps them, without where the
-        best linear model is the unconstrained one (:meth:`choose_baseline`), so that every extension
-        contains the baseline it is judged against; the empty structure is then that baseline."""
+        """Fold ``k``'s fit of ``structure`` (cached), in the family of :attr:`family_bounds`: with the
+        ship-sign bounds, or (``DiagnoseConfig.family_follows_baseline``, where the reported baseline is
+        the unconstrained fit) without them, the empty structure then being that baseline."""
         key = (k, structure_of(*structure))
         if key not in self._fits:
-            if not key[1] and self.baseline_bounded is False:
+            if not key[1] and not self.family_bounds:
                 free = self.unconstrained(k)
                 if free is None:
                     raise self._free[k]
                 self._fits[key] = free
-            elif self.cfg.anchor_always and self._hull(key[1]):
-                self._fits[key] = self._anchored(k, key[1], [start])
             else:
                 self._fits[key] = self.sound(k, key[1], self._best_start(k, key[1], start))
         return self._fits[key]
@@ -252,13 +249,12 @@ class Search:
 
     def _anchored(self, k: int, structure, starts) -> FitResult:
         """The anchored form of ``structure`` in fold ``k`` (:meth:`sound`): the linear part held at the
-        reported baseline's (a11 ... a22, and b11, b21 with ``DiagnoseConfig.anchor_rudder``), the
-        damping terms signed; fitted from the baseline and from each of ``starts`` (None skipped), the
-        fit of least TRAINING cost kept.  Raises ModelError where none can be fitted."""
+        reported baseline's (a11 ... a22), the damping terms signed; fitted from the baseline and from
+        each of ``starts``, the fit of least TRAINING cost kept.  Raises ModelError where none fits."""
         anchor = self.linear(k)
-        hold = tuple(float(x) for x in anchor.theta[:6 if self.cfg.anchor_rudder else 4])
+        hold = tuple(float(x) for x in anchor.theta[:4])
         fits, err = [], None
-        for st in (anchor, *[x for x in starts if x is not None]):
+        for st in (anchor, *starts):
             try:
                 fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
                                           max_nfev=self.cfg.max_nfev, block_T=self.cfg.block_T,
@@ -271,9 +267,10 @@ class Search:
 
     @property
     def family_bounds(self) -> bool:
-        """Whether the structures of this search are fitted with the ship-sign bounds: those of the
-        reported baseline (:meth:`fit`)."""
-        return self.baseline_bounded is not False
+        """Whether the structures of this search are fitted with the ship-sign bounds: always, unless
+        ``DiagnoseConfig.family_follows_baseline`` and the reported baseline is the unconstrained fit
+        (:meth:`fit`; the switch's measured reason is at its field)."""
+        return self.baseline_bounded is not False or not self.cfg.family_follows_baseline
 
     def bounded(self, k: int) -> FitResult:
         """Fold ``k``'s linear fit with the ship-sign bounds (the reported baseline unless the
@@ -381,7 +378,7 @@ class Search:
         self.best_bounded = not mf < mb
         # reported as THE baseline only with DiagnoseConfig.best_linear_baseline (its reason there)
         self.baseline_bounded = self.best_bounded if self.cfg.best_linear_baseline else True
-        if self.baseline_bounded is False:
+        if not self.family_bounds:
             # the family follows the baseline (:meth:`fit`): the bounded fits and their evaluations move
             # aside (:meth:`bounded`), the empty structure becomes the unconstrained fit
             for k in ks:
@@ -422,7 +419,7 @@ class Search:
     def linear_eval(self, k: int, bounded: bool | None = None):
         """Held-out evaluation of fold ``k``'s linear fit: the reported baseline (``bounded`` None), or
         the bounded / unconstrained one."""
-        b = self.family_bounds if bounded is None else bounded
+        b = (self.baseline_bounded is not False) if bounded is None else bounded
         if b == self.family_bounds:
             self.fit(k, ())
             return self.eval(k, ())
