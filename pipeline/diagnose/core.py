@@ -647,8 +647,9 @@ def _against_other(pairs, cfg, block_s) -> dict | None:
 
 def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
     """diagnosis.json's ``reference``: the reference structure (:data:`~pipeline.diagnose.effects.
-    REFERENCE`, each effect where it applies to the runs) fitted in every fold on its training runs, from
-    the reported baseline and with its sign bounds, measured on the fold's validation runs; with test
+    REFERENCE`, each effect where it applies to the runs) fitted in every fold on its training runs in
+    the selection's family (:attr:`~pipeline.diagnose.select.Search.family_bounds`), from its linear
+    fit, measured on the fold's validation runs against the reported baseline; with test
     runs also refitted on every selection run and measured on the test runs against the baseline
     refitted there.  It is not chosen and says what the catalogue's terms carry when told everything at
     once, beside the selection's own figure (docs/diagnosis.md, "The reference fit").
@@ -668,12 +669,11 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
         return out | {"reason": "not made: the linear baseline is adequate (within its noise floors)"}
     if "hull_nonlinearity" not in out["effects"]:
         return out | {"reason": "not made: the runs have no sway velocity, so no hull term can be fitted"}
-    bounded = search.baseline_bounded is not False
-    kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": bounded}
+    kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds}
     base_maes, maes = [], []
     try:
         for k in ks:
-            fit = fit_structure(folds[k].train, structure, ctx, start=search.linear(k), **kw)
+            fit = fit_structure(folds[k].train, structure, ctx, start=search.fit(k, ()), **kw)
             m = evaluate(fit, folds[k].val)[0]["mae_psi_deg"]
             b = search.linear_eval(k)[0]["mae_psi_deg"]
             out["per_fold"].append({"fold": folds[k].name, "validation_runs": [s.name for s in folds[k].val],
@@ -685,7 +685,7 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
         if te:
             allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
                             baseline_bounded=search.baseline_bounded)
-            fit = fit_structure(allrun.folds[0].train, structure, ctx, start=allrun.linear(0), **kw)
+            fit = fit_structure(allrun.folds[0].train, structure, ctx, start=allrun.fit(0, ()), **kw)
             g, iv, bm, em = _pair_gain([(te, allrun.linear_eval(0)[1], evaluate(fit, te)[1])], cfg,
                                        cfg.block_T * ctx.t_ship)
             out |= {"test_mae_psi_deg": em, "test_baseline_mae_psi_deg": bm,
