@@ -189,6 +189,8 @@ elif lrows:
     nb.note("The ladder has one step: no effect was added to the linear baseline.")
 else:
     nb.note("The stage wrote no model ladder.")
+if dt.reference_text(dg):
+    nb.note(dt.reference_text(dg))
 
 # %% [markdown]
 # ## The honest gain
@@ -505,6 +507,8 @@ else:
                   + (f". Flagged: {dt.effect_words(gain_block['flag'])}." if gain_block.get("flag") else "."))
 if dt.adequacy_text(dg):
     points.append(dt.adequacy_text(dg))
+if dt.reference_text(dg):
+    points.append(dt.reference_text(dg))
 if rejected:
     points.append(f"{len(rejected)} effects rejected (one may fail several tests): "
                   + ", ".join(f"{n} {k}" for k, n in tests.items() if n) + ".")

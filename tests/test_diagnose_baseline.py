@@ -27,28 +27,38 @@ def test_the_baseline_is_the_unconstrained_fit_where_the_bound_cripples_it():
     """The virtual KCS's 20/20 and 10/10 zigzags (its hull nonlinear in v and r): the linear fit with
     the sign bounds sits on a21 = 0, and the unconstrained one predicts the held-out mirror runs far
     better (measured: 12.8 / 7.5 deg against 6.4 / 3.4 deg in the two folds), so the unconstrained fit
-    is the best linear model; with DiagnoseConfig.best_linear_baseline it is the reported baseline and
-    the bounded one is kept beside it, by default the reverse.  Even so the best linear model is not
-    adequate there (4.9 deg pooled against a 1 deg limit of ten noise floors)."""
+    is the best linear model, the reported baseline (DiagnoseConfig.best_linear_baseline), with the
+    bounded one kept beside it; switched off, the reverse.  The selection's structures keep the bounds
+    unless DiagnoseConfig.family_follows_baseline.  Even so the best linear model is not adequate there
+    (4.9 deg pooled against a 1 deg limit of ten noise floors)."""
     legs = ([tank.zigzag(20, 20, "starboard", duration=80.0), tank.zigzag(10, 10, "port", duration=80.0)],
             [tank.zigzag(20, 20, "port", duration=80.0), tank.zigzag(10, 10, "starboard", duration=80.0)])
-    # by default the bounded fit stays the reported baseline, the better one beside it
-    d = _search(*legs)
+    # switched off, the bounded fit is the reported baseline, the better one beside it
+    d = _search(*legs, best_linear_baseline=False)
     d.choose_baseline([0, 1])
     assert d.baseline_bounded is True and d.best_bounded is False
     assert d.linear(0) is d.fit(0, ()) and not d.other_linear(0).sign_bounds
-    s = _search(*legs, best_linear_baseline=True)
+    s = _search(*legs)
     s.choose_baseline([0, 1])
-    assert s.baseline_bounded is False and s.best_bounded is False
+    assert s.baseline_bounded is False and s.best_bounded is False and s.family_bounds is True
     for k in (0, 1):
         base, other = s.linear(k), s.other_linear(k)
         assert not base.sign_bounds and other.sign_bounds
         assert "a21" in other.at_bound and base.at_bound == ()
         # the selection's own linear rung keeps the bounds (every extension contains it)
-        assert s.fit(k, ()) is other
+        assert s.fit(k, ()) is other and s.bounded(k) is other
         mb = s.linear_eval(k)[0]["mae_psi_deg"]
-        mo = evaluate(other, s.folds[k].val)[0]["mae_psi_deg"]
+        mo = s.linear_eval(k, bounded=True)[0]["mae_psi_deg"]
+        assert mo == pytest.approx(evaluate(other, s.folds[k].val)[0]["mae_psi_deg"])
         assert mb < 0.7 * mo, (mb, mo)
+    # the family following the baseline: its linear rung is the unconstrained fit, the bounded beside it
+    f = _search(*legs, family_follows_baseline=True)
+    f.choose_baseline([0, 1])
+    assert f.family_bounds is False
+    for k in (0, 1):
+        assert f.fit(k, ()) is f.linear(k) and not f.linear(k).sign_bounds
+        assert f.bounded(k) is f.other_linear(k) and f.bounded(k).sign_bounds
+        assert f.linear_eval(k)[0]["mae_psi_deg"] == pytest.approx(s.linear_eval(k)[0]["mae_psi_deg"])
     # even the best linear model is far off on these runs (its hull is nonlinear): not adequate, and
     # its residual follows hull signatures
     pooled = sum(s.linear_eval(k)[0]["mae_psi_deg"] for k in (0, 1)) / 2

@@ -185,6 +185,11 @@ CASE12_DESIGN = {
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "measured with the best linear model as the baseline (DiagnoseConfig.best_linear_baseline, the "
+    "unconstrained fit): it absorbs most of the 0.35 s dead time, and the truth's own structure cuts its "
+    "held-out error by 62 % but only 0.075 deg, under the 0.1 deg heading floor, so this design no "
+    "longer shows the dead time (docs/diagnosis.md, Known limits)"))
 def test_short_dead_time_is_found_where_the_design_shows_it():
     i, kind, mag, fa, fb, seed = CASES[12]
     assert kind == "rudder_delay"

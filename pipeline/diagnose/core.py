@@ -40,7 +40,7 @@ from threadpoolctl import threadpool_limits
 
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose.datacheck import approach_drift, correct_rate_bias, rate_bias
-from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
+from pipeline.diagnose.effects import BY_NAME, CATALOGUE, REFERENCE, Context
 from pipeline.diagnose.effects.rudder_delay import time_floor
 from pipeline.diagnose.fit import (
     FitResult,
@@ -48,6 +48,7 @@ from pipeline.diagnose.fit import (
     _derivs,
     _u_ratio,
     evaluate,
+    fit_structure,
     is_stable,
     latent_sway_a12,
     memoised,
@@ -644,6 +645,57 @@ def _against_other(pairs, cfg, block_s) -> dict | None:
             "extended_mae_psi_deg": em}
 
 
+def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
+    """diagnosis.json's ``reference``: the reference structure (:data:`~pipeline.diagnose.effects.
+    REFERENCE`, each effect where it applies to the runs) fitted in every fold on its training runs in
+    the selection's family (:attr:`~pipeline.diagnose.select.Search.family_bounds`), from its linear
+    fit, measured on the fold's validation runs against the reported baseline; with test
+    runs also refitted on every selection run and measured on the test runs against the baseline
+    refitted there.  It is not chosen and says what the catalogue's terms carry when told everything at
+    once, beside the selection's own figure (docs/diagnosis.md, "The reference fit").
+
+    Made only where the baseline is inadequate (``adequate`` False) and ``DiagnoseConfig.reference_fit``
+    is on: where the linear model is within its noise floors there is nothing for a richer model to
+    carry.  MAEs in deg (mean over the runs, each run alike), reductions relative (0.6 = 60 %)."""
+    folds, te, ctx, cfg = design.folds, design.te, design.ctx, design.cfg
+    structure = structure_of(*[(e, f) for e, f in REFERENCE if BY_NAME[e].applicable(ctx) is None])
+    out = {"computed": False, "effects": [e for e, _ in structure], "forms": dict(structure),
+           "validation_mae_psi_deg": None, "per_fold": [], "validation_mae_psi_relative_reduction": None,
+           "test_mae_psi_deg": None, "test_baseline_mae_psi_deg": None,
+           "test_mae_psi_relative_reduction": None, "test_interval_95": None, "reason": None}
+    if not cfg.reference_fit:
+        return out | {"reason": "not made: DiagnoseConfig.reference_fit is off"}
+    if adequate:
+        return out | {"reason": "not made: the linear baseline is adequate (within its noise floors)"}
+    if "hull_nonlinearity" not in out["effects"]:
+        return out | {"reason": "not made: the runs have no sway velocity, so no hull term can be fitted"}
+    kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds}
+    base_maes, maes = [], []
+    try:
+        for k in ks:
+            fit = fit_structure(folds[k].train, structure, ctx, start=search.fit(k, ()), **kw)
+            m = evaluate(fit, folds[k].val)[0]["mae_psi_deg"]
+            b = search.linear_eval(k)[0]["mae_psi_deg"]
+            out["per_fold"].append({"fold": folds[k].name, "validation_runs": [s.name for s in folds[k].val],
+                                    "baseline_mae_psi_deg": b, "reference_mae_psi_deg": m})
+            base_maes.append(b)
+            maes.append(m)
+        out["validation_mae_psi_deg"] = float(np.mean(maes))
+        out["validation_mae_psi_relative_reduction"] = _gain(float(np.mean(base_maes)), float(np.mean(maes)))
+        if te:
+            allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
+                            baseline_bounded=search.baseline_bounded)
+            fit = fit_structure(allrun.folds[0].train, structure, ctx, start=allrun.fit(0, ()), **kw)
+            g, iv, bm, em = _pair_gain([(te, allrun.linear_eval(0)[1], evaluate(fit, te)[1])], cfg,
+                                       cfg.block_T * ctx.t_ship)
+            out |= {"test_mae_psi_deg": em, "test_baseline_mae_psi_deg": bm,
+                    "test_mae_psi_relative_reduction": g, "test_interval_95": iv}
+    except ModelError as err:
+        return out | {"per_fold": [], "validation_mae_psi_deg": None,
+                      "validation_mae_psi_relative_reduction": None, "reason": f"not made: {err}"}
+    return out | {"computed": True}
+
+
 def _no_honest_gain(why: str) -> dict:
     """The gain entry when no run unseen by every choice exists (``why``, in words)."""
     return {
@@ -1010,6 +1062,8 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         },
         "gain": gain,
         "ladder": ladder,
+        # the catalogue's terms told everything at once, not chosen (reference_fit): beside the ladder
+        "reference": reference_fit(design, search, ks, adequacy["adequate"]),
         "stability": {
             "folds_agreeing": agree,
             "total": len(causes),

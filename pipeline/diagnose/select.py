@@ -223,13 +223,68 @@ class Search:
         #: one (False); None: not measured (a Search told its baseline)
         self.best_bounded: bool | None = None
         self._free: dict = {}  # fold -> the unconstrained linear fit (or its ModelError)
+        self._bnd: dict = {}  # fold -> the bounded linear fit where it is not the baseline (or its error)
+        self._bnd_evals: dict = {}
         self._linear_evals: dict = {}
 
     def fit(self, k: int, structure, start: FitResult | None = None) -> FitResult:
+        """Fold ``k``'s fit of ``structure`` (cached), in the family of :attr:`family_bounds`: with the
+        ship-sign bounds, or (``DiagnoseConfig.family_follows_baseline``, where the reported baseline is
+        the unconstrained fit) without them, the empty structure then being that baseline."""
         key = (k, structure_of(*structure))
         if key not in self._fits:
-            self._fits[key] = self.sound(k, key[1], self._best_start(k, key[1], start))
+            if not key[1] and not self.family_bounds:
+                free = self.unconstrained(k)
+                if free is None:
+                    raise self._free[k]
+                self._fits[key] = free
+            else:
+                self._fits[key] = self.sound(k, key[1], self._best_start(k, key[1], start))
         return self._fits[key]
+
+    @staticmethod
+    def _hull(structure) -> bool:
+        """Whether ``structure`` has hull terms (terms in v, r vanishing at v = r = 0)."""
+        return any(p.hull_term for e, f in structure for p in BY_NAME[e].form(f).params)
+
+    def _anchored(self, k: int, structure, starts) -> FitResult:
+        """The anchored form of ``structure`` in fold ``k`` (:meth:`sound`): the linear part held at the
+        reported baseline's (a11 ... a22), the damping terms signed; fitted from the baseline and from
+        each of ``starts``, the fit of least TRAINING cost kept.  Raises ModelError where none fits."""
+        anchor = self.linear(k)
+        hold = tuple(float(x) for x in anchor.theta[:4])
+        fits, err = [], None
+        for st in (anchor, *starts):
+            try:
+                fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
+                                          max_nfev=self.cfg.max_nfev, block_T=self.cfg.block_T,
+                                          hold_linear=hold, sign_bounds=self.family_bounds))
+            except ModelError as e:
+                err = e
+        if not fits:
+            raise err
+        return min(fits, key=lambda f: f.cost)
+
+    @property
+    def family_bounds(self) -> bool:
+        """Whether the structures of this search are fitted with the ship-sign bounds: always, unless
+        ``DiagnoseConfig.family_follows_baseline`` and the reported baseline is the unconstrained fit
+        (:meth:`fit`; the switch's measured reason is at its field)."""
+        return self.baseline_bounded is not False or not self.cfg.family_follows_baseline
+
+    def bounded(self, k: int) -> FitResult:
+        """Fold ``k``'s linear fit with the ship-sign bounds (the reported baseline unless the
+        unconstrained one is, :meth:`choose_baseline`)."""
+        if self.family_bounds:
+            return self.fit(k, ())
+        if k not in self._bnd:
+            try:
+                self._bnd[k] = self._best_start(k, (), None, sign_bounds=True)
+            except ModelError as err:
+                self._bnd[k] = err
+        if isinstance(self._bnd[k], ModelError):
+            raise self._bnd[k]
+        return self._bnd[k]
 
     def growth_allowance(self, k: int) -> float:
         """The least stable small-motion model fold ``k``'s data allow (1/s): neutral (0), or the
@@ -244,7 +299,7 @@ class Search:
         small-motion model that grows where every linear fit of them decays.  Why 1/D: a growth rate
         below it multiplies a disturbance by less than e within any run, so no run tells it from
         neutral."""
-        rates = [0.0, growth_rate(self.fit(k, ()).theta)]
+        rates = [0.0, growth_rate(self.bounded(k).theta)]
         free = self.unconstrained(k)
         if free is not None:
             rates.append(growth_rate(free.theta))
@@ -264,24 +319,16 @@ class Search:
         baseline and from the free fit, the one of least TRAINING cost kept.  Off with
         ``DiagnoseConfig.anchor_small_motion`` False; a refit that fails keeps the free fit (the
         held-out gates judge it)."""
-        hull = any(p.hull_term for e, f in structure for p in BY_NAME[e].form(f).params)
-        if not self.cfg.anchor_small_motion or not hull or fit.hold_linear is not None:
+        if not self.cfg.anchor_small_motion or not self._hull(structure) or fit.hold_linear is not None:
             return fit
         rate = growth_rate(fit.theta)
         # the allowance is at least 1/D (neutral): below it no linear fit need be looked at
         if rate <= self._neutral(k) or rate <= self.growth_allowance(k):
             return fit
-        anchor = self.linear(k)
-        hold = tuple(float(x) for x in anchor.theta[:4])
-        fits = []
-        for st in (anchor, fit):
-            try:
-                fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
-                                          max_nfev=self.cfg.max_nfev, block_T=self.cfg.block_T,
-                                          hold_linear=hold))
-            except ModelError:
-                continue
-        return min(fits, key=lambda f: f.cost) if fits else fit
+        try:
+            return self._anchored(k, structure, [fit])
+        except ModelError:
+            return fit
 
     def _linear(self, k: int, sign_bounds: bool, start: FitResult | None) -> FitResult:
         """The linear model fitted on fold ``k``'s training runs with or without the sign bounds: of the
@@ -331,12 +378,23 @@ class Search:
         self.best_bounded = not mf < mb
         # reported as THE baseline only with DiagnoseConfig.best_linear_baseline (its reason there)
         self.baseline_bounded = self.best_bounded if self.cfg.best_linear_baseline else True
+        if not self.family_bounds:
+            # the family follows the baseline (:meth:`fit`): the bounded fits and their evaluations move
+            # aside (:meth:`bounded`), the empty structure becomes the unconstrained fit
+            for k in ks:
+                key = (k, ())
+                self._bnd[k] = self._fits.pop(key)
+                if key in self._evals:
+                    self._bnd_evals[k] = self._evals.pop(key)
+                self._short.pop(key, None)
+                if k in self._linear_evals:
+                    self._evals[key] = self._linear_evals.pop(k)
 
     def unconstrained(self, k: int) -> FitResult | None:
         """The linear model of fold ``k`` fitted without the sign bounds (None where it cannot be)."""
         if k not in self._free:
             try:
-                self._free[k] = self._linear(k, False, self.fit(k, ()))
+                self._free[k] = self._linear(k, False, self.bounded(k))
             except ModelError as err:
                 self._free[k] = err
         f = self._free[k]
@@ -351,27 +409,38 @@ class Search:
     def other_linear(self, k: int) -> FitResult | None:
         """The linear fit of fold ``k`` NOT chosen as the baseline (the unconstrained one when the
         bounded is the baseline, and the reverse); None where it cannot be fitted."""
-        return self.unconstrained(k) if self.baseline_bounded is not False else self.fit(k, ())
+        if self.baseline_bounded is not False:
+            return self.unconstrained(k)
+        try:
+            return self.bounded(k)
+        except ModelError:
+            return None
 
     def linear_eval(self, k: int, bounded: bool | None = None):
         """Held-out evaluation of fold ``k``'s linear fit: the reported baseline (``bounded`` None), or
         the bounded / unconstrained one."""
         b = (self.baseline_bounded is not False) if bounded is None else bounded
-        if b:
+        if b == self.family_bounds:
+            self.fit(k, ())
             return self.eval(k, ())
-        if k not in self._linear_evals:
-            self._linear_evals[k] = evaluate(self.unconstrained(k), self.folds[k].val)
-        return self._linear_evals[k]
+        cache = self._linear_evals if self.family_bounds else self._bnd_evals
+        if k not in cache:
+            cache[k] = evaluate(self.unconstrained(k) if self.family_bounds else self.bounded(k),
+                                self.folds[k].val)
+        return cache[k]
 
-    def _best_start(self, k: int, structure, start: FitResult | None) -> FitResult:
+    def _best_start(self, k: int, structure, start: FitResult | None,
+                    sign_bounds: bool | None = None) -> FitResult:
         """The fit from ``start``; with ``cfg.cold_start`` and a warm start given, also the cold fit, and
         of the two the one that predicts fold ``k``'s VALIDATION runs better (DiagnoseConfig.cold_start
         says why).  Ties, and a cold fit that fails, keep the warm one."""
 
+        bounds = self.family_bounds if sign_bounds is None else sign_bounds
+
         def one(s):
             return fit_structure(
                 self.folds[k].train, structure, self.ctx, start=s, max_nfev=self.cfg.max_nfev,
-                block_T=self.cfg.block_T,
+                block_T=self.cfg.block_T, sign_bounds=bounds,
             )
 
         warm = one(start)
@@ -413,6 +482,7 @@ class Search:
                 max_nfev=self.cfg.max_nfev,
                 block_T=self.cfg.block_T,
                 hold_linear=old.hold_linear,
+                sign_bounds=self.family_bounds,
             )
         except ModelError:
             return False

@@ -478,6 +478,30 @@ def adequacy_text(dg: dict) -> str:
     return text
 
 
+def reference_text(dg: dict) -> str:
+    """The reference fit beside the selection (diagnosis.json ``reference``: the catalogue's terms told
+    everything at once, not chosen): its held-out MAE psi (deg) on the validation runs, the mean over
+    the folds as the ladder's, against the baseline's and the selection's; with test runs its figure
+    there too.  "" when the stage made none."""
+    ref = dg.get("reference")
+    if not isinstance(ref, dict) or not ref.get("computed"):
+        return ""
+    lad = dg.get("ladder") or []
+    chosen = lad[-1].get("validation_mae_psi_deg") if lad else None
+    terms = ", ".join(effect_label(e) for e in ref.get("effects") or [])
+    text = (f"Reference fit (not chosen: the catalogue's terms told everything at once, {terms}): held-out "
+            f"MAE psi {num(ref.get('validation_mae_psi_deg'), 3, 'deg')} on the validation runs (mean over "
+            f"the folds, each fold's fit on its training runs), "
+            f"{pct(ref.get('validation_mae_psi_relative_reduction'), signed=True)} against the baseline's "
+            f"{num(pooled_baseline_mae(dg), 3, 'deg')}; the selected model: {num(chosen, 3, 'deg')}.")
+    if isinstance(ref.get("test_mae_psi_deg"), (int, float)):
+        text += (f" On the test runs, refitted on all selection runs: "
+                 f"{num(ref['test_mae_psi_deg'], 3, 'deg')} "
+                 f"against the baseline's {num(ref.get('test_baseline_mae_psi_deg'), 3, 'deg')}, "
+                 f"{gain_sentence(ref.get('test_mae_psi_relative_reduction'), ref.get('test_interval_95'))}.")
+    return text
+
+
 #: the two modes of the honest gain (diagnosis.json ``test_runs`` given or not)
 TEST_MODE, NESTED_MODE = "test runs", "nested leave-one-run-out"
 

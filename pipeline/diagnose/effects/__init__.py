@@ -42,11 +42,20 @@ CATALOGUE: tuple[Effect, ...] = (
 #: (-12 %), so the verdict stayed "none" (docs/diagnosis.md, "Known limits").
 TRIAL: tuple[Effect, ...] = (hull_nonlinearity.EFFECT,)
 BY_NAME = {e.name: e for e in CATALOGUE + TRIAL}
+#: the reference fit's structure (pipeline.diagnose.core.reference_fit, diagnosis.json ``reference``):
+#: the catalogue's family told everything at once, not chosen: a rudder offset, the Abkowitz-type hull
+#: terms in both equations in the non-dimensional speed scaling, and coefficients that scale with the
+#: measured speed (each where it applies to the runs).  It is the ceiling the selection's terms reach
+#: on the same folds, reported beside the selection's figure so that "none" or a small gain can be read
+#: against what the terms can carry (docs/diagnosis.md, "The reference fit")
+REFERENCE: tuple[tuple[str, str], ...] = (
+    ("rudder_offset", "constant"), ("hull_nonlinearity", "abkowitz"), ("speed_loss", "power"))
 NAMES = tuple(BY_NAME)
 
 __all__ = [
     "CATALOGUE",
     "TRIAL",
+    "REFERENCE",
     "BY_NAME",
     "NAMES",
     "FEATURES",
