@@ -23,7 +23,7 @@ from pipeline.report import nb
 from pipeline.report import diagnosis_text as dt
 from pipeline.report import particulars
 from pipeline.diagnose.fit import sign_bound_text
-nb.setup()
+page = nb.setup()
 data = nb.Data(root, dataset)
 
 dg = data.json("diagnose/diagnosis.json")
@@ -98,7 +98,7 @@ if named:
                       "training runs": ", ".join(dg.get("training_runs") or []),
                       "course stability": dt.stability_words(ext.get("parameters"),
                                                              ext.get("course_stable"))})
-nb.table(pd.DataFrame(stab_rows).set_index("model"),
+page.table(pd.DataFrame(stab_rows).set_index("model"),
          "Course stability of the fitted models: the baseline of each fold in fold order, then the extended "
          "model; from the poles of the "
          "fitted state matrix (a pole with a positive real part = course-unstable).")
@@ -114,7 +114,7 @@ if bp:
                      "extended model": 0.0 if k in ext_held else ep.get(k),
                      "at its sign bound in": ", ".join(where)})
     ptab = pd.DataFrame(rows)
-    nb.table(ptab.set_index("parameter"),
+    page.table(ptab.set_index("parameter"),
              "Linear parameters of the baseline (with one standard error) and of the extended model, in "
              "the order of docs/contract.md#the-identification-model (v in m/s, r in deg/s, delta in deg, "
              "time in s); the last "
@@ -135,7 +135,7 @@ if dt.adequacy_text(dg):
 lrows = dt.ladder_rows(dg)
 if lrows:
     lad = pd.DataFrame(lrows).set_index("step")
-    nb.table(lad, "The model ladder, in the order it was climbed (step 0 = the linear baseline): free-run "
+    page.table(lad, "The model ladder, in the order it was climbed (step 0 = the linear baseline): free-run "
              "MAE of psi on the validation runs (which chose each step; each fold's fit on its own "
              "validation runs, mean over the folds)"
              + (" and on the test runs (which no choice has seen; each step refitted on all training and "
@@ -180,7 +180,7 @@ if len(lrows) > 1:
         ag.axvline(0, color="k", lw=0.8)
         ag.set_xlabel("test gain over the baseline (%), 95 % interval")
         ag.set_title("right of 0: better than the baseline", fontsize=9)
-    nb.show(fig, "The model ladder, top to bottom in the order it was climbed. "
+    page.show(fig, "The model ladder, top to bottom in the order it was climbed. "
             + ("Left: held-out" if has_test else "Held-out") + " heading error of each step"
             + (" on the validation runs (open circles) and the test runs (red squares). Right: the "
                "relative gain of each step over the baseline on the test runs, with its 95 % bootstrap "
@@ -238,7 +238,7 @@ if per_run:
                        for p in per_run])
     pr["_o"] = [data.sort_key(r) for r in pr["run"]]
     pr = pr.sort_values("_o").drop(columns="_o").set_index("run")
-    nb.table(pr, "The runs the honest gain is measured on, in rudder-angle order: free-run MAE of psi on "
+    page.table(pr, "The runs the honest gain is measured on, in rudder-angle order: free-run MAE of psi on "
              f"each run alone of {base_by} and of {by}, and the relative gain on each; the means of the two "
              "MAE columns are the honest gain's two MAEs.")
 nested = gain_block.get("nested") or []
@@ -250,7 +250,7 @@ if nested:
                        for n in nested])
     nr["_o"] = [data.sort_key(r) for r in nr["held-out run"]]
     nr = nr.sort_values("_o").drop(columns="_o").set_index("held-out run")
-    nb.table(nr, "Nested leave-one-run-out, in rudder-angle order: each run held out in turn, the whole "
+    page.table(nr, "Nested leave-one-run-out, in rudder-angle order: each run held out in turn, the whole "
              "selection repeated on the others, the chosen model measured on the held-out run.")
 
 # %% [markdown]
@@ -304,7 +304,7 @@ for e in named:
               "held-out gain": dt.gain_text(x.get("gain"))}
              for k, x in enumerate(f.get("folds") or [])]
     if len(frows) > 1:
-        nb.table(pd.DataFrame(frows).set_index("fold"),
+        page.table(pd.DataFrame(frows).set_index("fold"),
                  f"{dt.effect_label(e)}: estimate and worth in each fold, fold order (fold 2 swaps the "
                  "training and validation runs).")
 
@@ -340,7 +340,7 @@ for col, (model, title) in enumerate(models):
 axes[0, 0].set_ylabel("psi error (deg)")
 if has_r:
     axes[1, 0].set_ylabel("r error (deg/s)")
-nb.show(fig, "Held-out heading error (top) and yaw-rate error (bottom) over time on the validation runs, "
+page.show(fig, "Held-out heading error (top) and yaw-rate error (bottom) over time on the validation runs, "
         "one shade per run: the linear baseline"
         + (" (left, blues) and the extended model (right, reds), on the same axes" if named else
            " (no effect is named, so there is no extended model to compare)")
@@ -365,7 +365,7 @@ for e in named:
         a.set_title(("linear baseline" if model == "baseline" else "extended model")
                     + f": mean {ch} error {dt.num(float(np.nanmean(yerr)), 2, unit)}")
     axes[0].set_ylabel(ylabel)
-    nb.show(fig, f"{dt.effect_label(e)}: held-out {'sway' if ch == 'v' else 'yaw-rate'} error against the "
+    page.show(fig, f"{dt.effect_label(e)}: held-out {'sway' if ch == 'v' else 'yaw-rate'} error against the "
             f"effect's signature "
             f"({xlabel}) on the validation runs, baseline left, extended model right; dots every sample, "
             "black line the mean in bins, dashed grey the overall mean. The trend (or, for an offset, the "
@@ -378,7 +378,7 @@ if res_b:
                        for k, v in res_b.items()])
     rs["_o"] = -rs["baseline"].abs()
     rs = rs.sort_values("_o").drop(columns="_o").set_index("effect signature")
-    nb.table(rs, "Correlation of each effect's signature with the one-step yaw-acceleration error on the "
+    page.table(rs, "Correlation of each effect's signature with the one-step yaw-acceleration error on the "
              "validation runs, largest baseline correlation (in size) first; the extended model should "
              "leave little. Signatures together explain "
              f"{dt.pct((base.get('residuals') or {}).get('explained_fraction'))} of the baseline's error and "
@@ -412,7 +412,7 @@ for rid in runs_drawn:
     axd.set_xlabel(nb.label("time"))
     pb = next((p for p in base.get("per_run") or [] if p.get("run_id") == rid), {})
     pe = next((p for p in ext.get("per_run") or [] if p.get("run_id") == rid), {})
-    nb.show(fig, f"Validation run {data.run_label(rid)}: heading, yaw rate and logged rudder; the "
+    page.show(fig, f"Validation run {data.run_label(rid)}: heading, yaw rate and logged rudder; the "
             f"measurement (dark), the linear baseline (blue dashed, MAE psi on this run "
             f"{dt.num(pb.get('mae_psi_deg'), 3)} deg)"
             + (" and the extended model (red, MAE psi on this run "
@@ -442,14 +442,12 @@ for f in findings:
                  "_o": (order.get(v, 99), -(g if isinstance(g, (int, float)) else -1e9))})
 if rows:
     tab = pd.DataFrame(rows).sort_values("_o").drop(columns="_o").set_index("effect")
-    nb.table(tab, "Every effect of the catalogue, named effects first, then by verdict (immaterial, failed a "
-             "fold, harms a held-out run, worse from the measured state, carried by one held-out run, "
-             "hinges on a training run, not significant, not tried, fit "
-             "failed) and within a verdict by "
-             "held-out gain, "
-             "largest first. Held-out gain: the relative cut of the validation runs' free-run MAE of psi "
-             "when the effect is added to the model it was judged against (for a named effect: when it is "
-             "removed from the final model).")
+    page.table(tab, "Every effect of the catalogue, named effects first, then by verdict (immaterial, "
+               "failed a fold, harms a held-out run, worse from the measured state, carried by one "
+               "held-out run, hinges on a training run, not significant, not tried, fit failed) and "
+               "within a verdict by held-out gain, largest first. Held-out gain: the relative cut of the "
+               "validation runs' free-run MAE of psi when the effect is added to the model it was judged "
+               "against (for a named effect: when it is removed from the final model).")
 
 stab = dg.get("stability") or {}
 causes = stab.get("causes") or []
@@ -457,7 +455,7 @@ if causes:
     st = pd.DataFrame([{"selection": str(c.get("fold")), "cause": dt.effect_label(c.get("cause")),
                         "effects": " + ".join(map(dt.effect_label, c.get("effects") or [])) or "none",
                         "agrees": c.get("cause") == cause} for c in causes])
-    nb.table(st.set_index("selection"),
+    page.table(st.set_index("selection"),
              f"Stability of the verdict: the selection repeated {len(causes)} times "
              + ("(each run held out in turn)" if mode == dt.NESTED_MODE else "(on each fold alone)")
              + ", in the order the stage ran them; "

@@ -45,7 +45,7 @@ def test_each_page_numbers_its_own_tables_and_figures(monkeypatch):
     second.table(df, "three")
     fig, _ = plt.subplots()
     second.show(fig, "a figure")
-    nb.table(df, "four")                      # the module's helper: the last setup()'s page
+    second.table(df, "four")
     assert (first.tables, first.figures, second.tables, second.figures) == (2, 0, 2, 1)
     captions = [s for s in shown if "Table " in s or "Figure " in s]
     assert ["Table 1. one" in captions[0], "Table 2. two" in captions[1], "Table 1. three" in captions[2],

@@ -77,11 +77,6 @@ class Page:
             self.table(*got)
 
 
-#: the page of the last :func:`setup`, for a notebook that calls the module's :func:`show`,
-#: :func:`table`, :func:`flags_table`, :func:`full_scale_rows` instead of its page's methods
-_LAST_PAGE: list[Page] = [Page()]
-
-
 def setup() -> Page:
     """Plot and display defaults: inline PNG (embedded as base64 in the HTML), readable sizes, text in
     figures taken literally (no mathtext).  Returns the page's :class:`Page` (figure and table
@@ -102,9 +97,7 @@ def setup() -> Page:
         "text.parse_math": False,
     })
     pd.set_option("display.precision", 4)
-    page = Page()
-    _LAST_PAGE[0] = page
-    return page
+    return Page()
 
 
 def _sha256(path: Path) -> str:
@@ -360,11 +353,6 @@ def esc(value: Any) -> str:
     return _html.escape(_fmt(value) if not isinstance(value, str) else value, quote=True)
 
 
-def table(df: pd.DataFrame, caption: str, precision: int = 4, index: bool = True) -> None:
-    """:meth:`Page.table` on the page of the last :func:`setup` (prefer the page's own method)."""
-    _LAST_PAGE[0].table(df, caption, precision=precision, index=index)
-
-
 def render_table(df: pd.DataFrame, caption: str, number: int, *, precision: int = 4,
                  index: bool = True) -> None:
     """Display ``df`` as table ``number``, captioned, in HTML (numbers to ``precision`` significant
@@ -416,11 +404,6 @@ def plain_log_ticks(fig) -> None:
             if scale == "log":
                 axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
                 axis.set_minor_formatter(NullFormatter())
-
-
-def show(fig, caption: str) -> None:
-    """:meth:`Page.show` on the page of the last :func:`setup` (prefer the page's own method)."""
-    _LAST_PAGE[0].show(fig, caption)
 
 
 def render_figure(fig, caption: str, number: int) -> None:
@@ -499,11 +482,6 @@ def full_scale_frame(df: pd.DataFrame, data: Data, caption: str,
             f"{math.sqrt(lam):.3g}).")
 
 
-def full_scale_rows(df: pd.DataFrame, data: Data, caption: str, skip: tuple[str, ...] = ()) -> None:
-    """:meth:`Page.full_scale_rows` on the page of the last :func:`setup` (prefer the page's own)."""
-    _LAST_PAGE[0].full_scale_rows(df, data, caption, skip)
-
-
 def paper_note(data: Data) -> None:
     """Say whose the paper's values are when this dataset's ship is not the paper's."""
     if data.ships != [PAPER_SHIP]:
@@ -580,11 +558,6 @@ def flag_rows(groups: list[tuple[str, list[dict] | None]]) -> list[dict[str, Any
     return [{"set": name, "check": CHECK_LABEL.get(str(f.get("check")), str(f.get("check"))),
              "about": f.get("subject", ""), "reason": f.get("reason", "")}
             for name, flags in groups for f in flags or []]
-
-
-def flags_table(groups: list[tuple[str, list[dict] | None]], caption: str) -> int:
-    """:meth:`Page.flags_table` on the page of the last :func:`setup` (prefer the page's own)."""
-    return _LAST_PAGE[0].flags_table(groups, caption)
 
 
 def conclusion(points: list[str]) -> None:
