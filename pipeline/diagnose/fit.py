@@ -935,8 +935,19 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
     def fun(x):
         f, jx = fj(x)
         made.clear()
-        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(jx))):
+        if not np.all(np.isfinite(f)):
             return np.full(x.size + 1, np.nan)      # a trial point SciPy rejects (shrinks its region)
+        if not np.all(np.isfinite(jx)):
+            # the residuals are finite but their sensitivities overflowed (a free run that nearly
+            # diverges): the forward difference SciPy would have taken, so the point is judged by
+            # its cost as before, not refused
+            jx = np.empty((f.size, x.size))
+            for i in range(x.size):
+                q = x.copy()
+                q[i] = x[i] + _fd_step(float(x[i]), float(lo[i]), float(hi[i]))
+                jx[:, i] = (fj(q)[0] - f) / (q[i] - x[i])
+            if not np.all(np.isfinite(jx)):
+                return np.full(x.size + 1, np.nan)
         qtf, r = qr_multiply(jx, f, mode="right")
         made[x.tobytes()] = np.vstack([r, np.zeros((1, x.size))])
         return np.append(qtf, np.sqrt(max(float(f @ f) - float(qtf @ qtf), 0.0)))
@@ -944,7 +955,9 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
     def jac(x, _f=None):
         if x.tobytes() not in made:
             fun(x)
-        return made[x.tobytes()]
+        # SciPy asks for the Jacobian at its start before it checks the start's residuals; a start
+        # whose residuals are not finite gets a non-finite Jacobian and SciPy's own error for it
+        return made.get(x.tobytes(), np.full((x.size + 1, x.size), np.nan))
 
     res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
                         tr_solver=_TR, **_TOL)
