@@ -933,21 +933,10 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
     made: dict = {}
 
     def fun(x):
-        f, jx = fj(x)
+        f, jx = _finite_jacobian(fj, x, lo, hi)
         made.clear()
-        if not np.all(np.isfinite(f)):
+        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(jx))):
             return np.full(x.size + 1, np.nan)      # a trial point SciPy rejects (shrinks its region)
-        if not np.all(np.isfinite(jx)):
-            # the residuals are finite but their sensitivities overflowed (a free run that nearly
-            # diverges): the forward difference SciPy would have taken, so the point is judged by
-            # its cost as before, not refused
-            jx = np.empty((f.size, x.size))
-            for i in range(x.size):
-                q = x.copy()
-                q[i] = x[i] + _fd_step(float(x[i]), float(lo[i]), float(hi[i]))
-                jx[:, i] = (fj(q)[0] - f) / (q[i] - x[i])
-            if not np.all(np.isfinite(jx)):
-                return np.full(x.size + 1, np.nan)
         qtf, r = qr_multiply(jx, f, mode="right")
         made[x.tobytes()] = np.vstack([r, np.zeros((1, x.size))])
         return np.append(qtf, np.sqrt(max(float(f @ f) - float(qtf @ qtf), 0.0)))
@@ -961,8 +950,23 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
 
     res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
                         tr_solver=_TR, **_TOL)
-    res.fun, res.jac = fj(res.x)
+    res.fun, res.jac = _finite_jacobian(fj, res.x, lo, hi)
     return res
+
+
+def _finite_jacobian(fj, x: np.ndarray, lo: np.ndarray, hi: np.ndarray):
+    """``fj(x)`` -> (residuals, Jacobian), the Jacobian by forward differences (the step SciPy would
+    take, :func:`_fd_step`) where the residuals are finite but their sensitivities overflowed (a free
+    run that nearly diverges): such a point is judged by its cost, as with SciPy's own differences,
+    and its covariance is not made from infinities."""
+    f, jx = fj(x)
+    if np.all(np.isfinite(f)) and not np.all(np.isfinite(jx)):
+        jx = np.empty((f.size, x.size))
+        for i in range(x.size):
+            q = x.copy()
+            q[i] = x[i] + _fd_step(float(x[i]), float(lo[i]), float(hi[i]))
+            jx[:, i] = (fj(q)[0] - f) / (q[i] - x[i])
+    return f, jx
 
 
 #: trust-region sub-problem solver: "exact", an SVD of the Jacobian per iteration (6 to ~16 columns,
