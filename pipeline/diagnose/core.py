@@ -44,6 +44,7 @@ from pipeline.diagnose.datacheck import approach_drift, correct_rate_bias, rate_
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, REFERENCE, Context
 from pipeline.diagnose.effects.rudder_delay import time_floor
 from pipeline.diagnose.fit import (
+    FitMemo,
     FitResult,
     Series,
     _derivs,
@@ -52,7 +53,6 @@ from pipeline.diagnose.fit import (
     fit_structure,
     is_stable,
     latent_sway_a12,
-    memoised,
     plain_active,
     plain_fits,
     profile_time_params,
@@ -93,13 +93,15 @@ from pipeline.progress import bar as progress_bar
 class _Design:
     """What one diagnosis selects and reports on, carried together: the folds (training and validation
     series; the first is the reported one), the test series (none: the honest gain by nested
-    leave-one-run-out), the ship's context, the settings, and the heading noise floor ``noise`` (deg)."""
+    leave-one-run-out), the ship's context, the settings, the heading noise floor ``noise`` (deg) and
+    the diagnosis's fits by content (:class:`~pipeline.diagnose.fit.FitMemo`, shared by its Searches)."""
 
     folds: list[Fold]
     te: list[Series]
     ctx: Context
     cfg: DiagnoseConfig
     noise: float
+    memo: FitMemo
 
 
 @dataclass(frozen=True)
@@ -317,7 +319,6 @@ def _per_run(series, pb, pe) -> list[dict]:
 # ---------------------------------------------------------------- the diagnosis
 
 
-@memoised
 def diagnose(
     train: list[Run],
     validate: list[Run],
@@ -373,7 +374,7 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     # the nested leave-one-run-out's selections do not depend on the main one: with workers, they run
     # in worker processes while this one makes the main selection (same results, any worker count)
     workers = 1 if te or not cfg.nested_gain else _nested_workers(cfg, len(tr) + len(va))
-    design = _Design(folds, te, ctx, cfg, noise)
+    design = _Design(folds, te, ctx, cfg, noise, FitMemo())
     with _nested_in_workers(folds, ctx, cfg, noise, workers) as futures:
         return _select_and_report(design, train + validate + test, rates, progress=progress, futures=futures)
 
@@ -407,7 +408,7 @@ def _select_and_report(design: _Design, runs: list[Run], rates: dict, *, progres
     # fits, then each held-out run of the nested leave-one-run-out as it finishes
     bar = progress_bar(desc="diagnose: fits", leave=False, progress=progress)
     tick = (lambda _e: bar.update(1)) if progress else None
-    search = Search(folds, ctx, cfg)
+    search = Search(folds, ctx, cfg, memo=design.memo)
     ks = list(range(len(folds)))
     sel = select(search, ks, noise, progress=tick)
     bar.set_description("diagnose: held-out runs (nested selections)")
@@ -489,11 +490,12 @@ def _manoeuvre(s: Series) -> tuple[bool, float]:
     return bool(np.ptp(s.psi) >= TURNING_DEG), _rudder_amplitude(s)
 
 
-def _nested_one(folds, held, ctx, cfg, noise):
+def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
     """One round of the nested leave-one-run-out: the selection repeated without ``held``
     (:func:`_inner_folds`), the chosen structure refitted on the other runs and both models evaluated
-    on ``held`` alone.  Returns ((baseline evaluation, extended evaluation), nested entry), or None
-    when ``held`` cannot be held out (no training or no validation run left) or a fit fails."""
+    on ``held`` alone; ``memo`` the diagnosis's fits (:class:`~pipeline.diagnose.fit.FitMemo`).
+    Returns ((baseline evaluation, extended evaluation), nested entry), or None when ``held`` cannot
+    be held out (no training or no validation run left) or a fit fails."""
     tr, va = folds[0].train, folds[0].val
     tr_i = [s for s in tr if s is not held]
     va_i = [s for s in va if s is not held]
@@ -502,10 +504,11 @@ def _nested_one(folds, held, ctx, cfg, noise):
     inner = _inner_folds(folds, held, cfg)
     # the inner selection chooses its own baseline only where that choice is reported
     # (DiagnoseConfig.best_linear_baseline); otherwise the bounded fit, as the selection judges
-    isearch = Search(inner, ctx, cfg, baseline_bounded=None if cfg.best_linear_baseline else True)
+    isearch = Search(inner, ctx, cfg, baseline_bounded=None if cfg.best_linear_baseline else True, memo=memo)
     try:
         isel = select(isearch, list(range(len(inner))), noise)
-        refit = Search([Fold(tr_i + va_i, [held])], ctx, cfg, baseline_bounded=isearch.baseline_bounded)
+        refit = Search([Fold(tr_i + va_i, [held])], ctx, cfg, baseline_bounded=isearch.baseline_bounded,
+                       memo=memo)
         b0 = refit.fit(0, (), start=isearch.fit(0, ()))
         st = isel.structure
         if st:
@@ -538,7 +541,7 @@ def _nested_task(folds, i: int, ctx, cfg, noise, plain: bool):
     same bits as the parent's: a fit is a deterministic function of its inputs)."""
     held = (folds[0].train + folds[0].val)[i]
     with plain_fits() if plain else contextlib.nullcontext():
-        return memoised(_nested_one)(folds, held, ctx, cfg, noise)
+        return _nested_one(folds, held, ctx, cfg, noise, FitMemo())
 
 
 def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
@@ -569,7 +572,7 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
     rungs = [st for st, _ in sel.ladder]
     if te:
         allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
-                        baseline_bounded=search.baseline_bounded)
+                        baseline_bounded=search.baseline_bounded, memo=design.memo)
         fits = {}
         for st in rungs + [sel.structure]:
             key = structure_of(*st)
@@ -624,7 +627,7 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
     if nested_results is None:  # in this process, sharing the fits already made (the memo)
         nested_results = []
         for held in runs:
-            nested_results.append(_nested_one(folds, held, ctx, cfg, noise))
+            nested_results.append(_nested_one(folds, held, ctx, cfg, noise, design.memo))
             if tick is not None:
                 tick()
     others = []
@@ -692,7 +695,8 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
         return out | {"reason": "not made: the linear baseline is adequate (within its noise floors)"}
     if "hull_nonlinearity" not in out["effects"]:
         return out | {"reason": "not made: the runs have no sway velocity, so no hull term can be fitted"}
-    kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds}
+    kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds,
+          "memo": design.memo}
     base_maes, maes = [], []
     try:
         for k in ks:
@@ -707,7 +711,7 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
         out["validation_mae_psi_relative_reduction"] = _gain(float(np.mean(base_maes)), float(np.mean(maes)))
         if te:
             allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
-                            baseline_bounded=search.baseline_bounded)
+                            baseline_bounded=search.baseline_bounded, memo=design.memo)
             fit = fit_structure(allrun.folds[0].train, structure, ctx, start=allrun.fit(0, ()), **kw)
             g, iv, bm, em = _pair_gain([(te, allrun.linear_eval(0)[1], evaluate(fit, te)[1])], cfg,
                                        cfg.block_T * ctx.t_ship)
