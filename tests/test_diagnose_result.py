@@ -113,3 +113,16 @@ def test_missing_key_is_refused(diag, tmp_path):
     del doc["settings"]["alpha"]
     with pytest.raises(KeyError, match="alpha"):
         DiagnosisReport.from_json(doc)
+
+
+def test_unjudged_finding_keys_and_round_trip():
+    """An effect not judged claims nothing: its keys are the short list, in order, and read back."""
+    f = UnjudgedFinding(effect="rudder_delay", significant=False, material=False, estimate={}, uncertainty={},
+                        validation_gain=None, validation_gain_folds=None, z=None, physical="",
+                        floor="a dead time below one sample", evidence="Not tried: no rudder.", gates=[])
+    doc = f.to_json()
+    assert list(doc) == UNJUDGED_KEYS
+    assert doc["gates"] == [] and doc["z"] is None
+    assert UnjudgedFinding.from_json(doc) == f
+    with pytest.raises(KeyError, match="evidence"):
+        UnjudgedFinding.from_json({k: v for k, v in doc.items() if k != "evidence"})
