@@ -11,7 +11,7 @@ import pytest
 
 from pipeline.diagnose import TruthConfig, zigzag_truth
 from pipeline.diagnose.core import _context
-from pipeline.diagnose.fit import fit_structure, memoised, series_from_run, structure_of
+from pipeline.diagnose.fit import FitMemo, fit_structure, series_from_run, structure_of
 
 
 @pytest.fixture(scope="module")
@@ -60,13 +60,9 @@ def test_memo_returns_the_fit_it_would_make(data):
     base = fit_structure(series, (), ctx)
     st = structure_of("rudder_offset")
 
-    @memoised
-    def twice():
-        a = fit_structure(series, st, ctx, start=base)
-        b = fit_structure(series, st, ctx, start=base)
-        other_start = fit_structure(series, st, ctx)  # another start: a fit of its own
-        return a, b, other_start
-
-    a, b, c = twice()
-    assert a is b and c is not a
-    _same(a, fit_structure(series, st, ctx, start=base))  # outside a diagnosis: no memo, same bits
+    memo = FitMemo()
+    a = fit_structure(series, st, ctx, start=base, memo=memo)
+    b = fit_structure(series, st, ctx, start=base, memo=memo)
+    c = fit_structure(series, st, ctx, memo=memo)  # another start: a fit of its own
+    assert a is b and c is not a and len(memo) == 2
+    _same(a, fit_structure(series, st, ctx, start=base))  # no memo: fitted anew, same bits

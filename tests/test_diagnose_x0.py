@@ -133,30 +133,26 @@ def test_set_and_unset_initial_states():
 
 
 def test_fit_memo_is_keyed_on_content():
-    """Within one diagnosis (fit.memoised) a fit of runs equal in content is made once, whichever
+    """Within one diagnosis (its fit.FitMemo) a fit of runs equal in content is made once, whichever
     objects carry them; a run differing in one sample, or in its start, is fitted anew."""
     import dataclasses
 
     from pipeline.diagnose.core import _context
-    from pipeline.diagnose.fit import fit_structure, memoised
+    from pipeline.diagnose.fit import FitMemo, fit_structure
 
     truth = sy.Truth(ship=sy.FAST, sensors=sy.Sensors(noise_psi=0.1, noise_r=0.05, noise_v=0.005))
     runs = [_series(sy.simulate(truth, sy.Zigzag(a, a, side, duration=30.0), seed=11 + i), f"z{i}")
             for i, (a, side) in enumerate(((20, "starboard"), (10, "port")))]
     ctx = _context(runs)
 
-    @memoised
-    def fits():
-        a = fit_structure(runs, (), ctx, max_nfev=5)
-        b = fit_structure([dataclasses.replace(s) for s in runs], (), ctx, max_nfev=5)
-        psi = runs[1].psi.copy()
-        psi[-1] += 1e-3
-        c = fit_structure([runs[0], dataclasses.replace(runs[1], psi=psi)], (), ctx, max_nfev=5)
-        d = fit_structure(with_initial_states(runs, 2.0), (), ctx, max_nfev=5)
-        return a, b, c, d
-
-    a, b, c, d = fits()
-    assert b is a and c is not a and d is not a
+    memo = FitMemo()
+    a = fit_structure(runs, (), ctx, max_nfev=5, memo=memo)
+    b = fit_structure([dataclasses.replace(s) for s in runs], (), ctx, max_nfev=5, memo=memo)
+    psi = runs[1].psi.copy()
+    psi[-1] += 1e-3
+    c = fit_structure([runs[0], dataclasses.replace(runs[1], psi=psi)], (), ctx, max_nfev=5, memo=memo)
+    d = fit_structure(with_initial_states(runs, 2.0), (), ctx, max_nfev=5, memo=memo)
+    assert b is a and c is not a and d is not a and len(memo) == 3
 
 
 @pytest.mark.parametrize("phi, cover_lo", [(0.0, 0.80), (0.95, 0.80)])

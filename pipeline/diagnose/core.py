@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import dataclasses
 import multiprocessing
 import os
 import threading
@@ -43,6 +44,7 @@ from pipeline.diagnose.datacheck import approach_drift, correct_rate_bias, rate_
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, REFERENCE, Context
 from pipeline.diagnose.effects.rudder_delay import time_floor
 from pipeline.diagnose.fit import (
+    FitMemo,
     FitResult,
     Series,
     _derivs,
@@ -51,7 +53,6 @@ from pipeline.diagnose.fit import (
     fit_structure,
     is_stable,
     latent_sway_a12,
-    memoised,
     plain_active,
     plain_fits,
     profile_time_params,
@@ -61,6 +62,24 @@ from pipeline.diagnose.fit import (
     sign_bound_text,
     structure_of,
     with_initial_states,
+)
+from pipeline.diagnose.result import (
+    Adequacy,
+    Baseline,
+    DataChecks,
+    DiagnosisReport,
+    Extended,
+    Finding,
+    FoldBaseline,
+    FoldCause,
+    FoldExtended,
+    FoldGain,
+    FoldReport,
+    LadderRung,
+    Settings,
+    Signature,
+    Stability,
+    UnjudgedFinding,
 )
 from pipeline.diagnose.select import Fold, Search, Selection, _gain, heading_noise_deg, select
 from pipeline.errors import InputError, ModelError
@@ -74,13 +93,15 @@ from pipeline.progress import bar as progress_bar
 class _Design:
     """What one diagnosis selects and reports on, carried together: the folds (training and validation
     series; the first is the reported one), the test series (none: the honest gain by nested
-    leave-one-run-out), the ship's context, the settings, and the heading noise floor ``noise`` (deg)."""
+    leave-one-run-out), the ship's context, the settings, the heading noise floor ``noise`` (deg) and
+    the diagnosis's fits by content (:class:`~pipeline.diagnose.fit.FitMemo`, shared by its Searches)."""
 
     folds: list[Fold]
     te: list[Series]
     ctx: Context
     cfg: DiagnoseConfig
     noise: float
+    memo: FitMemo
 
 
 @dataclass(frozen=True)
@@ -97,10 +118,13 @@ class _Outcome:
 
 @dataclass
 class Diagnosis:
-    """Result of :func:`diagnose`: ``report`` is diagnosis.json (docs/diagnosis.md), ``series`` the
-    measured / baseline / extended free-run series per validation run (long format)."""
+    """Result of :func:`diagnose`: ``result`` is diagnosis.json as a typed object
+    (:class:`~pipeline.diagnose.result.DiagnosisReport`, docs/diagnosis.md) and ``report`` its JSON form
+    (``result.to_json()``, what the readers and :func:`~pipeline.diagnose.output.write_outputs` use);
+    ``series`` the measured / baseline / extended free-run series per validation run (long format)."""
 
     report: dict
+    result: DiagnosisReport
     series: pd.DataFrame
     baseline: FitResult
     extended: FitResult
@@ -295,7 +319,6 @@ def _per_run(series, pb, pe) -> list[dict]:
 # ---------------------------------------------------------------- the diagnosis
 
 
-@memoised
 def diagnose(
     train: list[Run],
     validate: list[Run],
@@ -351,7 +374,7 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     # the nested leave-one-run-out's selections do not depend on the main one: with workers, they run
     # in worker processes while this one makes the main selection (same results, any worker count)
     workers = 1 if te or not cfg.nested_gain else _nested_workers(cfg, len(tr) + len(va))
-    design = _Design(folds, te, ctx, cfg, noise)
+    design = _Design(folds, te, ctx, cfg, noise, FitMemo())
     with _nested_in_workers(folds, ctx, cfg, noise, workers) as futures:
         return _select_and_report(design, train + validate + test, rates, progress=progress, futures=futures)
 
@@ -385,7 +408,7 @@ def _select_and_report(design: _Design, runs: list[Run], rates: dict, *, progres
     # fits, then each held-out run of the nested leave-one-run-out as it finishes
     bar = progress_bar(desc="diagnose: fits", leave=False, progress=progress)
     tick = (lambda _e: bar.update(1)) if progress else None
-    search = Search(folds, ctx, cfg)
+    search = Search(folds, ctx, cfg, memo=design.memo)
     ks = list(range(len(folds)))
     sel = select(search, ks, noise, progress=tick)
     bar.set_description("diagnose: held-out runs (nested selections)")
@@ -398,9 +421,10 @@ def _select_and_report(design: _Design, runs: list[Run], rates: dict, *, progres
     # stability: each fold alone (with --test runs; otherwise the leave-one-run-out selections are the folds)
     per_fold = [select(search, [k], noise) for k in ks] if te and len(folds) > 1 else []
     bar.close()
-    report, base, ext, series = _report(design, _Outcome(search, sel, per_fold, honest), runs, rates)
+    result, base, ext, series = _report(design, _Outcome(search, sel, per_fold, honest), runs, rates)
     return Diagnosis(
-        report=report,
+        report=result.to_json(),
+        result=result,
         series=series,
         baseline=base,
         extended=ext,
@@ -466,11 +490,12 @@ def _manoeuvre(s: Series) -> tuple[bool, float]:
     return bool(np.ptp(s.psi) >= TURNING_DEG), _rudder_amplitude(s)
 
 
-def _nested_one(folds, held, ctx, cfg, noise):
+def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
     """One round of the nested leave-one-run-out: the selection repeated without ``held``
     (:func:`_inner_folds`), the chosen structure refitted on the other runs and both models evaluated
-    on ``held`` alone.  Returns ((baseline evaluation, extended evaluation), nested entry), or None
-    when ``held`` cannot be held out (no training or no validation run left) or a fit fails."""
+    on ``held`` alone; ``memo`` the diagnosis's fits (:class:`~pipeline.diagnose.fit.FitMemo`).
+    Returns ((baseline evaluation, extended evaluation), nested entry), or None when ``held`` cannot
+    be held out (no training or no validation run left) or a fit fails."""
     tr, va = folds[0].train, folds[0].val
     tr_i = [s for s in tr if s is not held]
     va_i = [s for s in va if s is not held]
@@ -479,10 +504,11 @@ def _nested_one(folds, held, ctx, cfg, noise):
     inner = _inner_folds(folds, held, cfg)
     # the inner selection chooses its own baseline only where that choice is reported
     # (DiagnoseConfig.best_linear_baseline); otherwise the bounded fit, as the selection judges
-    isearch = Search(inner, ctx, cfg, baseline_bounded=None if cfg.best_linear_baseline else True)
+    isearch = Search(inner, ctx, cfg, baseline_bounded=None if cfg.best_linear_baseline else True, memo=memo)
     try:
         isel = select(isearch, list(range(len(inner))), noise)
-        refit = Search([Fold(tr_i + va_i, [held])], ctx, cfg, baseline_bounded=isearch.baseline_bounded)
+        refit = Search([Fold(tr_i + va_i, [held])], ctx, cfg, baseline_bounded=isearch.baseline_bounded,
+                       memo=memo)
         b0 = refit.fit(0, (), start=isearch.fit(0, ()))
         st = isel.structure
         if st:
@@ -515,7 +541,7 @@ def _nested_task(folds, i: int, ctx, cfg, noise, plain: bool):
     same bits as the parent's: a fit is a deterministic function of its inputs)."""
     held = (folds[0].train + folds[0].val)[i]
     with plain_fits() if plain else contextlib.nullcontext():
-        return memoised(_nested_one)(folds, held, ctx, cfg, noise)
+        return _nested_one(folds, held, ctx, cfg, noise, FitMemo())
 
 
 def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
@@ -546,7 +572,7 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
     rungs = [st for st, _ in sel.ladder]
     if te:
         allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
-                        baseline_bounded=search.baseline_bounded)
+                        baseline_bounded=search.baseline_bounded, memo=design.memo)
         fits = {}
         for st in rungs + [sel.structure]:
             key = structure_of(*st)
@@ -601,7 +627,7 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
     if nested_results is None:  # in this process, sharing the fits already made (the memo)
         nested_results = []
         for held in runs:
-            nested_results.append(_nested_one(folds, held, ctx, cfg, noise))
+            nested_results.append(_nested_one(folds, held, ctx, cfg, noise, design.memo))
             if tick is not None:
                 tick()
     others = []
@@ -669,7 +695,8 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
         return out | {"reason": "not made: the linear baseline is adequate (within its noise floors)"}
     if "hull_nonlinearity" not in out["effects"]:
         return out | {"reason": "not made: the runs have no sway velocity, so no hull term can be fitted"}
-    kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds}
+    kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds,
+          "memo": design.memo}
     base_maes, maes = [], []
     try:
         for k in ks:
@@ -684,7 +711,7 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
         out["validation_mae_psi_relative_reduction"] = _gain(float(np.mean(base_maes)), float(np.mean(maes)))
         if te:
             allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
-                            baseline_bounded=search.baseline_bounded)
+                            baseline_bounded=search.baseline_bounded, memo=design.memo)
             fit = fit_structure(allrun.folds[0].train, structure, ctx, start=allrun.fit(0, ()), **kw)
             g, iv, bm, em = _pair_gain([(te, allrun.linear_eval(0)[1], evaluate(fit, te)[1])], cfg,
                                        cfg.block_T * ctx.t_ship)
@@ -709,25 +736,26 @@ def _no_honest_gain(why: str) -> dict:
     }
 
 
-def _unjudged(eff, evidence: str) -> dict:
+def _unjudged(eff, evidence: str) -> UnjudgedFinding:
     """The finding of an effect that was not judged (not tried, or its fit failed): nothing claimed."""
-    return {
-        "effect": eff.name,
-        "significant": False,
-        "material": False,
-        "estimate": {},
-        "uncertainty": {},
-        "validation_gain": None,
-        "validation_gain_folds": None,
-        "z": None,
-        "physical": "",
-        "floor": eff.floor_reason,
-        "evidence": evidence,
-        "gates": [],
-    }
+    return UnjudgedFinding(
+        effect=eff.name,
+        significant=False,
+        material=False,
+        estimate={},
+        uncertainty={},
+        validation_gain=None,
+        validation_gain_folds=None,
+        z=None,
+        physical="",
+        floor=eff.floor_reason,
+        evidence=evidence,
+        gates=[],
+    )
 
 
-def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: bool, ext_struct) -> dict:
+def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: bool,
+             ext_struct) -> Finding | UnjudgedFinding:
     eff = BY_NAME[effect]
     if effect in sel.untried:
         return _unjudged(eff, f"Not tried: {sel.untried[effect]}.")
@@ -797,49 +825,49 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
             f"({ctxt}: held-out "
             f"{step.gain:+.0%}, per fold {', '.join(f'{g:+.0%}' for g in step.gains)}); fitted: {physical}."
         )
-    return {
-        "effect": effect,
-        "form": form.name,
-        "significant": bool(chosen),
-        "material": bool(step.material),
-        "floor": step.floor + f" [{eff.floor_reason}]",
-        "physical": physical,
-        "estimate": est,
-        "uncertainty": unc,
-        "profile": profile,
-        "z": float(z),
-        "validation_gain": step.gain,
-        "validation_gain_folds": step.gains,
-        "validation_gain_alone": alone.gain if alone else None,
-        "validation_gain_alone_folds": alone.gains if alone else None,
-        "validation_gain_in_extended": step.gain if chosen else None,
-        "validation_gain_in_extended_folds": step.gains if chosen else None,
-        "abs_gain_deg": step.abs_gain_deg,
-        "block_t": step.t,
-        "block_t_crit": step.t_crit,
-        "blocks": step.blocks,
+    return Finding(
+        effect=effect,
+        form=form.name,
+        significant=bool(chosen),
+        material=bool(step.material),
+        floor=step.floor + f" [{eff.floor_reason}]",
+        physical=physical,
+        estimate=est,
+        uncertainty=unc,
+        profile=profile,
+        z=float(z),
+        validation_gain=step.gain,
+        validation_gain_folds=step.gains,
+        validation_gain_alone=alone.gain if alone else None,
+        validation_gain_alone_folds=alone.gains if alone else None,
+        validation_gain_in_extended=step.gain if chosen else None,
+        validation_gain_in_extended_folds=step.gains if chosen else None,
+        abs_gain_deg=step.abs_gain_deg,
+        block_t=step.t,
+        block_t_crit=step.t_crit,
+        blocks=step.blocks,
         # the same step judged from the measured state over short_horizon_T ship time scales (select's
         # "no harm from the measured state"): pooled relative cut and its one-sided block t
-        "short_horizon_gain": step.short_gain,
-        "short_horizon_block_t": step.short_t,
+        short_horizon_gain=step.short_gain,
+        short_horizon_block_t=step.short_t,
         # training runs the step hinges on (select's "not hinging on one training run"): refitted
         # without each, the model no longer makes it, "run a -> b deg (heading swing c deg)"
-        "hinges_on": list(step.hinges),
-        "judged": ctxt,
-        "folds": fold_rows,
+        hinges_on=list(step.hinges),
+        judged=ctxt,
+        folds=fold_rows,
         # candidates the held-out runs could not tell from this one when it was added (chosen only)
-        "rivals": [
+        rivals=[
             {"effect": x, "validation_gain": xs.gain}
             for x, xs in (sel.rivals[effect][1] if chosen and effect in sel.rivals else [])
         ],
-        "evidence": evidence,
+        evidence=evidence,
         # every criterion of the step judged (pipeline.diagnose.gates): code, passed, value, threshold,
         # words; the evidence sentence above is made from their words
-        "gates": [g.to_json() for g in step.gates],
-    }
+        gates=list(step.gates),
+    )
 
 
-def _adequacy(base_mae: float, noise: float, cfg: DiagnoseConfig, residuals: dict) -> dict:
+def _adequacy(base_mae: float, noise: float, cfg: DiagnoseConfig, residuals: dict) -> Adequacy:
     """diagnosis.json's ``baseline_adequacy``: whether the linear baseline's pooled held-out MAE psi
     (deg) is within ``cfg.inadequate_floors`` noise floors (the floor of a step's cut, deg), and, when
     it is not, the effect signatures its residual correlates with most (strongest first)."""
@@ -855,13 +883,14 @@ def _adequacy(base_mae: float, noise: float, cfg: DiagnoseConfig, residuals: dic
            "for these runs; its residual follows "
            + ", ".join(f"{e} ({c:+.2f})" for e, c in sig))
     )
-    return {"adequate": ok, "mae_psi_deg": base_mae, "threshold_deg": limit, "noise_floor_deg": floor,
-            "floors": cfg.inadequate_floors, "reason": reason,
-            "signatures": [{"effect": e, "correlation": c} for e, c in sig]}
+    return Adequacy(adequate=ok, mae_psi_deg=base_mae, threshold_deg=limit, noise_floor_deg=floor,
+                    floors=cfg.inadequate_floors, reason=reason,
+                    signatures=[Signature(effect=e, correlation=c) for e, c in sig])
 
 
 def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
-    """(diagnosis.json, baseline fit, extended fit, series table) of ``outcome`` on ``design``."""
+    """(diagnosis.json as a :class:`~pipeline.diagnose.result.DiagnosisReport`, baseline fit, extended
+    fit, series table) of ``outcome`` on ``design``."""
     folds, te, ctx, cfg, noise = design.folds, design.te, design.ctx, design.cfg, design.noise
     search, sel, per_fold, honest = outcome.search, outcome.sel, outcome.per_fold, outcome.honest
     st = sel.structure
@@ -878,20 +907,20 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
     rows = [_finding(e.name, sel, search, ctx, cfg, e.name in chosen, st) for e in CATALOGUE]
     rows.sort(
         key=lambda r: (
-            not r["significant"],
-            -(r["validation_gain"] if r["validation_gain"] is not None else -np.inf),
+            not r.significant,
+            -(r.validation_gain if r.validation_gain is not None else -np.inf),
         )
     )
     structure = residual_structure(base, folds[0].val, base_per, ctx)
     after = residual_structure(ext, folds[0].val, ext_per, ctx) if chosen else structure
     cause = sel.cause
-    for r in rows:
-        if r["effect"] == cause and after["explained_fraction"] >= cfg.structured_r2:
+    for i, r in enumerate(rows):
+        if r.effect == cause and after["explained_fraction"] >= cfg.structured_r2:
             top = max(after["correlation"], key=lambda k: abs(after["correlation"][k]))
-            r["evidence"] += (
+            rows[i] = dataclasses.replace(r, evidence=r.evidence + (
                 f" Residuals stay structured after the extension: the effect signatures still explain "
                 f"{after['explained_fraction']:.0%} of the yaw-acceleration error (strongest: {top})."
-            )
+            ))
     joint = {}
     for e in chosen:
         form = ext.form(e)
@@ -915,27 +944,24 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         )
         tl = honest.get("ladder", {}).get(key)
         ladder.append(
-            {
-                "model": name,
-                "effects": [e for e, _ in s_],
-                "validation_mae_psi_deg": pooled(key),
-                "test_mae_psi_deg": tl["mae"] if tl else None,
-                "test_interval_95": tl["interval"] if tl else None,
-            }
+            LadderRung(
+                model=name,
+                effects=[e for e, _ in s_],
+                validation_mae_psi_deg=pooled(key),
+                test_mae_psi_deg=tl["mae"] if tl else None,
+                test_interval_95=tl["interval"] if tl else None,
+            )
         )
     causes = [
-        {
-            "fold": folds[k].name if len(folds) > 1 else folds[0].name,
-            "cause": p.cause,
-            "effects": [e for e, _ in p.structure],
-        }
+        FoldCause(
+            fold=folds[k].name if len(folds) > 1 else folds[0].name,
+            cause=p.cause,
+            effects=[e for e, _ in p.structure],
+        )
         for k, p in zip(ks, per_fold, strict=False)
     ]
-    causes += [
-        {"fold": n["fold"], "cause": n["cause"], "effects": n["effects"]}
-        for n in honest["nested"]
-    ]
-    agree = sum(c["cause"] == cause for c in causes)
+    causes += [FoldCause(fold=n["fold"], cause=n["cause"], effects=n["effects"]) for n in honest["nested"]]
+    agree = sum(c.cause == cause for c in causes)
     adequacy = _adequacy(pooled(()), noise, cfg, structure)
     flag = _gain_flag(honest, chosen)  # the honest gain's own check: in the summary and gain.flag
     if not chosen:
@@ -966,12 +992,12 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
             )
         if base.at_bound:
             summary += " " + sign_bound_text(base.at_bound)
-        if not adequacy["adequate"]:
-            summary += " The linear model is inadequate: " + adequacy["reason"] + "."
+        if not adequacy.adequate:
+            summary += " The linear model is inadequate: " + adequacy.reason + "."
         if flag:
             summary += f" Honest gain flagged: {flag}."
     else:
-        summary = next(r["evidence"] for r in rows if r["effect"] == cause)
+        summary = next(r.evidence for r in rows if r.effect == cause)
         if flag:
             summary += f" Honest gain flagged: {flag}."
     a12_held = latent_sway_a12(ctx)
@@ -992,29 +1018,29 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         bv, bp = search.linear_eval(k)
         x, (xv, xp) = (search.fit(k, st), search.eval(k, st)) if st else (b, (bv, bp))
         fold_reports.append(
-            {
-                "training_runs": [s.name for s in fold.train],
-                "validation_runs": [s.name for s in fold.val],
-                "course_stable": is_stable(b.theta),
-                "baseline": {
-                    "parameters": b.params(),
-                    "uncertainty": {n: b.std[n] for n in PARAM_NAMES},
-                    "course_stable": is_stable(b.theta),
-                    "stable": is_stable(b.theta),
-                    "training_cost": b.cost,
-                    "fit": b.message,
-                    "validation": bv,
-                    "per_run": [{kk: v for kk, v in p.items() if kk != "sim"} for p in bp],
-                },
-                "extended": {
-                    "effects": chosen,
-                    "parameters": x.params(),
-                    "course_stable": is_stable(x.theta),
-                    "validation": xv,
-                    "per_run": [{kk: v for kk, v in p.items() if kk != "sim"} for p in xp],
-                },
-                "gain": {"mae_psi_relative_reduction": _gain(bv["mae_psi_deg"], xv["mae_psi_deg"])},
-            }
+            FoldReport(
+                training_runs=[s.name for s in fold.train],
+                validation_runs=[s.name for s in fold.val],
+                course_stable=is_stable(b.theta),
+                baseline=FoldBaseline(
+                    parameters=b.params(),
+                    uncertainty={n: b.std[n] for n in PARAM_NAMES},
+                    course_stable=is_stable(b.theta),
+                    stable=is_stable(b.theta),
+                    training_cost=b.cost,
+                    fit=b.message,
+                    validation=bv,
+                    per_run=_without_sim(bp),
+                ),
+                extended=FoldExtended(
+                    effects=chosen,
+                    parameters=x.params(),
+                    course_stable=is_stable(x.theta),
+                    validation=xv,
+                    per_run=_without_sim(xp),
+                ),
+                gain=FoldGain(mae_psi_relative_reduction=_gain(bv["mae_psi_deg"], xv["mae_psi_deg"])),
+            )
         )
     gain = {k: v for k, v in honest.items() if k not in ("ladder",)}
     gain["flag"] = flag
@@ -1023,85 +1049,81 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
     if gain.get("against_other_linear") is not None and other is not None:
         gain["against_other_linear"]["validation_mae_psi_relative_reduction"] = _gain(
             other["validation_mae_psi_deg"], pooled(structure_of(*st)))
-    report = {
-        "cause": cause,
-        "baseline_adequate": adequacy["adequate"],
-        "baseline_adequacy": adequacy,
-        "findings": rows,
-        "baseline": {
-            "parameters": base.params(),
-            "uncertainty": {n: base.std[n] for n in PARAM_NAMES},
-            "course_stable": is_stable(base.theta),
-            "at_sign_bound": list(base.at_bound),
+    report = DiagnosisReport(
+        cause=cause,
+        baseline_adequate=adequacy.adequate,
+        baseline_adequacy=adequacy,
+        findings=rows,
+        baseline=Baseline(
+            parameters=base.params(),
+            uncertainty={n: base.std[n] for n in PARAM_NAMES},
+            course_stable=is_stable(base.theta),
+            at_sign_bound=list(base.at_bound),
             # the baseline is the linear fit (with or without the ship-sign bounds) of lower pooled
             # held-out MAE psi on the selection's runs (select.Search.choose_baseline); the other beside it
-            "sign_bounds": bool(search.baseline_bounded),
+            sign_bounds=bool(search.baseline_bounded),
             # which linear fit predicts the selection's held-out runs better (bounded: True), whether or
             # not it is the reported one (DiagnoseConfig.best_linear_baseline)
-            "best_linear_sign_bounds": search.best_bounded,
-            "other_linear": other,
-            "choice": _baseline_choice(search, pooled(()), other),
+            best_linear_sign_bounds=search.best_bounded,
+            other_linear=other,
+            choice=_baseline_choice(search, pooled(()), other),
             # a12 held where no training run measures v (fit.latent_sway_a12): the sway parameters are
             # then in that convention's units; None where v is measured
-            "latent_sway_a12": a12_held,
-            "validation": base_val,
-            "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in base_per],
-            "residuals": structure,
-        },
-        "extended": {
-            "effects": chosen,
-            "forms": {e: f for e, f in st},
-            "parameters": ext.params(),
-            "uncertainty": {n: ext.std[n] for n in PARAM_NAMES},
-            "effect_estimates": joint,
-            "course_stable": is_stable(ext.theta),
-            "at_sign_bound": list(ext.at_bound),
-            "validation": ext_val,
-            "per_run": [{k: v for k, v in p.items() if k != "sim"} for p in ext_per],
-            "residuals": after,
-        },
-        "gain": gain,
-        "ladder": ladder,
+            latent_sway_a12=a12_held,
+            validation=base_val,
+            per_run=_without_sim(base_per),
+            residuals=structure,
+        ),
+        extended=Extended(
+            effects=chosen,
+            forms={e: f for e, f in st},
+            parameters=ext.params(),
+            uncertainty={n: ext.std[n] for n in PARAM_NAMES},
+            effect_estimates=joint,
+            course_stable=is_stable(ext.theta),
+            at_sign_bound=list(ext.at_bound),
+            validation=ext_val,
+            per_run=_without_sim(ext_per),
+            residuals=after,
+        ),
+        gain=gain,
+        ladder=ladder,
         # the catalogue's terms told everything at once, not chosen (reference_fit): beside the ladder
-        "reference": reference_fit(design, search, ks, adequacy["adequate"]),
-        "stability": {
-            "folds_agreeing": agree,
-            "total": len(causes),
-            "causes": causes,
-            "rule": "the selection repeated with each run held out (leave-one-run-out) or, with --test "
+        reference=reference_fit(design, search, ks, adequacy.adequate),
+        stability=Stability(
+            folds_agreeing=agree,
+            total=len(causes),
+            causes=causes,
+            rule="the selection repeated with each run held out (leave-one-run-out) or, with --test "
             "runs, on every fold alone; agreeing = same cause as the selection on all runs",
-        },
-        "course_stable": [fr["course_stable"] for fr in fold_reports],
-        "folds": fold_reports,
-        "summary": summary,
+        ),
+        course_stable=[fr.course_stable for fr in fold_reports],
+        folds=fold_reports,
+        summary=summary,
         # what the data's own set-up may do to every fit (pipeline.diagnose.datacheck)
-        "data_checks": {"approach_drift": drift, "rate_bias": rates},
-        "training_runs": [s.name for s in folds[0].train],
-        "validation_runs": [s.name for s in folds[0].val],
-        "test_runs": [s.name for s in te],
-        "provenance": _provenance(runs),
-        "settings": {
-            "min_gain": cfg.min_gain,
-            "min_abs_gain_deg": cfg.min_abs_gain_deg,
-            "alpha": cfg.alpha,
-            "block_T": cfg.block_T,
-            "block_s": cfg.block_T * ctx.t_ship,
-            "time_scale_s": ctx.t_ship,
-            "heading_noise_deg": noise,
-            "max_effects": cfg.max_effects,
-            "inadequate_floors": cfg.inadequate_floors,
-            "structured_r2": cfg.structured_r2,
-            "catalogue": [e.name for e in CATALOGUE],
-            "two_fold": len(folds) == 2,
-            "u_ref_m_s": ctx.u_ref,
+        data_checks=DataChecks(approach_drift=drift, rate_bias=rates),
+        training_runs=[s.name for s in folds[0].train],
+        validation_runs=[s.name for s in folds[0].val],
+        test_runs=[s.name for s in te],
+        provenance=_provenance(runs),
+        settings=Settings(
+            min_gain=cfg.min_gain,
+            min_abs_gain_deg=cfg.min_abs_gain_deg,
+            alpha=cfg.alpha,
+            block_T=cfg.block_T,
+            block_s=cfg.block_T * ctx.t_ship,
+            time_scale_s=ctx.t_ship,
+            heading_noise_deg=noise,
+            max_effects=cfg.max_effects,
+            inadequate_floors=cfg.inadequate_floors,
+            structured_r2=cfg.structured_r2,
+            catalogue=[e.name for e in CATALOGUE],
+            two_fold=len(folds) == 2,
+            u_ref_m_s=ctx.u_ref,
             # held-out free runs start within this many standard deviations of the approach's estimate
-            "x0_box_sigma": cfg.x0_box_sigma,
-            "fit": "prediction-error over one ship time scale, then output-error on free-run psi, r (and v), "
-            "each training run's start fitted within the box of its estimate; RK4 of the continuous-time "
-            "model, rudder interpolated; stability not forced",
-            "significance": "one-sided t-test of per-block held-out MAE psi differences, t with G-1 dof",
-        },
-    }
+            x0_box_sigma=cfg.x0_box_sigma,
+        ),
+    )
     frames = []
     for s, pb, pe in zip(folds[0].val, base_per, ext_per, strict=True):
         d = {
@@ -1122,6 +1144,11 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
             d["u"] = s.u
         frames.append(pd.DataFrame(d))
     return report, base, ext, pd.concat(frames, ignore_index=True)
+
+
+def _without_sim(per_run: list[dict]) -> list[dict]:
+    """Per-run evaluation rows (:func:`~pipeline.diagnose.fit.evaluate`) without their simulated series."""
+    return [{k: v for k, v in p.items() if k != "sim"} for p in per_run]
 
 
 def _other_linear(search: Search, ks) -> dict | None:

@@ -30,14 +30,14 @@ Speed (docs/performance.md): the output-error residuals of a parameter vector ar
 (:func:`oe_batch`, the bits of :func:`_oe_residuals`: tests/test_model_definition.py), and their
 Jacobian is exact, the sensitivities of the discrete RK4 solution computed in the same kernel
 (:func:`jacobian`; held to finite differences by tests/test_diagnose_jacobian.py); within one
-diagnosis a fit of the same runs (by content), structure and start is made once (:func:`memoised`).
+diagnosis a fit of the same runs (by content), structure and start is made once (:class:`FitMemo`,
+which the diagnosis owns and passes to every :func:`fit_structure`).
 :func:`plain_fits` is the same-run baseline: residuals from Python, SciPy's forward differences.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import hashlib
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -984,10 +984,6 @@ _TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-8}
 _TIME_GRID = (0.0, 0.03, 0.07, 0.12, 0.2)
 
 
-#: fits already made in the current :func:`memoised` call: {key: result or error}
-_MEMO: ContextVar[dict | None] = ContextVar("diagnose_fit_memo", default=None)
-
-
 #: set by :func:`plain_fits`
 _PLAIN: ContextVar[bool] = ContextVar("diagnose_plain_fits", default=False)
 
@@ -1009,23 +1005,27 @@ def plain_active() -> bool:
     return _PLAIN.get()
 
 
-def memoised(func):
-    """Decorator: within one call of ``func`` (one diagnosis), :func:`fit_structure` of the same runs
-    (the same content, :meth:`Series.content_key`), structure, context, start (its exact parameter vector)
-    and settings returns
-    the fit already made instead of refitting.  The fit is a deterministic function of these, so the
-    result is the same bits; the nested cross-validation repeats many of the main selection's fits
-    (an inner fold that trains on the same runs)."""
+class FitMemo:
+    """The fits one diagnosis has made: :func:`fit_structure` given a memo returns, for the same runs
+    (the same content, :meth:`Series.content_key`), structure, context, start (its exact parameter
+    vector) and settings, the fit already made (or raises the same :class:`ModelError`) instead of
+    refitting.  The fit is a deterministic function of these, so the result is the same bits; the
+    nested cross-validation repeats many of the main selection's fits (an inner fold that trains on
+    the same runs).  Keyed on content only: no object identity, nothing held between diagnoses."""
 
-    @functools.wraps(func)
-    def inner(*args, **kwargs):
-        token = _MEMO.set({})
-        try:
-            return func(*args, **kwargs)
-        finally:
-            _MEMO.reset(token)
+    def __init__(self) -> None:
+        self._fits: dict = {}
 
-    return inner
+    def __len__(self) -> int:
+        return len(self._fits)
+
+    def get(self, key):
+        """The fit (or ModelError) stored under ``key``; None when not made yet."""
+        return self._fits.get(key)
+
+    def put(self, key, hit) -> None:
+        """Store the fit (or ModelError) ``hit`` under ``key``."""
+        self._fits[key] = hit
 
 
 def fit_structure(
@@ -1038,14 +1038,16 @@ def fit_structure(
     *,
     sign_bounds: bool = True,
     hold_linear: tuple[float, float, float, float] | None = None,
+    memo: FitMemo | None = None,
 ) -> FitResult:
     """Fit the linear model plus ``structure`` on ``series`` (module docstring).  ``start``: a fit of
     a nested structure (its values are reused, new parameters start at their start values).
     ``sign_bounds``: keep a11, a12, a21, a22 <= 0 (:meth:`Layout.bounds`); False fits them free.
     ``hold_linear``: (a11 1/s, a12 (m/s^2)/(deg/s), a21 (deg/s^2)/(m/s), a22 1/s) held, the damping
-    terms signed (the anchored form, :attr:`Layout.hold_linear`); None fits the linear part."""
+    terms signed (the anchored form, :attr:`Layout.hold_linear`); None fits the linear part.
+    ``memo``: the fits already made in this diagnosis (:class:`FitMemo`; None, or within
+    :func:`plain_fits`: fitted anew)."""
     hold = None if hold_linear is None else tuple(float(x) for x in hold_linear)
-    memo = _MEMO.get()
     if memo is None or _PLAIN.get():
         return _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold)
     key = (
@@ -1064,7 +1066,7 @@ def fit_structure(
             hit = _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold)
         except ModelError as err:
             hit = err
-        memo[key] = hit
+        memo.put(key, hit)
     if isinstance(hit, ModelError):
         raise hit
     return hit

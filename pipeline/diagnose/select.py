@@ -102,6 +102,7 @@ from pipeline.config import DiagnoseConfig
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
 from pipeline.diagnose.extended import predict_segments
 from pipeline.diagnose.fit import (
+    FitMemo,
     FitResult,
     Series,
     _u_ratio,
@@ -206,11 +207,14 @@ def heading_noise_deg(series: list[Series], t_ship: float) -> float:
 
 
 class Search:
-    """Fits and held-out evaluations of structures in folds, cached by (fold, structure)."""
+    """Fits and held-out evaluations of structures in folds, cached by (fold, structure).  ``memo``: the
+    diagnosis's fits by content (:class:`~pipeline.diagnose.fit.FitMemo`), shared by every Search of one
+    diagnosis; None: every fit made anew."""
 
     def __init__(self, folds: list[Fold], ctx: Context, cfg: DiagnoseConfig,
-                 baseline_bounded: bool | None = None):
+                 baseline_bounded: bool | None = None, *, memo: FitMemo | None = None):
         self.folds, self.ctx, self.cfg = folds, ctx, cfg
+        self.memo = memo
         self._fits: dict = {}
         self._evals: dict = {}
         self._short: dict = {}
@@ -258,7 +262,7 @@ class Search:
             try:
                 fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
                                           max_nfev=self.cfg.max_nfev, block_T=self.cfg.block_T,
-                                          hold_linear=hold, sign_bounds=self.family_bounds))
+                                          hold_linear=hold, sign_bounds=self.family_bounds, memo=self.memo))
             except ModelError as e:
                 err = e
         if not fits:
@@ -336,7 +340,7 @@ class Search:
         (the output-error cost has local optima; the choice uses no held-out run)."""
         def one(s):
             return fit_structure(self.folds[k].train, (), self.ctx, start=s, max_nfev=self.cfg.max_nfev,
-                                 block_T=self.cfg.block_T, sign_bounds=sign_bounds)
+                                 block_T=self.cfg.block_T, sign_bounds=sign_bounds, memo=self.memo)
 
         fits = []
         for s in (None, start):
@@ -440,7 +444,7 @@ class Search:
         def one(s):
             return fit_structure(
                 self.folds[k].train, structure, self.ctx, start=s, max_nfev=self.cfg.max_nfev,
-                block_T=self.cfg.block_T, sign_bounds=bounds,
+                block_T=self.cfg.block_T, sign_bounds=bounds, memo=self.memo,
             )
 
         warm = one(start)
@@ -483,6 +487,7 @@ class Search:
                 block_T=self.cfg.block_T,
                 hold_linear=old.hold_linear,
                 sign_bounds=self.family_bounds,
+                memo=self.memo,
             )
         except ModelError:
             return False
@@ -515,7 +520,8 @@ class Search:
                         index[(k, j)] = len(folds)
                         folds.append(Fold([x for x in f.train if x is not run], [run]))
             jcfg = replace(self.cfg, cold_start=False)
-            self._jack = (Search(folds, self.ctx, jcfg, baseline_bounded=self.baseline_bounded), index)
+            jack = Search(folds, self.ctx, jcfg, baseline_bounded=self.baseline_bounded, memo=self.memo)
+            self._jack = (jack, index)
         jack, index = self._jack
         out = []
         for k in ks:
