@@ -180,18 +180,21 @@ def test_the_held_out_start_jacobian_is_the_derivative_too(setting, run):
     _check(_start_jacobian(fit, s, x, free, w)(z), _central(resid, z, -big, big), [f"x{i}" for i in free])
 
 
-def _exp_fit(x, *, bad_jacobian=False, bad_residuals=False):
+def _exp_fit(x, *, bad_jacobian=False, bad_residuals=False, huge_jacobian=False):
     """Residuals exp(a t) - exp(2 t) + c on t in [0, 1] (zero at a = 2, c = 0) and their Jacobian,
     either made non-finite on demand."""
     t = np.linspace(0.0, 1.0, 50)
     f = np.exp(x[0] * t) - np.exp(2.0 * t) + x[1]
     jx = np.stack([t * np.exp(x[0] * t), np.ones_like(t)], axis=1)
+    if huge_jacobian:                       # finite, but its squares overflow
+        jx = jx * 1e200
     return (f * np.nan if bad_residuals else f), (jx * np.nan if bad_jacobian else jx)
 
 
 def test_compressed_least_squares_survives_an_overflowed_jacobian_and_refuses_a_bad_start():
     """Sensitivities that overflow where the residuals are finite (a nearly diverging free run) fall
-    back to a forward difference, so the fit reaches the same optimum; a start whose residuals are
+    back to a forward difference (as do finite ones whose squares overflow), so the fit reaches the
+    same optimum; a start whose residuals are
     not finite gets SciPy's own error, not a lookup failure."""
     from pipeline.diagnose.fit import _compressed_lsq
 
@@ -200,5 +203,8 @@ def test_compressed_least_squares_survives_an_overflowed_jacobian_and_refuses_a_
     fallback = _compressed_lsq(lambda x: _exp_fit(x, bad_jacobian=True), x0, lo, hi, 200)
     assert exact.x == pytest.approx([2.0, 0.0], abs=1e-6)
     assert fallback.x == pytest.approx(exact.x, abs=1e-6)
+    huge = _compressed_lsq(lambda x: _exp_fit(x, huge_jacobian=True), x0, lo, hi, 200)
+    assert huge.x == pytest.approx(exact.x, abs=1e-6)
+    assert np.all(np.isfinite(huge.jac)) and np.abs(huge.jac).max() < 1e3
     with pytest.raises(ValueError, match="not finite in the initial point"):
         _compressed_lsq(lambda x: _exp_fit(x, bad_residuals=True), x0, lo, hi, 200)

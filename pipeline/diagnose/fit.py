@@ -935,7 +935,7 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
     def fun(x):
         f, jx = _finite_jacobian(fj, x, lo, hi)
         made.clear()
-        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(jx))):
+        if not (_representable(f) and _representable(jx, f)):
             return np.full(x.size + 1, np.nan)      # a trial point SciPy rejects (shrinks its region)
         qtf, r = qr_multiply(jx, f, mode="right")
         made[x.tobytes()] = np.vstack([r, np.zeros((1, x.size))])
@@ -960,13 +960,25 @@ def _finite_jacobian(fj, x: np.ndarray, lo: np.ndarray, hi: np.ndarray):
     run that nearly diverges): such a point is judged by its cost, as with SciPy's own differences,
     and its covariance is not made from infinities."""
     f, jx = fj(x)
-    if np.all(np.isfinite(f)) and not np.all(np.isfinite(jx)):
+    if _representable(f) and not _representable(jx, f):
         jx = np.empty((f.size, x.size))
         for i in range(x.size):
             q = x.copy()
             q[i] = x[i] + _fd_step(float(x[i]), float(lo[i]), float(hi[i]))
             jx[:, i] = (fj(q)[0] - f) / (q[i] - x[i])
     return f, jx
+
+
+def _representable(a: np.ndarray, f: np.ndarray | None = None) -> bool:
+    """True when the residuals ``a`` (or, with ``f``, the Jacobian ``a`` of the residuals ``f``) are
+    finite and so are the sums SciPy's trust-region step makes of them (the cost, the column norms,
+    the gradient J^T f): sensitivities that grew beyond about 1e154 along a diverging free run are
+    finite numbers whose squares are not."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        ok = bool(np.all(np.isfinite(a)) and np.isfinite(np.sum(a * a)))
+        if ok and f is not None:
+            ok = bool(np.all(np.isfinite(a.T @ f)))
+    return ok
 
 
 #: trust-region sub-problem solver: "exact", an SVD of the Jacobian per iteration (6 to ~16 columns,
