@@ -64,7 +64,7 @@ def test_the_baseline_is_the_unconstrained_fit_where_the_bound_cripples_it():
     pooled = sum(s.linear_eval(k)[0]["mae_psi_deg"] for k in (0, 1)) / 2
     noise = heading_noise_deg(s.folds[0].val, s.ctx.t_ship)
     res = residual_structure(s.linear(0), s.folds[0].val, s.linear_eval(0)[1], s.ctx)
-    a = _adequacy(pooled, noise, s.cfg, res)
+    a = _adequacy(pooled, noise, s.cfg, res).to_json()
     assert a["adequate"] is False and pooled > a["threshold_deg"], a
     assert {x["effect"] for x in a["signatures"]} & {"nonlinear_sway_damping", "sway_yaw_coupling",
                                                       "nonlinear_yaw_damping", "speed_loss"}, a

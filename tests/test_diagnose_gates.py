@@ -94,8 +94,8 @@ def test_adequacy_is_a_multiple_of_the_noise_floor():
     cfg = DiagnoseConfig()
     corr = {"nonlinear_sway_damping": -0.54, "sway_yaw_coupling": 0.44, "nonlinear_yaw_damping": 0.39,
             "rudder_offset": 0.1}
-    ok = _adequacy(1.19, 0.06, cfg, {"correlation": corr})
-    bad = _adequacy(1.21, 0.06, cfg, {"correlation": corr})
+    ok = _adequacy(1.19, 0.06, cfg, {"correlation": corr}).to_json()
+    bad = _adequacy(1.21, 0.06, cfg, {"correlation": corr}).to_json()
     assert ok["adequate"] and not bad["adequate"]
     assert bad["threshold_deg"] == pytest.approx(1.2) and bad["noise_floor_deg"] == pytest.approx(0.12)
     assert [s["effect"] for s in bad["signatures"]] == ["nonlinear_sway_damping", "sway_yaw_coupling",
@@ -105,4 +105,4 @@ def test_adequacy_is_a_multiple_of_the_noise_floor():
     text = dt.adequacy_text(dg)
     assert "inadequate" in text and "nonlinear sway damping (-0.54)" in text and "'None' here" in text
     # the floor is the repeatability where the noise is smaller than half of it
-    assert _adequacy(0.5, 0.01, cfg, {})["threshold_deg"] == pytest.approx(10 * cfg.min_abs_gain_deg)
+    assert _adequacy(0.5, 0.01, cfg, {}).threshold_deg == pytest.approx(10 * cfg.min_abs_gain_deg)

@@ -19,12 +19,13 @@ from pipeline import tank
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose.core import _Design, reference_fit
 from pipeline.diagnose.effects import REFERENCE, Context
+from pipeline.diagnose.fit import FitMemo
 from pipeline.diagnose.select import Fold, Search, heading_noise_deg
 
 
 def _design(search):
     return _Design(search.folds, [], search.ctx, search.cfg,
-                   heading_noise_deg(search.folds[0].val, search.ctx.t_ship))
+                   heading_noise_deg(search.folds[0].val, search.ctx.t_ship), FitMemo())
 
 
 @pytest.mark.slow
@@ -61,7 +62,7 @@ def test_reference_fit_is_not_made_where_it_has_nothing_to_carry():
              (replace(ctx, v_measured=False), DiagnoseConfig(), False, "sway velocity"))
     for c, cfg, adequate, why in cases:
         s = Search([Fold([], [])], c, cfg, baseline_bounded=True)
-        ref = reference_fit(_Design(s.folds, [], c, cfg, 0.05), s, [0], adequate=adequate)
+        ref = reference_fit(_Design(s.folds, [], c, cfg, 0.05, FitMemo()), s, [0], adequate=adequate)
         assert not ref["computed"] and why in ref["reason"] and s._fits == {}, ref
         assert ref["validation_mae_psi_deg"] is None and ref["per_fold"] == []
     assert "hull_nonlinearity" not in ref["effects"]
