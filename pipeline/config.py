@@ -573,6 +573,11 @@ class DiagnoseConfig:
     # own reverse fold calls two sides the same manoeuvres (pipeline.diagnose.core._exchangeable uses
     # the same 0.15): a 10 and an 11.5 deg zigzag excite the same part of the model
     twin_tolerance: float = 0.15
+    # fit without the speed devices (residuals one run at a time from Python, SciPy's forward-difference
+    # Jacobian, no fit memo: pipeline.diagnose.fit.fit_structure's ``plain``).  The same model within the
+    # least-squares tolerance, many times slower: the same-run baseline of ``python -m pipeline bench``
+    # (docs/performance.md), never needed for a verdict
+    plain_fits: bool = False
 
 
 @dataclass(frozen=True)

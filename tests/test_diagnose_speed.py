@@ -35,19 +35,19 @@ def _same(a, b):
 def test_analytic_jacobian_reaches_the_finite_difference_fit(data, boxed):
     """The fit (a prediction-error start, a dead time profiled over its grid with its column by
     difference, the output-error polish, with and without the training runs' starts fitted) with the
-    kernel's sensitivities and with SciPy's forward differences from Python (plain_fits): the same
+    kernel's sensitivities and with SciPy's forward differences from Python (a plain fit): the same
     optimum.  Thresholds: the training cost within the least-squares stopping tolerance ftol = 1e-6
     (fit._TOL; measured 1e-12 apart), every parameter within 1e-3 of its own standard error (measured
     6e-5): another Jacobian takes other steps, not to another model."""
-    from pipeline.diagnose.fit import _TOL, plain_fits, with_initial_states
+    from pipeline.diagnose.fit import _TOL, with_initial_states
 
     series, ctx = data
     if boxed:
         series = with_initial_states(series, 0.25 * ctx.t_ship, box_sigma=2.0)
     for st in [(), structure_of("rudder_offset"), structure_of("rudder_offset", "rudder_delay")]:
         fast = fit_structure(series, st, ctx)
-        with plain_fits():
-            plain = fit_structure(series, st, ctx)
+        plain = fit_structure(series, st, ctx, plain=True)
+        assert plain.plain and not fast.plain
         assert abs(fast.cost - plain.cost) <= _TOL["ftol"] * plain.cost, st
         for i, n in enumerate(fast.names):
             assert abs(fast.p[i] - plain.p[i]) <= 1e-3 * max(plain.std[n], 1e-12), (st, n)

@@ -4,7 +4,7 @@ full effect catalogue, both folds, the nested cross-validation of the gain and t
 selections.  Wall time of :func:`pipeline.diagnose.diagnose` after a warm-up that compiles the numba
 kernels (so the figure is the method, not the compiler); the target is < 15 s on a 2-core machine.
 
-Beside it (not in quick mode): the same case with plain fits (:func:`~pipeline.diagnose.fit.plain_fits`:
+Beside it (not in quick mode): the same case with plain fits (``DiagnoseConfig.plain_fits``:
 residuals from Python, SciPy's finite-difference Jacobian, no memo) as the same-run baseline, its
 ratio, whether the two verdicts agree and the largest relative difference of the reports' figures
 (another Jacobian reaches the same optimum within the optimiser's tolerance, not the same bits); the
@@ -25,7 +25,6 @@ from pipeline.config import DiagnoseConfig
 from pipeline.diagnose import CATALOGUE, TruthConfig, diagnose, zigzag_truth
 from pipeline.diagnose.core import _nested_workers
 from pipeline.diagnose.design import pick_catalog_runs
-from pipeline.diagnose.fit import plain_fits
 from pipeline.diagnose.truth import damping_for_cut
 
 #: relative: a figure of two reports counts as moved when it differs by more than this (the
@@ -59,8 +58,7 @@ def run(quick: bool = False) -> list[dict]:
         return out
     # same-run baseline: plain fits (residuals from Python, finite differences, no memo)
     t0, c0 = time.perf_counter(), _cpu()
-    with plain_fits():
-        plain = diagnose(runs[:2], runs[2:]).report
+    plain = diagnose(runs[:2], runs[2:], cfg=DiagnoseConfig(plain_fits=True)).report
     sec0, cpu0 = time.perf_counter() - t0, _cpu() - c0
     out += [
         {
@@ -136,8 +134,7 @@ def virtual_rows() -> list[dict]:
     fast = diagnose(train, val, cfg=main).report
     sec1, cpu1 = time.perf_counter() - t0, _cpu() - c0
     t0, c0 = time.perf_counter(), _cpu()
-    with plain_fits():
-        plain = diagnose(train, val, cfg=main).report
+    plain = diagnose(train, val, cfg=dc.replace(main, plain_fits=True)).report
     sec0, cpu0 = time.perf_counter() - t0, _cpu() - c0
     return out + [
         {"name": "virtual KCS main selection (nested gain off)", "value": sec1, "unit": "s",

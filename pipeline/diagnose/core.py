@@ -53,8 +53,6 @@ from pipeline.diagnose.fit import (
     fit_structure,
     is_stable,
     latent_sway_a12,
-    plain_active,
-    plain_fits,
     profile_time_params,
     reference_speed,
     series_from_run,
@@ -390,7 +388,7 @@ def _nested_in_workers(folds, ctx, cfg, noise, workers: int):
     # the workers end with this process on any signal (pipeline.lifeline; docs/operations.md)
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
                              initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
-        futures = [pool.submit(_nested_task, folds, i, ctx, cfg, noise, plain_active()) for i in range(n)]
+        futures = [pool.submit(_nested_task, folds, i, ctx, cfg, noise) for i in range(n)]
         try:
             yield futures
         finally:
@@ -535,13 +533,12 @@ def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
     return (pb, pe, po), entry
 
 
-def _nested_task(folds, i: int, ctx, cfg, noise, plain: bool):
+def _nested_task(folds, i: int, ctx, cfg, noise):
     """:func:`_nested_one` of run ``i`` (of training + validation), in a worker process: ``folds``
     arrive as one pickled graph, so the runs are shared objects there as here; its own fit memo (the
     same bits as the parent's: a fit is a deterministic function of its inputs)."""
     held = (folds[0].train + folds[0].val)[i]
-    with plain_fits() if plain else contextlib.nullcontext():
-        return _nested_one(folds, held, ctx, cfg, noise, FitMemo())
+    return _nested_one(folds, held, ctx, cfg, noise, FitMemo())
 
 
 def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
@@ -696,7 +693,7 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
     if "hull_nonlinearity" not in out["effects"]:
         return out | {"reason": "not made: the runs have no sway velocity, so no hull term can be fitted"}
     kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds,
-          "memo": design.memo}
+          "memo": design.memo, "plain": cfg.plain_fits}
     base_maes, maes = [], []
     try:
         for k in ks:

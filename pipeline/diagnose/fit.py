@@ -32,15 +32,14 @@ Jacobian is exact, the sensitivities of the discrete RK4 solution computed in th
 (:func:`jacobian`; held to finite differences by tests/test_diagnose_jacobian.py); within one
 diagnosis a fit of the same runs (by content), structure and start is made once (:class:`FitMemo`,
 which the diagnosis owns and passes to every :func:`fit_structure`).
-:func:`plain_fits` is the same-run baseline: residuals from Python, SciPy's forward differences.
+A plain fit (``plain=True`` of :func:`fit_structure`, ``DiagnoseConfig.plain_fits`` for a whole
+diagnosis) is the same-run baseline: residuals from Python, SciPy's forward differences, no memo.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
-from contextlib import contextmanager
-from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -513,6 +512,9 @@ class FitResult:
     sign_bounds: bool = True
     #: the linear part held in this fit (the anchored form, Layout.hold_linear); None: fitted freely
     hold_linear: tuple[float, float, float, float] | None = None
+    #: made without the speed devices (``fit_structure(plain=True)``); its held-out starts
+    #: (:func:`boxed_initial_state`) are then fitted with SciPy's forward differences too
+    plain: bool = False
 
     @property
     def effects(self) -> list[str]:
@@ -629,7 +631,7 @@ def boxed_initial_state(fit: FitResult, s: Series, half_width: np.ndarray) -> np
         q[free] = z
         return ((simulate_terms(fit.theta, fit.terms, q, s.t, s.delta, ur) - meas) * w).ravel()
 
-    jac = "2-point" if _PLAIN.get() else _start_jacobian(fit, s, x, free, w)
+    jac = "2-point" if fit.plain else _start_jacobian(fit, s, x, free, w)
     lo, hi = x[free] - half_width[free], x[free] + half_width[free]
     r = least_squares(resid, x[free], jac=jac, bounds=(lo, hi), x_scale=half_width[free], max_nfev=20,
                       method="trf", **_TOL)
@@ -996,27 +998,6 @@ _TOL = {"ftol": 1e-6, "xtol": 1e-6, "gtol": 1e-8}
 _TIME_GRID = (0.0, 0.03, 0.07, 0.12, 0.2)
 
 
-#: set by :func:`plain_fits`
-_PLAIN: ContextVar[bool] = ContextVar("diagnose_plain_fits", default=False)
-
-
-@contextmanager
-def plain_fits():
-    """Within: fits without the speed devices (residuals one run at a time from Python, SciPy's
-    forward-difference Jacobian, no memo): the benchmark's same-run baseline.  The same model up to
-    the optimiser's tolerance (another Jacobian takes other steps to the same optimum)."""
-    token = _PLAIN.set(True)
-    try:
-        yield
-    finally:
-        _PLAIN.reset(token)
-
-
-def plain_active() -> bool:
-    """True within :func:`plain_fits`."""
-    return _PLAIN.get()
-
-
 class FitMemo:
     """The fits one diagnosis has made: :func:`fit_structure` given a memo returns, for the same runs
     (the same content, :meth:`Series.content_key`), structure, context, start (its exact parameter
@@ -1051,17 +1032,54 @@ def fit_structure(
     sign_bounds: bool = True,
     hold_linear: tuple[float, float, float, float] | None = None,
     memo: FitMemo | None = None,
+    plain: bool = False,
 ) -> FitResult:
-    """Fit the linear model plus ``structure`` on ``series`` (module docstring).  ``start``: a fit of
-    a nested structure (its values are reused, new parameters start at their start values).
-    ``sign_bounds``: keep a11, a12, a21, a22 <= 0 (:meth:`Layout.bounds`); False fits them free.
-    ``hold_linear``: (a11 1/s, a12 (m/s^2)/(deg/s), a21 (deg/s^2)/(m/s), a22 1/s) held, the damping
-    terms signed (the anchored form, :attr:`Layout.hold_linear`); None fits the linear part.
-    ``memo``: the fits already made in this diagnosis (:class:`FitMemo`; None, or within
-    :func:`plain_fits`: fitted anew)."""
+    """Fit the linear model plus ``structure`` on ``series`` (the method: module docstring).
+
+    Parameters
+    ----------
+    series : list of Series
+        The training runs (time s, rudder deg, psi deg, r deg/s, v and u m/s), each with its
+        :class:`Start`.
+    structure : Structure
+        The effects added to the linear model, as (effect, form) pairs (:func:`structure_of`).
+    ctx : Context
+        The ship's context (time scale T_ship s, approach speed m/s, whether v is measured).
+    start : FitResult, optional
+        A fit of a nested structure: its values are reused, new parameters start at their start
+        values, and the fit goes to the output-error polish directly.  None: the equation-error start.
+    max_nfev : int
+        Residual evaluations per least-squares stage.
+    block_T : float
+        Cluster length of the sandwich covariance, in ship time scales T_ship (dimensionless).
+    sign_bounds : bool
+        Keep a11, a12, a21, a22 <= 0 (:meth:`Layout.bounds`); False fits them free.
+    hold_linear : tuple of 4 float, optional
+        (a11 1/s, a12 (m/s^2)/(deg/s), a21 (deg/s^2)/(m/s), a22 1/s) held, the damping terms signed
+        (the anchored form, :attr:`Layout.hold_linear`); None fits the linear part.
+    memo : FitMemo, optional
+        The fits already made in this diagnosis: the same fit is returned, not made again.  None:
+        fitted anew.
+    plain : bool
+        Fit without the speed devices: residuals one run at a time from Python, SciPy's
+        forward-difference Jacobian, no memo (the benchmark's same-run baseline; the same optimum
+        within the least-squares tolerance, docs/performance.md).  The result carries it
+        (:attr:`FitResult.plain`).
+
+    Returns
+    -------
+    FitResult
+        Parameters (units of docs/contract.md), their cluster-robust standard deviations, the
+        training cost and the optimiser's account.
+
+    Raises
+    ------
+    ModelError
+        No finite fit, or an effect needs the surge speed u that a training run lacks.
+    """
     hold = None if hold_linear is None else tuple(float(x) for x in hold_linear)
-    if memo is None or _PLAIN.get():
-        return _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold)
+    if memo is None or plain:
+        return _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold, plain)
     key = (
         tuple(s.content_key() for s in series),
         structure_of(*structure),
@@ -1085,7 +1103,7 @@ def fit_structure(
 
 
 def _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds=True,
-                   hold_linear=None) -> FitResult:
+                   hold_linear=None, plain=False) -> FitResult:
     layout = Layout(structure_of(*structure), ctx, sign_bounds, hold_linear)
     lo, hi = layout.bounds()
     need_u = [e for e, _ in layout.structure if BY_NAME[e].needs_u]
@@ -1115,11 +1133,11 @@ def _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds
     horizon = max(10, int(round(ctx.t_ship / series[0].h)))
     z0 = start.start_z if start is not None and start.training_runs == [s.name for s in series] else None
     return _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, (lo, hi, eps), new_time,
-                     horizon if start is None else 0, z0)
+                     horizon if start is None else 0, z0, plain=plain)
 
 
 def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new_time, horizon,
-              z0=None) -> FitResult:
+              z0=None, *, plain: bool = False) -> FitResult:
     """The fit of :func:`_fit_structure` from ``p0``: a prediction-error stage over ``horizon`` steps
     (0: none, a warm start), a profile of each new time parameter (``new_time``: indices), the
     output-error polish with each training run's own start (from ``z0``, a warm start's, if given).
@@ -1139,8 +1157,6 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
     names = layout.names
     msg = [f"prediction-error start over {horizon} steps"] if horizon else []
     batch = oe_batch(series, sc, layout, u_ref)
-
-    plain = _PLAIN.get()
 
     def oe(p):
         if plain:
@@ -1235,6 +1251,7 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
         start_z=np.asarray(res.x[n_p:], dtype=float),
         sign_bounds=layout.sign_bounds,
         hold_linear=layout.hold_linear,
+        plain=plain,
     )
 
 
@@ -1252,7 +1269,8 @@ class _JointStarts:
     the estimate, :func:`boxed_initial_state`'s box), z_k in [-1, 1], for the states JOINT_STATES
     names (r0); psi0 kept, as in the held-out evaluation.  A callable for least_squares, with its
     Jacobian (:meth:`jac`: the kernel's sensitivities, :func:`jacobian`).  ``bounds``: the model
-    parameters' (lo, hi); ``plain``: residuals one run at a time from Python (:func:`plain_fits`)."""
+    parameters' (lo, hi); ``plain``: residuals one run at a time from Python (a plain fit,
+    :func:`fit_structure`)."""
 
     def __init__(self, series, n_p, layout, sc, u_ref, batch, bounds, plain=False):
         self.series, self.n_p, self.layout = series, n_p, layout

@@ -262,7 +262,8 @@ class Search:
             try:
                 fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
                                           max_nfev=self.cfg.max_nfev, block_T=self.cfg.block_T,
-                                          hold_linear=hold, sign_bounds=self.family_bounds, memo=self.memo))
+                                          hold_linear=hold, sign_bounds=self.family_bounds, memo=self.memo,
+                                          plain=self.cfg.plain_fits))
             except ModelError as e:
                 err = e
         if not fits:
@@ -340,7 +341,8 @@ class Search:
         (the output-error cost has local optima; the choice uses no held-out run)."""
         def one(s):
             return fit_structure(self.folds[k].train, (), self.ctx, start=s, max_nfev=self.cfg.max_nfev,
-                                 block_T=self.cfg.block_T, sign_bounds=sign_bounds, memo=self.memo)
+                                 block_T=self.cfg.block_T, sign_bounds=sign_bounds, memo=self.memo,
+                                 plain=self.cfg.plain_fits)
 
         fits = []
         for s in (None, start):
@@ -444,7 +446,7 @@ class Search:
         def one(s):
             return fit_structure(
                 self.folds[k].train, structure, self.ctx, start=s, max_nfev=self.cfg.max_nfev,
-                block_T=self.cfg.block_T, sign_bounds=bounds, memo=self.memo,
+                block_T=self.cfg.block_T, sign_bounds=bounds, memo=self.memo, plain=self.cfg.plain_fits,
             )
 
         warm = one(start)
@@ -488,6 +490,7 @@ class Search:
                 hold_linear=old.hold_linear,
                 sign_bounds=self.family_bounds,
                 memo=self.memo,
+                plain=self.cfg.plain_fits,
             )
         except ModelError:
             return False
