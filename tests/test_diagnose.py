@@ -965,29 +965,40 @@ def test_inner_folds_keep_the_users_one_fold_design():
 def test_the_honest_gain_is_flagged_when_it_fails_its_check():
     """diagnosis.json gain.flag known answers: no flag for a gain whose interval is above zero or where
     nothing is named; 'WORSE' (naming the runs) below zero; 'not shown better' for an interval that
-    reaches zero (the virtual KCS read through a 1 deg misaligned heading, 2026-11-25: +0.5 % [-4 %,
-    +4 %], printed as a cut and unflagged before)."""
+    reaches zero (the virtual KCS read through a 1 deg misaligned heading: +0.5 % [-4 %, +4 %], which
+    a reader would take for a cut)."""
+    from dataclasses import replace
+
     from pipeline.diagnose.core import _gain_flag
+    from pipeline.diagnose.result import Gain, HeldOutSelection
 
     runs = [{"run_id": "a", "gain": 0.1}, {"run_id": "b", "gain": -0.3}]
-    ok = {"mae_psi_relative_reduction": 0.58, "interval_95": [0.41, 0.69], "per_run": runs}
+    ok = Gain(mae_psi_relative_reduction=0.58, interval_95=[0.41, 0.69], measured_on=["a", "b"], method="",
+              per_run=runs, nested=[], against_other_linear=None)
     assert _gain_flag(ok, ["rudder_offset"]) is None
-    assert _gain_flag({**ok, "interval_95": None}, ["rudder_offset"]) is None
-    null = {**ok, "mae_psi_relative_reduction": 0.005, "interval_95": [-0.04, 0.04]}
+    assert _gain_flag(replace(ok, interval_95=None), ["rudder_offset"]) is None
+    null = replace(ok, mae_psi_relative_reduction=0.005, interval_95=[-0.04, 0.04])
     assert _gain_flag(null, []) is None
     flag = _gain_flag(null, ["nonlinear_sway_damping"])
     assert flag.startswith("the extended model is not shown better") and "[-4%, +4%]" in flag, flag
-    worse = {**ok, "mae_psi_relative_reduction": -0.05, "interval_95": [-0.11, 0.03]}
+    worse = replace(ok, mae_psi_relative_reduction=-0.05, interval_95=[-0.11, 0.03])
     flag = _gain_flag(worse, ["rudder_offset"])
     assert "WORSE" in flag and "worse on b:" in flag and "a," not in flag, flag
+
     # a verdict of none: no flag when every nested selection chose nothing (the gain is 0 by
     # construction), a flag when some did: the gain is then theirs, not the linear model's
-    quiet = [{"effects": [], "cause": "none"}] * 3
-    assert _gain_flag({**ok, "mae_psi_relative_reduction": 0.0, "nested": quiet}, []) is None
-    chose = [{"effects": ["rudder_offset", "sway_yaw_coupling"]}, {"effects": []},
-             {"effects": ["rudder_offset", "sway_yaw_coupling"]}, {"effects": ["rudder_asymmetry"]}]
-    flag = _gain_flag({**ok, "mae_psi_relative_reduction": 0.45, "interval_95": [0.23, 0.65],
-                       "nested": chose}, [])
+    def held(effects):
+        return HeldOutSelection(fold="hold out x", effects=effects, cause=effects[0] if effects else None,
+                                chosen_on=["y"], measured_on=["x"], baseline_mae_psi_deg=1.0,
+                                extended_mae_psi_deg=1.0, gain=0.0, baseline_sign_bounds=True,
+                                other_linear_mae_psi_deg=None)
+
+    quiet = [held([])] * 3
+    assert _gain_flag(replace(ok, mae_psi_relative_reduction=0.0, nested=quiet), []) is None
+    chose = [held(["rudder_offset", "sway_yaw_coupling"]), held([]),
+             held(["rudder_offset", "sway_yaw_coupling"]), held(["rudder_asymmetry"])]
+    named_some = replace(ok, mae_psi_relative_reduction=0.45, interval_95=[0.23, 0.65], nested=chose)
+    flag = _gain_flag(named_some, [])
     assert flag.startswith("no effect is named on all the runs") and "in 3 of 4" in flag, flag
     assert "rudder_offset + sway_yaw_coupling (2 of 4); rudder_asymmetry (1 of 4)" in flag, flag
     assert "(+45%, 95 % interval [+23%, +65%])" in flag, flag

@@ -41,16 +41,16 @@ def test_reference_fit_on_the_virtual_tank_is_the_known_answer():
     s = _search(*legs, best_linear_baseline=True)
     s.choose_baseline([0, 1])
     ref = reference_fit(_design(s), s, [0, 1], adequate=False)
-    assert ref["computed"] and ref["reason"] is None
+    assert ref.computed and ref.reason is None
     # the structure: every effect of REFERENCE applies (v and u measured, the tank slows in turns)
-    assert set(ref["effects"]) == {e for e, _ in REFERENCE}
-    assert len(ref["per_fold"]) == 2
-    for k, f in enumerate(ref["per_fold"]):
+    assert set(ref.effects) == {e for e, _ in REFERENCE}
+    assert len(ref.per_fold) == 2
+    for k, f in enumerate(ref.per_fold):
         # beside the reported baseline (the best linear model), on the same validation runs
-        assert f["baseline_mae_psi_deg"] == pytest.approx(s.linear_eval(k)[0]["mae_psi_deg"])
-        assert f["validation_runs"] == [x.name for x in s.folds[k].val]
-        assert f["reference_mae_psi_deg"] < 0.5 * f["baseline_mae_psi_deg"], f
-    assert ref["validation_mae_psi_relative_reduction"] > 0.5, ref
+        assert f.baseline_mae_psi_deg == pytest.approx(s.linear_eval(k)[0]["mae_psi_deg"])
+        assert f.validation_runs == [x.name for x in s.folds[k].val]
+        assert f.reference_mae_psi_deg < 0.5 * f.baseline_mae_psi_deg, f
+    assert ref.validation_mae_psi_relative_reduction > 0.5, ref
 
 
 def test_reference_fit_is_not_made_where_it_has_nothing_to_carry():
@@ -63,6 +63,6 @@ def test_reference_fit_is_not_made_where_it_has_nothing_to_carry():
     for c, cfg, adequate, why in cases:
         s = Search([Fold([], [])], c, cfg, baseline_bounded=True)
         ref = reference_fit(_Design(s.folds, [], c, cfg, 0.05, FitMemo()), s, [0], adequate=adequate)
-        assert not ref["computed"] and why in ref["reason"] and s._fits == {}, ref
-        assert ref["validation_mae_psi_deg"] is None and ref["per_fold"] == []
-    assert "hull_nonlinearity" not in ref["effects"]
+        assert not ref.computed and why in ref.reason and s._fits == {}, ref
+        assert ref.validation_mae_psi_deg is None and ref.per_fold == []
+    assert "hull_nonlinearity" not in ref.effects

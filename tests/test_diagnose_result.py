@@ -11,7 +11,17 @@ import pytest
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose import CATALOGUE, TruthConfig, diagnose, zigzag_truth
 from pipeline.diagnose.gates import GateResult
-from pipeline.diagnose.result import DiagnosisReport, Finding, FoldReport, UnjudgedFinding
+from pipeline.diagnose.result import (
+    DiagnosisReport,
+    Finding,
+    FoldReport,
+    Gain,
+    HeldOutSelection,
+    OtherLinearGain,
+    Reference,
+    ReferenceFold,
+    UnjudgedFinding,
+)
 from pipeline.io import read_json, write_json
 
 # diagnosis.json's keys as docs/diagnosis.md lists them, in the file's order (written out here, not
@@ -44,6 +54,27 @@ SETTINGS_KEYS = [
     "min_gain", "min_abs_gain_deg", "alpha", "block_T", "block_s", "time_scale_s", "heading_noise_deg",
     "max_effects", "inadequate_floors", "structured_r2", "catalogue", "two_fold", "u_ref_m_s",
     "x0_box_sigma", "fit", "significance",
+]
+
+# gain: measured (nested leave-one-run-out or --test runs), and not measured (three keys fewer)
+GAIN_KEYS = [
+    "mae_psi_relative_reduction", "interval_95", "measured_on", "method", "baseline_mae_psi_deg",
+    "extended_mae_psi_deg", "per_run", "nested", "against_other_linear", "flag",
+    "validation_mae_psi_relative_reduction",
+]
+GAIN_NOT_MEASURED_KEYS = [k for k in GAIN_KEYS if k not in ("baseline_mae_psi_deg", "extended_mae_psi_deg",
+                                                            "per_run")]
+NESTED_KEYS = [
+    "fold", "effects", "cause", "chosen_on", "measured_on", "baseline_mae_psi_deg", "extended_mae_psi_deg",
+    "gain", "baseline_sign_bounds", "other_linear_mae_psi_deg",
+]
+OTHER_LINEAR_KEYS = ["mae_psi_relative_reduction", "interval_95", "other_linear_mae_psi_deg",
+                     "extended_mae_psi_deg", "validation_mae_psi_relative_reduction"]
+REFERENCE_KEYS = [
+    "computed", "effects", "forms", "validation_mae_psi_deg", "per_fold",
+    "validation_mae_psi_relative_reduction", "test_mae_psi_deg", "test_baseline_mae_psi_deg",
+    "test_mae_psi_relative_reduction", "test_interval_95",
+    "reason",
 ]
 
 
@@ -96,6 +127,13 @@ def test_known_case_keys_in_the_files_order(diag):
     assert rep["settings"]["two_fold"] is False
     assert rep["reference"]["computed"] is False
     assert rep["gain"]["mae_psi_relative_reduction"] is None  # two runs: nothing held out of every choice
+    # the "not made" shapes: every reference key, the figures None; the gain without its three figures
+    assert list(rep["reference"]) == REFERENCE_KEYS
+    assert rep["reference"]["reason"] == "not made: DiagnoseConfig.reference_fit is off"
+    assert rep["reference"]["per_fold"] == [] and rep["reference"]["validation_mae_psi_deg"] is None
+    assert list(rep["gain"]) == GAIN_NOT_MEASURED_KEYS
+    assert rep["gain"]["nested"] == [] and rep["gain"]["against_other_linear"] is None
+    assert rep["gain"]["method"].startswith("none: fewer than three runs")
 
 
 def test_round_trip(diag, tmp_path):
@@ -106,6 +144,8 @@ def test_round_trip(diag, tmp_path):
     assert isinstance(back.folds[0], FoldReport)
     assert back.baseline_adequacy.adequate == doc["baseline_adequate"]
     assert back.settings.catalogue == [e.name for e in CATALOGUE]
+    assert isinstance(back.gain, Gain) and isinstance(back.reference, Reference)
+    assert back.gain == diag.result.gain and back.reference == diag.result.reference
 
 
 def test_missing_key_is_refused(diag, tmp_path):
@@ -126,3 +166,53 @@ def test_unjudged_finding_keys_and_round_trip():
     assert UnjudgedFinding.from_json(doc) == f
     with pytest.raises(KeyError, match="evidence"):
         UnjudgedFinding.from_json({k: v for k, v in doc.items() if k != "evidence"})
+
+
+def _held(run: str, effects: list[str]) -> HeldOutSelection:
+    return HeldOutSelection(fold=f"hold out {run}", effects=effects, cause=effects[0] if effects else None,
+                            chosen_on=["a", "b"], measured_on=[run], baseline_mae_psi_deg=1.2,
+                            extended_mae_psi_deg=0.9, gain=0.25, baseline_sign_bounds=True,
+                            other_linear_mae_psi_deg=None)
+
+
+@pytest.mark.parametrize("validation", [0.31, None], ids=["other linear in every fold", "without"])
+def test_measured_gain_keys_and_round_trip(tmp_path, validation):
+    """A measured gain (nested leave-one-run-out) with its rounds and the gain against the other linear
+    fit: every key in the file's order, the other fit's validation cut left out where it has none, and
+    the JSON form reads back into the same object."""
+    other = OtherLinearGain(mae_psi_relative_reduction=0.4, interval_95=[0.1, 0.6],
+                            other_linear_mae_psi_deg=1.5, extended_mae_psi_deg=0.9,
+                            validation_mae_psi_relative_reduction=validation)
+    gain = Gain(mae_psi_relative_reduction=0.25, interval_95=[0.05, 0.4], measured_on=["c", "d"],
+                method="nested leave-one-run-out", baseline_mae_psi_deg=1.2, extended_mae_psi_deg=0.9,
+                per_run=[{"run_id": "c", "baseline_mae_psi_deg": 1.2, "extended_mae_psi_deg": 0.9,
+                          "gain": 0.25}],
+                nested=[_held("c", ["rudder_offset"]), _held("d", [])], against_other_linear=other,
+                flag=None, validation_mae_psi_relative_reduction=0.3)
+    doc = read_json(write_json(tmp_path / "gain.json", gain.to_json()))
+    assert list(doc) == GAIN_KEYS
+    assert [list(n) for n in doc["nested"]] == [NESTED_KEYS] * 2
+    assert doc["nested"][1]["cause"] is None and doc["flag"] is None
+    assert list(doc["against_other_linear"]) == (OTHER_LINEAR_KEYS if validation is not None
+                                                 else OTHER_LINEAR_KEYS[:-1])
+    assert Gain.from_json(doc) == gain
+    with pytest.raises(KeyError, match="method"):
+        Gain.from_json({k: v for k, v in doc.items() if k != "method"})
+
+
+def test_computed_reference_keys_and_round_trip(tmp_path):
+    """A reference fit made on two folds and test runs: every key in the file's order, its per-fold rows
+    typed, and the JSON form reads back into the same object."""
+    folds = [ReferenceFold(fold=f"fold {k}", validation_runs=[f"v{k}"], baseline_mae_psi_deg=2.0 + k,
+                           reference_mae_psi_deg=0.5 + k) for k in range(2)]
+    ref = Reference(computed=True, effects=["rudder_offset", "hull_nonlinearity"],
+                    forms={"rudder_offset": "constant", "hull_nonlinearity": "abkowitz"},
+                    validation_mae_psi_deg=1.0, per_fold=folds, validation_mae_psi_relative_reduction=0.6,
+                    test_mae_psi_deg=0.8, test_baseline_mae_psi_deg=2.4, test_mae_psi_relative_reduction=0.67,
+                    test_interval_95=[0.5, 0.8])
+    doc = read_json(write_json(tmp_path / "reference.json", ref.to_json()))
+    assert list(doc) == REFERENCE_KEYS and doc["reason"] is None
+    assert [list(f) for f in doc["per_fold"]] == [["fold", "validation_runs", "baseline_mae_psi_deg",
+                                                   "reference_mae_psi_deg"]] * 2
+    back = Reference.from_json(doc)
+    assert back == ref and isinstance(back.per_fold[0], ReferenceFold)

@@ -73,7 +73,12 @@ from pipeline.diagnose.result import (
     FoldExtended,
     FoldGain,
     FoldReport,
+    Gain,
+    HeldOutSelection,
     LadderRung,
+    OtherLinearGain,
+    Reference,
+    ReferenceFold,
     Settings,
     Signature,
     Stability,
@@ -105,13 +110,14 @@ class _Design:
 @dataclass(frozen=True)
 class _Outcome:
     """What the selection decided, for the report: the search (every fit made), the selection on all
-    folds, the selection of each fold alone (with test runs and two folds; else empty) and the honest
-    gain (:func:`_honest_gain`)."""
+    folds, the selection of each fold alone (with test runs and two folds; else empty), the honest
+    gain and, with test runs, each rung of the ladder there (:func:`_honest_gain`)."""
 
     search: Search
     sel: Selection
     per_fold: list[Selection]
-    honest: dict
+    honest: Gain
+    test_ladder: dict
 
 
 @dataclass
@@ -415,11 +421,12 @@ def _select_and_report(design: _Design, runs: list[Run], rates: dict, *, progres
         for _ in concurrent.futures.as_completed(futures):
             bar.update(1)
         nested = [f.result() for f in futures]
-    honest = _honest_gain(design, search, sel, nested_results=nested, tick=lambda: bar.update(1))
+    honest, test_ladder = _honest_gain(design, search, sel, nested_results=nested, tick=lambda: bar.update(1))
     # stability: each fold alone (with --test runs; otherwise the leave-one-run-out selections are the folds)
     per_fold = [select(search, [k], noise) for k in ks] if te and len(folds) > 1 else []
     bar.close()
-    result, base, ext, series = _report(design, _Outcome(search, sel, per_fold, honest), runs, rates)
+    outcome = _Outcome(search, sel, per_fold, honest, test_ladder)
+    result, base, ext, series = _report(design, outcome, runs, rates)
     return Diagnosis(
         report=result.to_json(),
         result=result,
@@ -492,8 +499,9 @@ def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
     """One round of the nested leave-one-run-out: the selection repeated without ``held``
     (:func:`_inner_folds`), the chosen structure refitted on the other runs and both models evaluated
     on ``held`` alone; ``memo`` the diagnosis's fits (:class:`~pipeline.diagnose.fit.FitMemo`).
-    Returns ((baseline evaluation, extended evaluation), nested entry), or None when ``held`` cannot
-    be held out (no training or no validation run left) or a fit fails."""
+    Returns ((baseline evaluation, extended evaluation, the other linear fit's evaluation or None),
+    :class:`~pipeline.diagnose.result.HeldOutSelection`), or None when ``held`` cannot be held out (no
+    training or no validation run left) or a fit fails."""
     tr, va = folds[0].train, folds[0].val
     tr_i = [s for s in tr if s is not held]
     va_i = [s for s in va if s is not held]
@@ -518,18 +526,18 @@ def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
     pe = refit.eval(0, st)[1] if st else pb
     other = refit.other_linear(0)
     po = evaluate(other, [held])[1] if other is not None else None
-    entry = {
-        "fold": f"hold out {held.name}",
-        "effects": [e for e, _ in st],
-        "cause": isel.cause,
-        "chosen_on": [s.name for s in tr_i + va_i],
-        "measured_on": [held.name],
-        "baseline_mae_psi_deg": pb[0]["mae_psi_deg"],
-        "extended_mae_psi_deg": pe[0]["mae_psi_deg"],
-        "gain": _gain(pb[0]["mae_psi_deg"], pe[0]["mae_psi_deg"]),
-        "baseline_sign_bounds": bool(isearch.baseline_bounded),
-        "other_linear_mae_psi_deg": po[0]["mae_psi_deg"] if po is not None else None,
-    }
+    entry = HeldOutSelection(
+        fold=f"hold out {held.name}",
+        effects=[e for e, _ in st],
+        cause=isel.cause,
+        chosen_on=[s.name for s in tr_i + va_i],
+        measured_on=[held.name],
+        baseline_mae_psi_deg=pb[0]["mae_psi_deg"],
+        extended_mae_psi_deg=pe[0]["mae_psi_deg"],
+        gain=_gain(pb[0]["mae_psi_deg"], pe[0]["mae_psi_deg"]),
+        baseline_sign_bounds=bool(isearch.baseline_bounded),
+        other_linear_mae_psi_deg=po[0]["mae_psi_deg"] if po is not None else None,
+    )
     return (pb, pe, po), entry
 
 
@@ -560,10 +568,13 @@ def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
     return max(1, min(w, n_runs))
 
 
-def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_results=None, tick=None) -> dict:
-    """The gain on runs no choice has seen, with its 95 % interval; and each rung of the ladder there.
-    ``nested_results``: :func:`_nested_one` of every training and validation run, when already made
-    (in worker processes); otherwise they are made here."""
+def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_results=None,
+                 tick=None) -> tuple[Gain, dict]:
+    """The gain on runs no choice has seen, with its 95 % interval (its ``flag`` and validation cut
+    are the report's, :func:`_report`); and, with test runs, each rung of the ladder there ({structure:
+    {"mae": deg, "gain": relative, "interval": 95 % interval}}; empty without).  ``nested_results``:
+    :func:`_nested_one` of every training and validation run, when already made (in worker
+    processes); otherwise they are made here."""
     folds, te, ctx, cfg, noise = design.folds, design.te, design.ctx, design.cfg, design.noise
     block_s = cfg.block_T * ctx.t_ship
     rungs = [st for st, _ in sel.ladder]
@@ -600,25 +611,24 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
             ladder_test[k] = {"mae": mk, "gain": gk, "interval": ivk}
         other = allrun.other_linear(0)
         po = evaluate(other, te)[1] if other is not None else None
-        return {
-            "mae_psi_relative_reduction": g,
-            "interval_95": iv,
-            "measured_on": [s.name for s in te],
-            "method": "test runs: baseline and extended model refitted on all training and validation runs, "
+        return Gain(
+            mae_psi_relative_reduction=g,
+            interval_95=iv,
+            measured_on=[s.name for s in te],
+            method="test runs: baseline and extended model refitted on all training and validation runs, "
             "free-run on the --test runs; interval: bootstrap over blocks of the test runs",
-            "baseline_mae_psi_deg": bm,
-            "extended_mae_psi_deg": em,
-            "per_run": _per_run(te, b[1], e[1]),
-            "ladder": ladder_test,
-            "nested": [],
-            "against_other_linear": _against_other([(te, po, e[1])] if po is not None else [], cfg, block_s),
-        }
+            baseline_mae_psi_deg=bm,
+            extended_mae_psi_deg=em,
+            per_run=_per_run(te, b[1], e[1]),
+            nested=[],
+            against_other_linear=_against_other([(te, po, e[1])] if po is not None else [], cfg, block_s),
+        ), ladder_test
     # nested leave-one-run-out: every run of the selection is held out in turn; the whole selection is
     # repeated on the others, the chosen structure refitted on all of them, and measured on the held-out
     # run alone.  Inner folds: :func:`_inner_folds` (the outer design repeated on the remaining runs).
     if not cfg.nested_gain:
         return _no_honest_gain("not measured: the nested leave-one-run-out is switched off "
-                               "(DiagnoseConfig.nested_gain), and no --test runs were given")
+                               "(DiagnoseConfig.nested_gain), and no --test runs were given"), {}
     pairs, nested, measured = [], [], []
     runs = folds[0].train + folds[0].val
     if nested_results is None:  # in this process, sharing the fits already made (the memo)
@@ -638,37 +648,36 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
         nested.append(entry)
     if not pairs:
         return _no_honest_gain("none: fewer than three runs, so no run can be held out of a selection, and "
-                               "no --test runs were given")
+                               "no --test runs were given"), {}
     g, iv, bm, em = _pair_gain(pairs, cfg, block_s)
-    return {
-        "mae_psi_relative_reduction": g,
-        "interval_95": iv,
-        "measured_on": measured,
-        "method": "nested leave-one-run-out: each run held out in turn, the effects chosen on the others "
+    return Gain(
+        mae_psi_relative_reduction=g,
+        interval_95=iv,
+        measured_on=measured,
+        method="nested leave-one-run-out: each run held out in turn, the effects chosen on the others "
         "(same rule), the chosen structure refitted on them and measured on the held-out run; interval: "
         "bootstrap over blocks of the held-out runs",
-        "baseline_mae_psi_deg": bm,
-        "extended_mae_psi_deg": em,
-        "per_run": [x for v, pb, pe in pairs for x in _per_run(v, pb, pe)],
-        "ladder": {},
-        "nested": nested,
-        "against_other_linear": _against_other(others if all(o is not None for o in others) else [],
-                                               cfg, block_s),
-    }
+        baseline_mae_psi_deg=bm,
+        extended_mae_psi_deg=em,
+        per_run=[x for v, pb, pe in pairs for x in _per_run(v, pb, pe)],
+        nested=nested,
+        against_other_linear=_against_other(others if all(o is not None for o in others) else [],
+                                            cfg, block_s),
+    ), {}
 
 
-def _against_other(pairs, cfg, block_s) -> dict | None:
+def _against_other(pairs, cfg, block_s) -> OtherLinearGain | None:
     """The honest gain of the extended model against the linear fit NOT chosen as the baseline
     (:meth:`~pipeline.diagnose.select.Search.other_linear`), on the same unseen runs: [(runs, that fit's
     evaluations, the extended model's)]; None where it could not be fitted on every one."""
     if not pairs:
         return None
     g, iv, bm, em = _pair_gain(pairs, cfg, block_s)
-    return {"mae_psi_relative_reduction": g, "interval_95": iv, "other_linear_mae_psi_deg": bm,
-            "extended_mae_psi_deg": em}
+    return OtherLinearGain(mae_psi_relative_reduction=g, interval_95=iv, other_linear_mae_psi_deg=bm,
+                           extended_mae_psi_deg=em)
 
 
-def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
+def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> Reference:
     """diagnosis.json's ``reference``: the reference structure (:data:`~pipeline.diagnose.effects.
     REFERENCE`, each effect where it applies to the runs) fitted in every fold on its training runs in
     the selection's family (:attr:`~pipeline.diagnose.select.Search.family_bounds`), from its linear
@@ -682,55 +691,56 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
     carry.  MAEs in deg (mean over the runs, each run alike), reductions relative (0.6 = 60 %)."""
     folds, te, ctx, cfg = design.folds, design.te, design.ctx, design.cfg
     structure = structure_of(*[(e, f) for e, f in REFERENCE if BY_NAME[e].applicable(ctx) is None])
-    out = {"computed": False, "effects": [e for e, _ in structure], "forms": dict(structure),
-           "validation_mae_psi_deg": None, "per_fold": [], "validation_mae_psi_relative_reduction": None,
-           "test_mae_psi_deg": None, "test_baseline_mae_psi_deg": None,
-           "test_mae_psi_relative_reduction": None, "test_interval_95": None, "reason": None}
+    effects = [e for e, _ in structure]
+
+    def not_made(why: str) -> Reference:
+        return Reference(computed=False, effects=effects, forms=dict(structure), reason=f"not made: {why}")
+
     if not cfg.reference_fit:
-        return out | {"reason": "not made: DiagnoseConfig.reference_fit is off"}
+        return not_made("DiagnoseConfig.reference_fit is off")
     if adequate:
-        return out | {"reason": "not made: the linear baseline is adequate (within its noise floors)"}
-    if "hull_nonlinearity" not in out["effects"]:
-        return out | {"reason": "not made: the runs have no sway velocity, so no hull term can be fitted"}
+        return not_made("the linear baseline is adequate (within its noise floors)")
+    if "hull_nonlinearity" not in effects:
+        return not_made("the runs have no sway velocity, so no hull term can be fitted")
     kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds,
           "memo": design.memo, "plain": cfg.plain_fits}
-    base_maes, maes = [], []
+    per_fold = []
+    test = {}
     try:
         for k in ks:
             fit = fit_structure(folds[k].train, structure, ctx, start=search.fit(k, ()), **kw)
             m = evaluate(fit, folds[k].val)[0]["mae_psi_deg"]
-            b = search.linear_eval(k)[0]["mae_psi_deg"]
-            out["per_fold"].append({"fold": folds[k].name, "validation_runs": [s.name for s in folds[k].val],
-                                    "baseline_mae_psi_deg": b, "reference_mae_psi_deg": m})
-            base_maes.append(b)
-            maes.append(m)
-        out["validation_mae_psi_deg"] = float(np.mean(maes))
-        out["validation_mae_psi_relative_reduction"] = _gain(float(np.mean(base_maes)), float(np.mean(maes)))
+            per_fold.append(ReferenceFold(fold=folds[k].name, validation_runs=[s.name for s in folds[k].val],
+                                          baseline_mae_psi_deg=search.linear_eval(k)[0]["mae_psi_deg"],
+                                          reference_mae_psi_deg=m))
         if te:
             allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
                             baseline_bounded=search.baseline_bounded, memo=design.memo)
             fit = fit_structure(allrun.folds[0].train, structure, ctx, start=allrun.fit(0, ()), **kw)
             g, iv, bm, em = _pair_gain([(te, allrun.linear_eval(0)[1], evaluate(fit, te)[1])], cfg,
                                        cfg.block_T * ctx.t_ship)
-            out |= {"test_mae_psi_deg": em, "test_baseline_mae_psi_deg": bm,
+            test = {"test_mae_psi_deg": em, "test_baseline_mae_psi_deg": bm,
                     "test_mae_psi_relative_reduction": g, "test_interval_95": iv}
     except ModelError as err:
-        return out | {"per_fold": [], "validation_mae_psi_deg": None,
-                      "validation_mae_psi_relative_reduction": None, "reason": f"not made: {err}"}
-    return out | {"computed": True}
+        return not_made(str(err))
+    mae = float(np.mean([f.reference_mae_psi_deg for f in per_fold]))
+    return Reference(computed=True, effects=effects, forms=dict(structure), validation_mae_psi_deg=mae,
+                     per_fold=per_fold,
+                     validation_mae_psi_relative_reduction=_gain(
+                         float(np.mean([f.baseline_mae_psi_deg for f in per_fold])), mae),
+                     **test)
 
 
-def _no_honest_gain(why: str) -> dict:
+def _no_honest_gain(why: str) -> Gain:
     """The gain entry when no run unseen by every choice exists (``why``, in words)."""
-    return {
-        "mae_psi_relative_reduction": None,
-        "interval_95": None,
-        "measured_on": [],
-        "method": why + "; the validation gain in the ladder is optimistic (chosen on the same runs)",
-        "ladder": {},
-        "nested": [],
-        "against_other_linear": None,
-    }
+    return Gain(
+        mae_psi_relative_reduction=None,
+        interval_95=None,
+        measured_on=[],
+        method=why + "; the validation gain in the ladder is optimistic (chosen on the same runs)",
+        nested=[],
+        against_other_linear=None,
+    )
 
 
 def _unjudged(eff, evidence: str) -> UnjudgedFinding:
@@ -939,7 +949,7 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         name = "baseline" if not s_ else "".join(
             [f"+{e}" for e in now - prev] + [f"-{e}" for e in prev - now]
         )
-        tl = honest.get("ladder", {}).get(key)
+        tl = outcome.test_ladder.get(key)
         ladder.append(
             LadderRung(
                 model=name,
@@ -957,7 +967,7 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         )
         for k, p in zip(ks, per_fold, strict=False)
     ]
-    causes += [FoldCause(fold=n["fold"], cause=n["cause"], effects=n["effects"]) for n in honest["nested"]]
+    causes += [FoldCause(fold=n.fold, cause=n.cause, effects=n.effects) for n in honest.nested]
     agree = sum(c.cause == cause for c in causes)
     adequacy = _adequacy(pooled(()), noise, cfg, structure)
     flag = _gain_flag(honest, chosen)  # the honest gain's own check: in the summary and gain.flag
@@ -1039,13 +1049,14 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
                 gain=FoldGain(mae_psi_relative_reduction=_gain(bv["mae_psi_deg"], xv["mae_psi_deg"])),
             )
         )
-    gain = {k: v for k, v in honest.items() if k not in ("ladder",)}
-    gain["flag"] = flag
-    gain["validation_mae_psi_relative_reduction"] = _gain(pooled(()), pooled(structure_of(*st)))
+    validation_gain = _gain(pooled(()), pooled(structure_of(*st)))
     other = _other_linear(search, ks)
-    if gain.get("against_other_linear") is not None and other is not None:
-        gain["against_other_linear"]["validation_mae_psi_relative_reduction"] = _gain(
-            other["validation_mae_psi_deg"], pooled(structure_of(*st)))
+    against = honest.against_other_linear
+    if against is not None and other is not None:
+        against = dataclasses.replace(against, validation_mae_psi_relative_reduction=_gain(
+            other["validation_mae_psi_deg"], pooled(structure_of(*st))))
+    gain = dataclasses.replace(honest, flag=flag, against_other_linear=against,
+                               validation_mae_psi_relative_reduction=validation_gain)
     report = DiagnosisReport(
         cause=cause,
         baseline_adequate=adequacy.adequate,
@@ -1182,7 +1193,7 @@ def _baseline_choice(search: Search, chosen_mae: float, other: dict | None) -> s
                "gain.against_other_linear" if better else ""))
 
 
-def _gain_flag(honest: dict, chosen: list[str]) -> str | None:
+def _gain_flag(honest: Gain, chosen: list[str]) -> str | None:
     """A reported honest gain that fails the check a reader would make carries its reason, when
     effects are named:
 
@@ -1191,7 +1202,7 @@ def _gain_flag(honest: dict, chosen: list[str]) -> str | None:
     - or not shown better: a gain whose 95 % interval reaches zero (measured 2026-11-25 on the
       virtual KCS read through a 1 deg misaligned heading: sway damping named, +33 % on the
       validation runs, honest +0.5 % [-4 %, +4 %], which the report printed as a cut, unflagged)."""
-    g, iv = honest.get("mae_psi_relative_reduction"), honest.get("interval_95")
+    g, iv = honest.mae_psi_relative_reduction, honest.interval_95
     if g is None:
         return None
     ci = f", 95 % interval [{iv[0]:+.0%}, {iv[1]:+.0%}]" if iv else ""
@@ -1205,14 +1216,14 @@ def _gain_flag(honest: dict, chosen: list[str]) -> str | None:
             f"{g:+.0%}{ci}, an interval that includes no gain): the effects are not shown to hold beyond "
             f"the runs that chose them"
         )
-    worse = [p["run_id"] for p in honest.get("per_run", []) if p["gain"] is not None and p["gain"] < 0]
+    worse = [p["run_id"] for p in honest.per_run or [] if p["gain"] is not None and p["gain"] < 0]
     return (
         f"the extended model is WORSE than the baseline on the unseen runs (gain {g:+.0%}{ci}); worse on "
         f"{', '.join(worse)}: the effects hold on the manoeuvres they were chosen on, not on these"
     )
 
 
-def _none_but_nested_chose(honest: dict, gain_text: str) -> str | None:
+def _none_but_nested_chose(honest: Gain, gain_text: str) -> str | None:
     """The flag of a verdict of none whose honest gain is not the linear model's: with nested
     leave-one-run-out, each held-out run is predicted by the structure chosen WITHOUT it, so when some
     of those selections named effects the gain measures their choices, not the linear model kept, and
@@ -1223,11 +1234,11 @@ def _none_but_nested_chose(honest: dict, gain_text: str) -> str | None:
     "Cause: none").  None when every nested selection chose nothing (the gain is then 0 by
     construction) or the gain is measured on test runs (the model kept, the baseline, on both sides).
     ``gain_text``: the honest gain and its interval as :func:`_gain_flag` words them."""
-    nested = honest.get("nested") or []
-    named = [n for n in nested if n.get("effects")]
+    nested = honest.nested
+    named = [n for n in nested if n.effects]
     if not named:
         return None
-    kinds = Counter(" + ".join(n["effects"]) for n in named)     # most_common: ties in first-seen order
+    kinds = Counter(" + ".join(n.effects) for n in named)     # most_common: ties in first-seen order
     chose = "; ".join(f"{k} ({c} of {len(nested)})" for k, c in kinds.most_common())
     return (
         f"no effect is named on all the runs, but the selection repeated without each run named effects "

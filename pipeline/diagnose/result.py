@@ -3,10 +3,8 @@
 ``diagnosis.json`` is a :class:`DiagnosisReport`; its blocks are the objects below, each deriving
 from :class:`pipeline.results.Result` so that its fields, in declaration order, are the file's keys in
 the file's order.  The blocks whose keys belong to the functions that make them stay plain mappings:
-``gain`` (the honest gain, :func:`pipeline.diagnose.core._honest_gain`), ``reference``
-(:func:`pipeline.diagnose.core.reference_fit`), the validation summaries and per-run rows
-(:func:`pipeline.diagnose.fit.evaluate`) and the residual structure
-(:func:`pipeline.diagnose.core.residual_structure`).
+the validation summaries and per-run rows (:func:`pipeline.diagnose.fit.evaluate`) and the residual
+structure (:func:`pipeline.diagnose.core.residual_structure`).
 
 Units: heading errors (MAE psi) in deg, relative gains and reductions as fractions (0.25 = 25 % cut,
 positive = the extended model is better), times in s, speeds in m/s; parameters in the units of
@@ -21,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pipeline.diagnose.gates import GateResult
-from pipeline.results import Result
+from pipeline.results import Result, optional
 
 
 @dataclass(frozen=True)
@@ -150,6 +148,113 @@ class Extended(Result):
     validation: dict[str, Any]
     per_run: list[dict[str, Any]]
     residuals: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class HeldOutSelection(Result):
+    """``gain.nested[]``: one round of the nested leave-one-run-out: the selection repeated without the
+    run ``measured_on`` (``fold`` names it), the ``effects`` and ``cause`` it chose on the runs
+    ``chosen_on``, the baseline's and the chosen model's MAE psi on the held-out run (deg), the relative
+    ``gain`` (0.25 = 25 % cut), whether that selection's baseline kept the ship-sign bounds, and the MAE
+    psi of the linear fit it did not choose (deg; None where that fit failed)."""
+
+    fold: str
+    effects: list[str]
+    cause: str | None
+    chosen_on: list[str]
+    measured_on: list[str]
+    baseline_mae_psi_deg: float
+    extended_mae_psi_deg: float
+    gain: float
+    baseline_sign_bounds: bool
+    other_linear_mae_psi_deg: float | None
+
+
+@dataclass(frozen=True)
+class OtherLinearGain(Result):
+    """``gain.against_other_linear``: the extended model against the linear fit not chosen as the
+    baseline, on the same unseen runs: the relative cut and its bootstrap 95 % interval, both MAE psi
+    (deg), and (where the other fit exists in every fold) the same cut on the selection's validation
+    runs, a key left out otherwise."""
+
+    mae_psi_relative_reduction: float
+    interval_95: list[float] | None
+    other_linear_mae_psi_deg: float
+    extended_mae_psi_deg: float
+    validation_mae_psi_relative_reduction: float | None = optional()
+
+
+@dataclass(frozen=True, kw_only=True)
+class Gain(Result):
+    """``gain``: the honest gain, on runs no choice has seen (docs/diagnosis.md, "The honest gain").
+
+    ``mae_psi_relative_reduction`` the relative cut of the pooled MAE psi (0.25 = 25 %; None where no
+    run unseen by every choice exists) with its bootstrap 95 % ``interval_95`` over blocks of the unseen
+    runs, the runs it was ``measured_on`` and the ``method`` in words.  Where measured, the baseline's
+    and the extended model's pooled MAE psi (deg) and the ``per_run`` rows; these three keys are left out
+    where it is not.  ``nested`` the nested leave-one-run-out's rounds (empty with --test runs),
+    ``against_other_linear`` the same cut against the linear fit not chosen, ``flag`` the reason a
+    reader should not take the figure at face value (None: none), and the cut on the selection's own
+    validation runs (optimistic: chosen on them)."""
+
+    mae_psi_relative_reduction: float | None
+    interval_95: list[float] | None
+    measured_on: list[str]
+    method: str
+    baseline_mae_psi_deg: float | None = optional()
+    extended_mae_psi_deg: float | None = optional()
+    per_run: list[dict[str, Any]] | None = optional()
+    nested: list[HeldOutSelection]
+    against_other_linear: OtherLinearGain | None
+    flag: str | None = None
+    validation_mae_psi_relative_reduction: float | None = None
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> Gain:
+        """The gain block from its JSON form; the inverse of :meth:`to_json`."""
+        other = doc["against_other_linear"]
+        return super().from_json({
+            **doc,
+            "nested": [HeldOutSelection.from_json(n) for n in doc["nested"]],
+            "against_other_linear": None if other is None else OtherLinearGain.from_json(other),
+        })
+
+
+@dataclass(frozen=True)
+class ReferenceFold(Result):
+    """``reference.per_fold[]``: one fold's validation runs and the MAE psi (deg) of the reported
+    baseline and of the reference structure on them."""
+
+    fold: str
+    validation_runs: list[str]
+    baseline_mae_psi_deg: float
+    reference_mae_psi_deg: float
+
+
+@dataclass(frozen=True)
+class Reference(Result):
+    """``reference``: the reference structure (the catalogue's terms told everything at once, not
+    chosen; docs/diagnosis.md, "The reference fit").  ``computed`` False with ``reason`` where it was not
+    made (every figure then None, ``per_fold`` empty); its ``effects`` and ``forms``; the pooled
+    validation MAE psi (deg), per fold, and its relative cut against the baseline; with --test runs its
+    MAE psi there, the baseline's, the relative cut and its 95 % interval (None without test runs)."""
+
+    computed: bool
+    effects: list[str]
+    forms: dict[str, str]
+    validation_mae_psi_deg: float | None = None
+    per_fold: list[ReferenceFold] = field(default_factory=list)
+    validation_mae_psi_relative_reduction: float | None = None
+    test_mae_psi_deg: float | None = None
+    test_baseline_mae_psi_deg: float | None = None
+    test_mae_psi_relative_reduction: float | None = None
+    test_interval_95: list[float] | None = None
+    reason: str | None = None
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> Reference:
+        """The reference block from its JSON form; the inverse of :meth:`to_json`."""
+        return super().from_json({**doc, "per_fold": [ReferenceFold.from_json(f) for f in doc["per_fold"]]})
 
 
 @dataclass(frozen=True)
@@ -282,9 +387,9 @@ class DiagnosisReport(Result):
     findings: list[Finding | UnjudgedFinding]
     baseline: Baseline
     extended: Extended
-    gain: dict[str, Any]
+    gain: Gain
     ladder: list[LadderRung]
-    reference: dict[str, Any]
+    reference: Reference
     stability: Stability
     course_stable: list[bool]
     folds: list[FoldReport]
@@ -319,6 +424,8 @@ class DiagnosisReport(Result):
             "ladder": [LadderRung.from_json(r) for r in doc["ladder"]],
             "stability": Stability.from_json(stability),
             "folds": [fold(f) for f in doc["folds"]],
+            "gain": Gain.from_json(doc["gain"]),
+            "reference": Reference.from_json(doc["reference"]),
         }
         # the other blocks by Result.from_json (the nested ones above given as None, then put in)
         base = super().from_json({**doc, **dict.fromkeys(nested)})
@@ -327,6 +434,7 @@ class DiagnosisReport(Result):
 
 __all__ = [
     "Adequacy", "Baseline", "DataChecks", "DiagnosisReport", "Extended", "Finding", "FoldBaseline",
-    "FoldCause", "FoldExtended", "FoldGain", "FoldReport", "LadderRung", "Settings", "Signature",
-    "Stability", "UnjudgedFinding",
+    "FoldCause", "FoldExtended", "FoldGain", "FoldReport", "Gain", "HeldOutSelection", "LadderRung",
+    "OtherLinearGain", "Reference", "ReferenceFold", "Settings", "Signature", "Stability",
+    "UnjudgedFinding",
 ]
