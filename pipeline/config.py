@@ -567,11 +567,12 @@ class DiagnoseConfig:
     # tests/test_diagnose.py), and the diagnosis takes about a third of the time.  For a study that
     # counts detections only (the detection-power study's spec), never for a user's verdict
     nested_gain: bool = True
-    # relative: two runs are TWINS of the catalog design (pipeline.diagnose.design), the same manoeuvre
-    # for swapping training and validation, when their rudder amplitudes (deg) agree within this share.
-    # Not speed_tolerance (approach speeds, m/s): here the rudder amplitude, at which the diagnosis's
-    # own reverse fold calls two sides the same manoeuvres (pipeline.diagnose.core._exchangeable uses
-    # the same 0.15): a 10 and an 11.5 deg zigzag excite the same part of the model
+    # relative: two runs are the same manoeuvre when their rudder amplitudes (deg) agree within this
+    # share: a 10 and an 11.5 deg zigzag excite the same part of the model.  It makes TWINS of the
+    # catalog design (pipeline.diagnose.design: swapped between training and validation) and decides
+    # the reverse fold (pipeline.diagnose.core._exchangeable: both sides' sorted amplitudes within it,
+    # so that training on the validation runs asks the same question the other way); one setting, so
+    # that a design of twins is always exchangeable.  Not speed_tolerance (approach speeds, m/s)
     twin_tolerance: float = 0.15
     # fit without the speed devices (residuals one run at a time from Python, SciPy's forward-difference
     # Jacobian, no fit memo: pipeline.diagnose.fit.fit_structure's ``plain``).  The same model within the

@@ -13,6 +13,9 @@ DEG = np.pi / 180.0
 G = 9.81
 """Acceleration of gravity, m/s^2 (the Froude number's g)."""
 
+KNOT = 1852.0 / 3600.0
+"""One international knot in m/s (a nautical mile of 1852 m per hour)."""
+
 
 def deg2rad(x):
     """Degrees (or deg/s) to radians (or rad/s).

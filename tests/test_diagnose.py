@@ -1121,3 +1121,20 @@ def test_quiet_approach_samples_end_where_the_rudder_first_moves():
     s_late, s_now = with_initial_states([s_late, s_now], 10.0)
     assert s_late.start.one_sample is False and s_now.start.one_sample is True
     assert np.array_equal(s_now.x0, s_now.first_state())
+
+
+def test_reverse_fold_follows_the_twin_tolerance():
+    """The reverse fold is made only where both sides are the same manoeuvres within
+    DiagnoseConfig.twin_tolerance (relative rudder amplitude): a 10 and an 11.2 deg zigzag (10.7 %
+    apart) are the same at the default 15 %, not at 5 %.  Known answer through core._inner_folds:
+    holding out the training run E of train A B E / validate C D leaves A B / C D, exchangeable or not."""
+    from pipeline.diagnose.core import _exchangeable, _inner_folds
+    from pipeline.diagnose.select import Fold
+
+    a, b, c, d, e = _runs("A", "B", "C", "D", "E", rudder={"A": 10, "B": 20, "C": 11.2, "D": 20, "E": 30})
+    assert _exchangeable([a, b], [c, d], DiagnoseConfig().twin_tolerance)
+    assert not _exchangeable([a, b], [c, d], 0.05)
+    folds = [Fold([a, b, e], [c, d])]
+    assert _names(_inner_folds(folds, e, DiagnoseConfig())) == [(["A", "B"], ["C", "D"]),
+                                                                (["C", "D"], ["A", "B"])]
+    assert _names(_inner_folds(folds, e, DiagnoseConfig(twin_tolerance=0.05))) == [(["A", "B"], ["C", "D"])]

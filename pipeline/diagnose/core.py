@@ -191,9 +191,10 @@ def _rudder_amplitude(s: Series) -> float:
     return float(np.percentile(np.abs(s.delta), 99))
 
 
-def _exchangeable(a: list[Series], b: list[Series], tol: float = 0.15) -> bool:
+def _exchangeable(a: list[Series], b: list[Series], tol: float) -> bool:
     """Both sides cover the same manoeuvres: as many runs, sorted rudder amplitudes (99th percentile
-    of |delta|) within ``tol``; only then is the reverse fold the same question asked the other way."""
+    of |delta|) within ``tol`` (relative, ``DiagnoseConfig.twin_tolerance``); only then is the reverse
+    fold the same question asked the other way."""
     if len(a) != len(b):
         return False
     amp_a = sorted(_rudder_amplitude(s) for s in a)
@@ -372,7 +373,7 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
         cfg.x0_box_sigma,
     ) for x in (tr, va, te))
     folds = [Fold(tr, va)]
-    if cfg.two_fold and len(tr) >= 2 and len(va) >= 2 and _exchangeable(tr, va):
+    if cfg.two_fold and len(tr) >= 2 and len(va) >= 2 and _exchangeable(tr, va, cfg.twin_tolerance):
         folds.append(Fold(va, tr))
     noise = heading_noise_deg(va, ctx.t_ship)
     # the nested leave-one-run-out's selections do not depend on the main one: with workers, they run
@@ -479,7 +480,7 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
     tr_i = [s for s in folds[0].train if s is not held]
     va_i = [s for s in folds[0].val if s is not held]
     inner = [Fold(tr_i, va_i)]
-    if cfg.two_fold and len(tr_i) >= 2 and len(va_i) >= 2 and _exchangeable(tr_i, va_i):
+    if cfg.two_fold and len(tr_i) >= 2 and len(va_i) >= 2 and _exchangeable(tr_i, va_i, cfg.twin_tolerance):
         inner.append(Fold(va_i, tr_i))
     return inner
 

@@ -73,7 +73,7 @@ import pandas as pd
 
 from pipeline.config import KNOWN_SHIPS, IngestConfig
 from pipeline.errors import InputError
-from pipeline.units import body_velocities
+from pipeline.units import KNOT, body_velocities
 
 FORMATS = ("csv", "marin", "hsva")
 
@@ -263,7 +263,6 @@ def detect_format(lines: list[str], file: str | Path | None = None) -> str:
 
 
 # Units a header may declare, per canonical column kind: unit -> factor to the canonical unit.
-KNOT = 1852.0 / 3600.0          # m/s, the international knot (1852 m per hour)
 _ANGLE = {"deg": 1.0, "degree": 1.0, "degrees": 1.0, "°": 1.0, "rad": 180.0 / np.pi, "radian": 180.0 / np.pi,
           "radians": 180.0 / np.pi}
 _RATE = {"deg/s": 1.0, "°/s": 1.0, "deg_s": 1.0, "degs": 1.0, "deg/sec": 1.0, "rad/s": 180.0 / np.pi,

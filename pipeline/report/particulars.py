@@ -30,10 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.units import FROUDE_EXPONENT, G
+from pipeline.units import FROUDE_EXPONENT, KNOT, G
 
 NOT_GIVEN = "not given"
-KNOT_M_S = 1852.0 / 3600.0          # one knot in m/s (international nautical mile per hour)
 
 
 def _num(x: Any) -> float | None:
@@ -136,7 +135,7 @@ def to_full(value: Any, kind: str, scale: float) -> Any:
 
     Returns
     -------
-    The full-scale value(s) in the same unit (a velocity stays in m/s: divide by KNOT_M_S for kn).
+    The full-scale value(s) in the same unit (a velocity stays in m/s: divide by pipeline.units.KNOT for kn).
     """
     if kind not in FROUDE_EXPONENT:
         raise ValueError(f"unknown Froude quantity kind {kind!r}")
@@ -149,7 +148,7 @@ def to_full(value: Any, kind: str, scale: float) -> Any:
 # unit in a label's last parentheses -> (Froude kind, the full-scale unit, factor to that unit)
 _UNIT_KINDS = {"s": ("time", "s", 1.0), "deg^2 s": ("time", "deg^2 s", 1.0),
                "1/s": ("rate", "1/s", 1.0), "deg/s": ("rate", "deg/s", 1.0), "rad/s": ("rate", "rad/s", 1.0),
-               "m/s": ("velocity", "kn", 1.0 / KNOT_M_S)}
+               "m/s": ("velocity", "kn", 1.0 / KNOT)}
 _LABEL_UNIT = re.compile(r"^(.*?)\s*\(([^()]*)\)\s*$")
 
 
@@ -199,7 +198,7 @@ def rows(index: dict) -> list[tuple[str, str]]:
         ("design speed, full scale (kn)", f(p["design_speed_kn"])),
         ("approach speed, model (m/s)", _range(p["approach_speed_m_s"], ".3g")),
         ("approach speed, full scale (kn)",
-         _range(tuple(to_full(u, "velocity", p["scale"]) / KNOT_M_S for u in p["approach_speed_m_s"]), ".3g")
+         _range(tuple(to_full(u, "velocity", p["scale"]) / KNOT for u in p["approach_speed_m_s"]), ".3g")
          if p["approach_speed_m_s"] and p["scale"] else NOT_GIVEN),
         ("Froude number at approach", _range(p["froude"], ".3f")),
         ("tank", p["tank"] or NOT_GIVEN),
