@@ -293,8 +293,9 @@ class Effect:
 
     def material(self, form: Form, values: dict, ctx: Context, response_change: float) -> tuple[bool, str]:
         """(material?, floor text).  ``response_change``: relative change of the peak yaw rate of the
-        largest training manoeuvre when the effect is removed from the fitted model."""
-        return bool(response_change >= 0.05), response_floor_text(response_change, 0.05)
+        largest training manoeuvre when the effect is removed from the fitted model; material from
+        :data:`MIN_RESPONSE` (the floor of the hull's effects: :data:`RESPONSE_FLOOR`)."""
+        return bool(response_change >= MIN_RESPONSE), response_floor_text(response_change, MIN_RESPONSE)
 
     def physical(self, form: Form, values: dict, ctx: Context) -> str:
         return f"{self.words}: " + ", ".join(f"{k} = {v:.3g}" for k, v in values.items())
@@ -313,8 +314,15 @@ class Effect:
 #: free-run runs away), and a percentage of it ("1845 %") would read as a size of the effect
 DIVERGED_CHANGE = 1.0
 
+#: least relative change of the largest manoeuvre's peak yaw rate for an effect judged by its response
+#: (the default of :meth:`Effect.material`) to be named: a turning or zigzag prediction within 5 % is
+#: what model tests are trusted to (ITTC repeatability)
+MIN_RESPONSE = 0.05
+#: that floor in words, an effect's ``floor_reason``
+RESPONSE_FLOOR = f"changes the peak yaw rate of the largest manoeuvre by >= {MIN_RESPONSE:.0%}"
 
-def response_floor_text(response_change: float, floor: float = 0.05) -> str:
+
+def response_floor_text(response_change: float, floor: float = MIN_RESPONSE) -> str:
     """The floor text of a response-change materiality test; a removal that diverges says so in words."""
     if not np.isfinite(response_change) or response_change > DIVERGED_CHANGE:
         size = (

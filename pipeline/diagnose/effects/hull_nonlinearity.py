@@ -13,9 +13,7 @@ yaw damping and the cross terms judged one at a time each carry a part (docs/dia
 
 from __future__ import annotations
 
-from pipeline.diagnose.effects.base import R_EQ, V_EQ, Effect, Form, Injection, Param, response_floor_text
-
-MIN_RESPONSE = 0.05  # as nonlinear_yaw_damping: 5 % of the largest manoeuvre's peak yaw rate
+from pipeline.diagnose.effects.base import R_EQ, RESPONSE_FLOOR, V_EQ, Effect, Form, Injection, Param
 
 
 class HullNonlinearity(Effect):
@@ -53,10 +51,7 @@ class HullNonlinearity(Effect):
             "(Abkowitz-type terms in the non-dimensional speed scaling)")
     signature = ("errors that grow with the size of the manoeuvre in v and r alike: large manoeuvres "
                  "over-predicted")
-    floor_reason = f"changes the peak yaw rate of the largest manoeuvre by >= {MIN_RESPONSE:.0%}"
-
-    def material(self, form, values, ctx, response_change):
-        return bool(response_change >= MIN_RESPONSE), response_floor_text(response_change, MIN_RESPONSE)
+    floor_reason = RESPONSE_FLOOR
 
     def physical(self, form, values, ctx):
         """The yaw acceleration the terms add at the largest sway velocity and yaw rate together, and

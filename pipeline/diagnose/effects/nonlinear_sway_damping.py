@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-from pipeline.diagnose.effects.base import R_EQ, V_EQ, Effect, Form, Injection, Param, response_floor_text
-
-MIN_RESPONSE = 0.05  # as nonlinear_yaw_damping: 5 % of the largest manoeuvre's peak yaw rate
+from pipeline.diagnose.effects.base import R_EQ, RESPONSE_FLOOR, V_EQ, Effect, Form, Injection, Param
 
 
 class NonlinearSwayDamping(Effect):
@@ -27,10 +25,7 @@ class NonlinearSwayDamping(Effect):
     words = "nonlinear sway damping"
     term = "dv/dt gains y_vv v|v|, dr/dt gains n_vv v|v| (Abkowitz/MMG cross-flow drag)"
     signature = "sway and yaw acceleration errors even-odd in v (v|v|): drift angle over-predicted at large v"
-    floor_reason = f"changes the peak yaw rate of the largest manoeuvre by >= {MIN_RESPONSE:.0%}"
-
-    def material(self, form, values, ctx, response_change):
-        return bool(response_change >= MIN_RESPONSE), response_floor_text(response_change, MIN_RESPONSE)
+    floor_reason = RESPONSE_FLOOR
 
     def physical(self, form, values, ctx):
         """One sentence, read by the sign of y_vv: cross-flow drag opposes the drift (y_vv < 0 in contract

@@ -2,11 +2,7 @@
 
 from __future__ import annotations
 
-from pipeline.diagnose.effects.base import R_EQ, Context, Effect, Form, Injection, Param, response_floor_text
-
-#: least relative change of the largest manoeuvre's peak yaw rate for the damping to be named: a
-#: turning or zigzag prediction within 5 % is what model tests are trusted to (ITTC repeatability)
-MIN_RESPONSE = 0.05
+from pipeline.diagnose.effects.base import R_EQ, RESPONSE_FLOOR, Context, Effect, Form, Injection, Param
 
 
 class NonlinearYawDamping(Effect):
@@ -25,13 +21,7 @@ class NonlinearYawDamping(Effect):
     words = "nonlinear yaw damping"
     term = "dr/dt gains n_rrr r^3 (cubic form) or n_rr r|r| (modulus form); negative = more damping"
     signature = "yaw-acceleration error odd in r, growing with |r|: large manoeuvres over-predicted"
-    floor_reason = (
-        f"changes the peak yaw rate of the largest manoeuvre by >= {MIN_RESPONSE:.0%} "
-        "(the precision model tests are trusted to)"
-    )
-
-    def material(self, form, values, ctx, response_change):
-        return bool(response_change >= MIN_RESPONSE), response_floor_text(response_change, MIN_RESPONSE)
+    floor_reason = f"{RESPONSE_FLOOR} (the precision model tests are trusted to)"
 
     def physical(self, form, values, ctx: Context) -> str:
         ((k, val),) = values.items()

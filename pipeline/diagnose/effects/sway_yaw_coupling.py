@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-from pipeline.diagnose.effects.base import R_EQ, V_EQ, Effect, Form, Injection, Param, response_floor_text
-
-MIN_RESPONSE = 0.05  # as nonlinear_yaw_damping
-
+from pipeline.diagnose.effects.base import R_EQ, RESPONSE_FLOOR, V_EQ, Effect, Form, Injection, Param
 
 #: damping=True (signed in the anchored form, fit.Layout.bounds): the terms that are a damping growing
 #: with the other motion, v r^2 / v |r| in dv/dt (sway damping growing with the turn) and v^2 r / |v| r
@@ -48,10 +45,7 @@ class SwayYawCoupling(Effect):
     term = ("dv/dt and dr/dt each gain c_vvr v^2 r + c_vrr v r^2 (Abkowitz cross terms) or c_avr |v| r + "
             "c_var v |r| (modulus form)")
     signature = "errors that grow with the product of drift and turn: large manoeuvres mis-shaped in v and r"
-    floor_reason = f"changes the peak yaw rate of the largest manoeuvre by >= {MIN_RESPONSE:.0%}"
-
-    def material(self, form, values, ctx, response_change):
-        return bool(response_change >= MIN_RESPONSE), response_floor_text(response_change, MIN_RESPONSE)
+    floor_reason = RESPONSE_FLOOR
 
     def physical(self, form, values, ctx):
         v, r = ctx.v_max, ctx.r_max
