@@ -68,9 +68,9 @@ def raw_files(ds: Dataset) -> list[Path]:
     """The dataset's raw tank files, sorted.  A user's folder with a dataset.toml: the files its
     description names (``files_dir``, the ``files`` globs, less the runs marked ``skip``:
     :meth:`pipeline.dataset.Dataset.raw_files`), as ``ingest --dataset NAME`` reads them; otherwise
-    the top level of its folder (the built-in datasets' folders are their files' own).  Found
-    2026-11-26: the build listed the folder's top level whatever the description said, so ``make
-    pipeline`` found no files behind a ``files_dir`` and ingested files the globs left out."""
+    the top level of its folder (the built-in datasets' folders are their files' own).  The
+    description decides, not the folder's listing: files behind a ``files_dir`` are found, files
+    its globs leave out are not ingested (tests/test_build.py)."""
     if not ds.raw.is_dir():
         return []
     if ds.name not in (VIRTUAL, HSVA) and (ds.raw / "dataset.toml").is_file():

@@ -334,11 +334,39 @@ def diagnose(
 ) -> Diagnosis:
     """Run the diagnosis of docs/diagnosis.md on processed runs; pure (no files).
 
+    Parameters
+    ----------
+    train : list of Run
+        Processed runs (docs/contract.md#run-data: time s, psi deg, r deg/s, delta deg; v, u m/s where
+        measured) the models are fitted on.
+    validate : list of Run
+        The selection's held-out runs: every step is judged on them (and, where both sides are the
+        same manoeuvres and ``cfg.two_fold`` is on, they train the reverse fold).
+    cfg : DiagnoseConfig, optional
+        The settings (:class:`pipeline.config.DiagnoseConfig`); None: the defaults.
+    progress : bool
+        Show a progress bar (on a terminal only).
+    test : list of Run, optional
+        Runs no choice sees: the honest gain is measured on them.  None or empty: by nested
+        leave-one-run-out over the training and validation runs.
+
+    Returns
+    -------
+    Diagnosis
+        ``result``: diagnosis.json as a :class:`~pipeline.diagnose.result.DiagnosisReport` (heading
+        errors in deg, gains relative); ``report``: its JSON form; ``series``: the measured, baseline
+        and extended free runs of the validation runs; ``baseline``, ``extended``: the reported fits.
+
+    Raises
+    ------
+    InputError
+        No training or validation run, a run given twice, runs that do not belong together
+        (:func:`check_runs`) or a run the diagnosis cannot use (one line naming the run and column).
+
     BLAS runs on one thread here (threadpoolctl): the least-squares steps are products of a Jacobian
-    a few thousand rows by a dozen columns, too small for threads, whose start-up and spinning cost
-    more than they save (measured on the 2-core machine: the bench case 26.2 -> 25.4 s alone, 32 -> 17
-    s wall with the nested workers, which would otherwise run 2 BLAS threads each on the same 2
-    cores); and a reduction's order, hence its last bits, no longer depends on the host's cores."""
+    a few thousand rows by a dozen columns, too small for threads, and the nested worker processes
+    would otherwise each run BLAS threads on the same cores (docs/performance.md); a reduction's
+    order, hence its last bits, then does not depend on the host's cores."""
     with threadpool_limits(limits=1, user_api="blas"):
         return _diagnose_runs(train, validate, cfg, progress, test)
 
@@ -1200,9 +1228,9 @@ def _gain_flag(honest: Gain, chosen: list[str]) -> str | None:
 
     - the extended model worse than the baseline on runs no choice has seen (the gain negative, or
       its 95 % interval below zero), naming the unseen runs where it fails;
-    - or not shown better: a gain whose 95 % interval reaches zero (measured 2026-11-25 on the
-      virtual KCS read through a 1 deg misaligned heading: sway damping named, +33 % on the
-      validation runs, honest +0.5 % [-4 %, +4 %], which the report printed as a cut, unflagged)."""
+    - or not shown better: a gain whose 95 % interval reaches zero (the virtual KCS read through a
+      1 deg misaligned heading: sway damping named, +33 % on the validation runs, honest +0.5 %
+      [-4 %, +4 %], which a reader would take for a cut; known answers in tests/test_diagnose.py)."""
     g, iv = honest.mae_psi_relative_reduction, honest.interval_95
     if g is None:
         return None
@@ -1228,11 +1256,11 @@ def _none_but_nested_chose(honest: Gain, gain_text: str) -> str | None:
     """The flag of a verdict of none whose honest gain is not the linear model's: with nested
     leave-one-run-out, each held-out run is predicted by the structure chosen WITHOUT it, so when some
     of those selections named effects the gain measures their choices, not the linear model kept, and
-    the verdict itself moved with which runs chose it (measured 2026-11-26: the asymmetric virtual KCS
-    with 20/20 and 10/10 zigzags and 10 deg pull-outs, speed free: none on all six runs, while the
-    selections without one run named effects in five of six, an offset with a hull term in four, and
-    the report printed "the extended model cuts the heading error by 45 % [23 %, 65 %]" under
-    "Cause: none").  None when every nested selection chose nothing (the gain is then 0 by
+    the verdict itself moves with which runs chose it (the asymmetric virtual KCS with 20/20 and 10/10
+    zigzags and 10 deg pull-outs, speed free: none on all six runs, while the selections without one
+    run name effects in five of six, an offset with a hull term in four, and an unflagged report would
+    read "the extended model cuts the heading error by 45 % [23 %, 65 %]" under "Cause: none").  None
+    when every nested selection chose nothing (the gain is then 0 by
     construction) or the gain is measured on test runs (the model kept, the baseline, on both sides).
     ``gain_text``: the honest gain and its interval as :func:`_gain_flag` words them."""
     nested = honest.nested

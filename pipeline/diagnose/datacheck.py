@@ -16,11 +16,11 @@ d(psi)/dt, so over a run the integral of r must equal the heading's change; a ra
 MEMS sensor's is 0.003-0.1 deg/s) breaks that in every sample.  The heading is taken as the reference: a
 tank's heading comes from an optical tracking system or a compass, absolute, which does not drift,
 and it is what the diagnosis predicts and judges.  Measured on the KVLCC2 stand-in of MARIN's files
-(tests/test_diagnose_generalise.py, test_kvlcc2_rate_gyro_bias_beside_a_misalignment, 2026-11-25;
-the check's known answers in tests/test_diagnose_datacheck.py): a 0.1 deg/s bias beside a 1 deg
-heading misalignment had a false misalignment of -5.3 / -3.4 deg named as the cause (the true one
+(tests/test_diagnose_generalise.py, test_kvlcc2_rate_gyro_bias_beside_a_misalignment; the check's
+known answers in tests/test_diagnose_datacheck.py): uncorrected, a 0.1 deg/s bias beside a 1 deg
+heading misalignment has a false misalignment of -5.3 / -3.4 deg named as the cause (the true one
 +1 deg), the fit buying the r channel's constant with a sway-reading bias; with r corrected by each
-run's bias (read within 0.002 deg/s) both folds gave what the misaligned files without the bias
+run's bias (read within 0.002 deg/s) both folds give what the misaligned files without the bias
 give.  The correction is a calibration read without any model, not an effect: nothing is judged on
 held-out runs, and a run whose bias is not significant is left as it was (its bytes unchanged).
 """

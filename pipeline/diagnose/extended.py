@@ -308,8 +308,8 @@ def predict_segments(
     (len(starts), length, 3).  The lag state at each start is the servo's own, run over the (delayed)
     logged rudder from the run's first sample (it depends on the rudder alone): a restart from the
     measured ship state is then a restart of the whole model's state, lag included.  (Taking the
-    logged rudder itself there, as before 2026-11-24, put a 0.93 s lag's restarts a rudder swing
-    off: one-ship-time-scale held-out MAE psi 0.71 deg against the whole run's 0.04.)"""
+    logged rudder itself there puts a 0.93 s lag's restarts a rudder swing off: one-ship-time-scale
+    held-out MAE psi 0.71 deg against the whole run's 0.04.)"""
     th = as_theta(theta)
     t = np.asarray(t, dtype=float)
     h = float(t[1] - t[0])

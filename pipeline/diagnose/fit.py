@@ -409,17 +409,17 @@ class Layout:
         #   <= 0 (the destabilising Munk moment of a hull moving obliquely; the added-mass coupling
         #   N_vdot Y_v is an order smaller).  With a12 a21 >= 0 the linear part's poles are real, as
         #   the Nomoto model's T1 and T2 assume: a sway-yaw pair of complex poles is no ship.
-        # Course instability is a12 a21 > a11 a22 (D < 0), which these bounds leave free.  Measured
-        #: without the coupling bounds the output-error fit absorbed an unmodelled rudder
-        # dynamics by turning a21 positive (truth cases 12/13: a 0.93 s servo lag estimated 0.26 s
-        # at a21 = +9.9 against the truth's -15.9; HSVA's linear baseline has complex poles,
-        # a21 = +0.56 where equation error gives -3).  A parameter held at a bound is reported by
-        # fit_structure (FitResult.at_bound): the linear model then asks for what no ship does.
-        # The cost, measured: a free run of a course-unstable model drifts, so on such a ship the
-        # fit can settle at the stable corner a21 = 0 instead of the truth's unstable basin; with a
-        # random disturbance in every run a hull nonlinearity then took up the drift on 2 of 7 seeds
-        # of the linear Mariner (tests/test_diagnose_generalise.py, MR_DIST_KNOWN_WRONG), and HSVA's
-        # held-out baseline error rose from 4.26 to 5.66 deg.
+        # Course instability is a12 a21 > a11 a22 (D < 0), which these bounds leave free.  Without
+        # the coupling bounds the output-error fit absorbs an unmodelled rudder dynamics by turning
+        # a21 positive (truth cases 12/13: a 0.93 s servo lag estimated 0.26 s at a21 = +9.9 against
+        # the truth's -15.9; HSVA's unconstrained linear fit has complex poles, a21 = +0.56 where
+        # equation error gives -3).  A parameter held at a bound is reported by fit_structure
+        # (FitResult.at_bound): the linear model then asks for what no ship does.
+        # The cost: a free run of a course-unstable model drifts, so on such a ship the fit can
+        # settle at the stable corner a21 = 0 instead of the truth's unstable basin; with a random
+        # disturbance in every run a hull nonlinearity then takes up the drift on 2 of 7 seeds of the
+        # linear Mariner (tests/test_diagnose_generalise.py, MR_DIST_KNOWN_WRONG), and HSVA's bounded
+        # baseline is worse held out than its unconstrained one (docs/diagnosis.md, "The baseline").
         if self.sign_bounds:
             hi[0] = hi[1] = hi[2] = hi[3] = 0.0
         a12 = latent_sway_a12(self.ctx)
@@ -467,9 +467,9 @@ def latent_sway_a12(ctx: Context) -> float | None:
 
     Without v, v is a latent state whose scale no output fixes: v -> k v with a12, b11 -> k a12, k b11
     and a21 -> a21 / k (and the terms in v likewise) leaves every heading and yaw rate unchanged, so
-    the free fit drifts along that direction (measured 2026-11-24, the linear truth with a 0.8 s servo
-    lag and v dropped: a12 = -2140, b11 = -2.3e8 (m/s^2)/deg, a latent v clipped at 100 m/s, the lag
-    fitted 0.49 s with a profile interval [0.49, 0.50] s that excludes the truth).  The scale is held
+    a free fit drifts along that direction (on the linear truth with a 0.8 s servo lag and v dropped
+    it reaches a12 = -2140, b11 = -2.3e8 (m/s^2)/deg, a latent v clipped at 100 m/s, and fits the lag
+    at 0.49 s with a profile interval [0.49, 0.50] s that excludes the truth).  The scale is held
     by a convention: a12 = -U pi/180, the kinematic centripetal term -U r of a hull whose added mass
     and Y_r leave it as is (U the approach speed, 1 m/s where u is not measured either).  The yaw
     dynamics (Nomoto K, T1, T2, T3) do not depend on it; the sway parameters are in its units."""
@@ -788,9 +788,9 @@ def latent_sway_start(t_ship: float, b21: float, a12: float) -> np.ndarray:
     a sway-yaw pair with poles -1/T and -4/T (a sway mode faster than the yaw one), the same b21 and K,
     and a11 = a22.  Without v only the rudder -> yaw-rate map is identified (pole sum and product,
     numerator), and a11 = a22 is the member of the family of splits that keep it farthest from
-    a21 = 0, where the sway path is cut: the placeholder start a21 = 0 left the fit there, at
-    first-order yaw (measured 2026-11-24, the paper's linear ship with v dropped: a21 = 0, a11 = -35,
-    held-out 0.17 deg against 0.04 with v; the truth, rescaled, fits 0.13 against 0.24 deg)."""
+    a21 = 0, where the sway path is cut: a start at a21 = 0 leaves the fit there, at first-order yaw
+    (on the paper's linear ship with v dropped: a21 = 0, a11 = -35, held-out 0.17 deg against 0.04
+    with v; the truth, rescaled, fits 0.13 against 0.24 deg)."""
     t = float(t_ship)
     a = -2.5 / t                                  # (l1 + l2) / 2 with l1 = -4/T, l2 = -1/T
     d = 4.0 / t**2                                # l1 l2
@@ -984,11 +984,10 @@ def _representable(a: np.ndarray, f: np.ndarray | None = None) -> bool:
 
 
 #: trust-region sub-problem solver: "exact", an SVD of the Jacobian per iteration (6 to ~16 columns,
-#: a few thousand rows), the solver SciPy recommends for a small dense problem.  "lsmr" (iterative,
-#: matrix-vector products from Python) was used while a multithreaded BLAS made the SVD 90 % of the
-#: diagnosis time on a loaded 2-core machine; with BLAS on one thread inside the diagnosis
-#: (core.diagnose) the SVD is the cheaper: measured on the bench case with the nested inner folds,
-#: 76 s CPU with "lsmr" against 40 s with "exact"
+#: a few thousand rows, and QR-compressed to n + 1 rows: :func:`_compressed_lsq`), the solver SciPy
+#: recommends for a small dense problem; with BLAS on one thread inside the diagnosis (core.diagnose)
+#: it is cheaper than "lsmr" (iterative, matrix-vector products from Python), which takes about twice
+#: the CPU time on the bench case (docs/performance.md)
 _TR = "exact"
 #: stopping tolerances of every least-squares stage: a relative change of the cost or the parameters
 #: below 1e-6 moves a held-out heading error by far less than the 0.1 deg the diagnosis can judge
@@ -1144,12 +1143,12 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
 
     Own starts: every held-out evaluation gives a model its best start within the box of the
     approach's estimate of the state (:func:`boxed_initial_state`).  A polish that ran every
-    training run from the estimate itself (:func:`initial_state_with_std`) bent the parameters to
-    follow the estimate's error, which a course-unstable hull grows through the run (measured
-    2026-11-24 on the linear Van Berlekom tanker of tests/truths/tanker.py, seed 2000: the truth's
-    own parameters score 7.4 deg of training MAE psi from the estimates and 0.07 deg from their
-    boxed starts; the fit from the estimates settled at a11 -0.26, a22 -0.20 against -0.11, -0.36,
-    1.72 deg, and the diagnosis named two damping terms on that linear hull).  So the polish fits
+    training run from the estimate itself (:func:`initial_state_with_std`) bends the parameters to
+    follow the estimate's error, which a course-unstable hull grows through the run (on the linear
+    Van Berlekom tanker of tests/truths/tanker.py, seed 2000: the truth's own parameters score 7.4 deg
+    of training MAE psi from the estimates and 0.07 deg from their boxed starts; a fit from the
+    estimates settles at a11 -0.26, a22 -0.20 against -0.11, -0.36, 1.72 deg, and the diagnosis
+    names two damping terms on that linear hull).  So the polish fits
     each training run's start within the same box jointly with the model (:class:`_JointStarts`):
     training and held-out runs are judged alike, and no start outside the approach's 95 % range
     absorbs an effect."""
@@ -1257,9 +1256,9 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
 
 #: the states of a training run's start fitted with the model (:class:`_JointStarts`): r0 only.  An
 #: error in r0 is what a free run carries through the whole run (the heading integrates it; an
-#: unstable yaw mode grows it); v0's decays with the fast sway mode.  Measured 2026-11-24: with v0
-#: too, the bench diagnosis took 7.5 s CPU (no nested gain) against 6.2 s with r0 only and 4.9 s
-#: from the estimates, for the same verdicts on the linear tanker and truth case 31
+#: unstable yaw mode grows it); v0's decays with the fast sway mode.  Fitting v0 too gives the same
+#: verdicts on the linear tanker and truth case 31 at a fifth more CPU time of the bench diagnosis
+#: (``python -m pipeline bench``, nested gain off)
 JOINT_STATES = (1,)
 
 
@@ -1380,8 +1379,8 @@ def profile_time_params(fit: FitResult, series: list[Series], ctx, floor_s: floa
     A dead time or a servo lag trades against the hull's own time constants: on a fast ship a 0.9 s servo
     lag and a 0.26 s one with a different linear part fitted the same runs equally well while the coupling
     a21 was free in sign (truth case 12 of tests/test_diagnose_generalise.py: training cost 0.000574
-    against 0.000575); with a21 <= 0 the fit finds 0.93 s, and the profile still spans 0.60-1.18 s
-    (measured 2026-11-24), so the sandwich standard error at one optimum says too little. The profile
+    against 0.000575); with a21 <= 0 the fit finds 0.93 s, and the profile still spans 0.60-1.18 s,
+    so the sandwich standard error at one optimum says too little. The profile
     fixes the parameter at ``PROFILE_POINTS`` values from ``floor_s`` to its upper bound, refits every
     other parameter from the fit (output error, ``max_nfev`` evaluations), and keeps the values whose
     training cost J satisfies G ln(J / J_min) <= chi2_1(0.95), G the number of ``block_T`` blocks of the

@@ -13,7 +13,7 @@ Rule (stated, nothing else decides):
   candidates; each member needed (:func:`_best_group`).  The pool is not the best by held-out gain:
   a group is for effects that matter only together, and each of those hurts held-out alone (its
   partners' misfit is extrapolated), so a pool ranked by held-out gain leaves them out.  Measured
-  on the Mariner truth (tests/truths/mariner.py, 2026-11-24): on top of rudder saturation the offset
+  on the Mariner truth (tests/truths/mariner.py): on top of rudder saturation the offset
   and the cross terms gain -18 % and -87 % held-out alone, +38 % together; by training cost they rank
   3rd and 1st, by held-out gain 7th and 8th.  Triples, because on another noise seed (2000) the
   offset, the speed loss and the cross terms pass only all three together on top of a saturation
@@ -24,10 +24,10 @@ Rule (stated, nothing else decides):
 - Forward and backward alternate until neither changes S: after a backward pass that removed an
   effect, the forward round is run again on the smaller S (an effect that was redundant beside one
   that has since left may pass now), then the backward pass again.  So the final S is one where no
-  single addition passes and every member's drop-one step passes: the rule's own fixed point.  Found
-  on the Mariner truth (tests/truths/mariner.py, 2026-11-24): forward took four effects, backward
-  left speed loss + sway damping, and the hull's 1.1 deg offset, redundant beside the dropped rudder
-  asymmetry, then passed on top of the final model (+54 % held-out) but was never added.
+  single addition passes and every member's drop-one step passes: the rule's own fixed point.  On
+  the Mariner truth (tests/truths/mariner.py) forward takes four effects, backward leaves speed loss
+  + sway damping, and the hull's 1.1 deg offset, redundant beside the dropped rudder asymmetry, then
+  passes on top of the final model (+54 % held-out): without the second forward round it is never added.
 - Replacement (Miller, "Subset selection in regression", 2nd ed. 2002, section 3.4: sequential
   replacement): when forward and backward have settled on a FULL structure (``max_effects``, so no
   forward step can be tried), each member is swapped in turn for each effect not in it (fitted warm
@@ -71,8 +71,8 @@ A step S -> S' passes when ALL hold (:func:`step_passes`):
   psi, G - 1 dof, level ``alpha``).  A free run of the whole record also integrates what no model
   term describes (a random yaw moment, a course-unstable hull's drift): an effect that cuts that
   error while predicting the ship's response from where it really is worse is fitting the run's
-  drift, not the ship (measured 2026-11-24, a disturbed linear Mariner: sway damping cut the whole
-  runs' error 3.64 -> 2.09 deg and raised the one-ship-time-scale pieces' 0.83 -> 0.96 deg; on the
+  drift, not the ship (a disturbed linear Mariner: sway damping cuts the whole runs' error 3.64 ->
+  2.09 deg and raises the one-ship-time-scale pieces' 0.83 -> 0.96 deg; on the
   measured HSVA KVLCC2 the same effect in the fold that trains on the 1 deg zigzags: 6.86 -> 4.34
   and 1.02 -> 1.19 deg).  Only harm is tested: an offset or a speed loss builds its worth over the
   long run and need not show within one time scale.  Where sway is not measured, each piece starts
@@ -85,8 +85,8 @@ A step S -> S' passes when ALL hold (:func:`step_passes`):
 - not hinging on one training run (folds of at least ``jackknife_min_train`` training runs, and
   only for a step that passes all the above): refitted without any one of its training runs, the
   model does not run away on that run (:meth:`Search.hinges`).  A verdict that holds only while a
-  particular run trains is not the ship's: on the HSVA KVLCC2 (measured 2026-11-25) the fold that
-  trains on the 1 deg zigzag named the cross terms, the other fold nothing, and every nonlinear
+  particular run trains is not the ship's: on the HSVA KVLCC2 the fold that trains on the 1 deg
+  zigzag names the cross terms without this check, the other fold nothing, and every nonlinear
   damping refitted without that zigzag runs away on it.
 """
 
@@ -171,8 +171,8 @@ def carried_by_one_run(run_diffs: list, alpha: float) -> list[RunTest]:
     Why: the block t-test counts a run's blocks as independent, which holds for measurement noise but
     not for what a free run accumulates from an error no model term describes (a random yaw moment
     carries over from block to block); one run's drift, corrected by chance, then makes a cut that
-    looks significant.  Measured 2026-11-25 on the disturbed linear container ship (tests/truths/
-    container.py, seed 700): sway damping passed at block t 2.27 against 1.70 over 28 blocks of four
+    looks significant.  On the disturbed linear container ship (tests/truths/container.py, seed
+    700) sway damping passes at block t 2.27 against 1.70 over 28 blocks of four
     runs, from one 20/20 zigzag alone (its blocks +1.06 deg on average, lag-1 correlation 0.82; the
     other three +0.02, +0.27, -0.03).  A delete-one-cluster check (the jackknife's idea: a verdict must
     survive leaving out any one of its units) asks the same test of the other runs."""
@@ -452,8 +452,8 @@ class Search:
         warm = one(start)
         # round one only (one effect on the baseline): there the warm start is the linear baseline,
         # whose linear part can hold the new effect in a poor optimum; later rounds start from a model
-        # that already carries an effect.  Every round would double the fits (measured: make test from
-        # 5.5 min to beyond 20 min) for no case measured to need it
+        # that already carries an effect.  Every round would double the fits (and take the test suite's
+        # diagnoses to about four times their time) for no case measured to need it
         if start is None or not self.cfg.cold_start or len(structure) != 1:
             return warm
         try:
@@ -882,11 +882,11 @@ def _pair_pool(search: Search, ks, cur, ranked, n: int) -> list:
 
     The mean, not the smallest cut: by the smallest, an effect that one fold's training runs hardly
     ask for is ranked by that fold alone, and the pool fills with the hull terms, which stand for one
-    another in zigzags (v|v|, v^2 r, r^3: drift follows turn).  Measured 2026-11-26 on the asymmetric
-    KCS (20/20, 10/10 zigzags and 10 deg pull-outs, speed free): the offset cuts the two folds'
-    training cost by 15 % and 49 %, 7th by the smallest cut behind three hull terms, saturation,
-    asymmetry and speed loss, so offset + yaw damping (+81 % held-out in both folds, each member
-    needed) was never tried and the verdict was none; by the mean it is 4th, and the verdict is
+    another in zigzags (v|v|, v^2 r, r^3: drift follows turn).  On the asymmetric KCS (20/20, 10/10
+    zigzags and 10 deg pull-outs, speed free) the offset cuts the two folds' training cost by 15 %
+    and 49 %, 7th by the smallest cut behind three hull terms, saturation, asymmetry and speed loss,
+    so offset + yaw damping (+81 % held-out in both folds, each member needed) is never tried and
+    the verdict is none; by the mean it is 4th, and the verdict is
     offset + cubic yaw damping, 0.73 deg to port (the propeller's asymmetric flow), honest +58 %
     [40 %, 71 %]."""
 
@@ -1016,9 +1016,9 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
             s = search.step(ks, without, cur, e, noise_deg)
             # never removed when the model without it runs away on a held-out run: the no-run-away
             # rule of a forward step, read backward.  Such a drop-one step can fail its t-test by the
-            # divergence itself, whose block differences are too heavy-tailed for t (measured
-            # 2026-11-24, a fresh truth draw, seed 777 case 31, offset + r^3 on the slow ship: without
-            # the offset 469.5 deg held-out against 0.23 with it, block t = 1.02, and the offset left)
+            # divergence itself, whose block differences are too heavy-tailed for t (a fresh truth
+            # draw, seed 777 case 31, offset + r^3 on the slow ship: without the offset 469.5 deg
+            # held-out against 0.23 with it, block t = 1.02, so the t-test alone drops the offset)
             if not s.passes and not s.removal_runs_away and (worst is None or s.gain < worst[1].gain):
                 worst = (e, s)
         if worst is None:

@@ -32,13 +32,11 @@ MAX_BIAS_PER_U = 0.1
 #: well under 1 deg; the KVLCC2 stand-in's is 0.62 deg.  Twice 1 deg, so only a fit that no ship can
 #: be is refused: a misalignment whose implied drift of the ship itself on the straight approach
 #: (the approach's drift as read plus the misalignment) exceeds it is the fit's, not the set-up's.
-#: Measured on the KVLCC2 stand-in's files with the heading 1 deg off (2026-11-25): beside sway
-#: damping and cross terms the fit took -5.24 deg (a sway bias of 0.108 m/s, half the largest sway,
-#: shifting the origin of the hull's terms in v) and was named the cause, which would make the ship
-#: drift 5.6 deg running straight; the right +1 deg implies 0.6 deg.  That model was reached with a
-#: 0.1 deg/s rate-gyro bias left in the files (-5.29 deg; now corrected, pipeline.diagnose.datacheck)
-#: and by a search variant that paired every effect passing alone (not adopted: it named nothing
-#: better once this rule refused the false misalignment)
+#: On the KVLCC2 stand-in's files with the heading 1 deg off (tests/test_diagnose_generalise.py,
+#: test_kvlcc2_false_misalignment_is_refused_by_the_approach), beside sway damping and cross terms the
+#: fit can take -5.24 deg (a sway bias of 0.108 m/s, half the largest sway, shifting the origin of the
+#: hull's terms in v), which would make the ship drift 5.6 deg running straight; the right +1 deg
+#: implies 0.6 deg
 MAX_OWN_DRIFT_DEG = 2.0
 
 
