@@ -103,7 +103,12 @@ class RawTable:
 
 # Whether refusals and notes may quote the file's content.  Off for a file reached through a symbolic
 # link or outside the working directory (pipeline.ingest.core.read_raw): a dataset.toml's files_dir
-# or a link could otherwise make a message (in a log, a report) show another file's text.
+# or a link could otherwise make a message (in a log, a report) show another file's text.  A context
+# variable, set by read_raw alone around one parse and reset after it (per thread and task, so
+# concurrent reads do not see each other's): it changes only the words of a refusal, never a value
+# read, and passing it explicitly would add a parameter to every format's parser (the PARSERS
+# registry's signature), to format recognition, the header reader, the column map and the number
+# parser, for a message's wording.
 ECHO_CONTENT: contextvars.ContextVar[bool] = contextvars.ContextVar("echo_content", default=True)
 
 
