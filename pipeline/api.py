@@ -81,7 +81,14 @@ class StageResult:
 
 
 def stages() -> tuple[str, ...]:
-    """The stages :func:`run` knows, in build order."""
+    """The stages :func:`run` knows.
+
+    Returns
+    -------
+    tuple of str
+        Their names, in build order: ``"tank"`` (the virtual tank's runs), then ``"ingest"`` to
+        ``"diagnose"``.
+    """
     return STAGES
 
 

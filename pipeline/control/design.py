@@ -51,9 +51,27 @@ def nomoto_tf(K: float, T: float | None = None, *, T1: float | None = None, T2: 
     """Nomoto plant psi/delta (deg/deg).
 
     First order ``nomoto_tf(K, T)``: K / (s (T s + 1)).  Second order ``nomoto_tf(K, T1=, T2=, T3=)``:
-    K (1 + T3 s) / (s (1 + T1 s)(1 + T2 s)).  K in 1/s, time constants in s; K, T, T1 must be > 0,
-    T2 >= 0 (ModelError otherwise); T3 may be any finite number (negative: non-minimum-phase).
-    T2 = T3 = 0 is the first-order model with T = T1.
+    K (1 + T3 s) / (s (1 + T1 s)(1 + T2 s)).  T2 = T3 = 0 is the first-order model with T = T1.
+
+    Parameters
+    ----------
+    K : float
+        Gain, 1/s (> 0).
+    T : float, optional
+        First-order time constant, s (> 0).
+    T1, T2, T3 : float, optional
+        Second-order time constants, s: T1 > 0, T2 >= 0, T3 any finite number (negative:
+        non-minimum-phase).
+
+    Returns
+    -------
+    control.TransferFunction
+        psi(s)/delta(s), deg/deg.
+
+    Raises
+    ------
+    ModelError
+        K, T or T1 not positive, T2 negative, a value not finite.
     """
     K = _positive("K", K)
     if T1 is None:
@@ -104,7 +122,29 @@ class CGSADesign:
 
 
 def design_first_order(K: float, T: float, Tw: float, *, name: str = "cgsa1") -> CGSADesign:
-    """First-order CGSA: Kp = 1/(K Tw), Kd = T/(K Tw).  K 1/s, T s, Tw s (all > 0, else ModelError)."""
+    """First-order CGSA: Kp = 1/(K Tw), Kd = T/(K Tw).
+
+    Parameters
+    ----------
+    K : float
+        Nomoto gain, 1/s (> 0).
+    T : float
+        Nomoto time constant, s (> 0).
+    Tw : float
+        The closed loop's target time constant, s (> 0).
+    name : str
+        The design's name.
+
+    Returns
+    -------
+    CGSADesign
+        Kp (deg/deg), Kd (deg/(deg/s)), the controller and the design model.
+
+    Raises
+    ------
+    ModelError
+        A gain or time constant not positive.
+    """
     K = _positive("K", K)
     T = _positive("T", T)
     Tw = _positive("Tw", Tw)
@@ -119,9 +159,32 @@ def design_second_order(K: float, T1: float, T2: float, T3: float, Tw: float, fi
                         name: str = "cgsa2") -> CGSADesign:
     """Second-order CGSA made proper by a filter pole.
 
-    Kc_f(s) = (1 + T1 s)(1 + T2 s) / (K Tw (1 + T3 s)(1 + Tf s)), Tf = ``filter_tau`` s (> 0).
+    Kc_f(s) = (1 + T1 s)(1 + T2 s) / (K Tw (1 + T3 s)(1 + Tf s)), Tf = ``filter_tau``.
     Kp = Kc_f(0) = 1/(K Tw); Kd = the derivative gain of the unfiltered Kc at low frequency,
     (T1 + T2 - T3)/(K Tw).  H(s) = (Kc_f(s) - Kp)/s is strictly proper.
+
+    Parameters
+    ----------
+    K : float
+        Nomoto gain, 1/s.
+    T1, T2, T3 : float
+        Second-order Nomoto time constants, s.
+    Tw : float
+        The closed loop's target time constant, s (> 0).
+    filter_tau : float
+        The filter pole's time constant Tf, s (> 0).
+    name : str
+        The design's name.
+
+    Returns
+    -------
+    CGSADesign
+        Kp (deg/deg), Kd (deg/(deg/s)), the controller Kc_f, the rate filter H and the design model.
+
+    Raises
+    ------
+    ModelError
+        A plant :func:`nomoto_tf` refuses, or Tw, Tf not positive.
     """
     K = _positive("K", K)
     T1 = _positive("T1", T1)
@@ -153,10 +216,20 @@ def is_proper(sys: ct.TransferFunction) -> bool:
 def loop_analysis(loop: ct.TransferFunction, *, omega: np.ndarray | None = None) -> dict:
     """Margins and closed-loop figures of an open loop L(s) (unity feedback).
 
-    Returns gain_margin (absolute, inf when the phase never crosses -180 deg) and gain_margin_db,
-    phase_margin_deg, phase_crossover and gain_crossover (rad/s), bandwidth (rad/s, -3 dB of the
-    complementary sensitivity L/(1+L)), Ms = max |1/(1+L)| on a dense grid (and its frequency), and
-    stable (closed loop).
+    Parameters
+    ----------
+    loop : control.TransferFunction
+        The open loop L(s) (:func:`open_loop`).
+    omega : ndarray, optional
+        The frequency grid (rad/s) Ms and the bandwidth are read on; None: a dense default grid.
+
+    Returns
+    -------
+    dict
+        ``gain_margin`` (absolute, inf when the phase never crosses -180 deg) and ``gain_margin_db``,
+        ``phase_margin_deg`` (deg), ``phase_crossover`` and ``gain_crossover`` (rad/s), ``bandwidth``
+        (rad/s, -3 dB of the complementary sensitivity L/(1+L)), ``Ms`` = max |1/(1+L)| and its
+        frequency ``Ms_omega`` (rad/s), ``stable`` (the closed loop).
     """
     gm, pm, _sm, wpc, wgc, _wms = ct.stability_margins(loop)
     tcl = ct.feedback(loop, 1)
@@ -186,7 +259,20 @@ def loop_analysis(loop: ct.TransferFunction, *, omega: np.ndarray | None = None)
 
 
 def open_loop(design: CGSADesign, plant: ct.TransferFunction | None = None) -> ct.TransferFunction:
-    """L = Kc G with G the design's own model (default) or another plant."""
+    """The open loop L = Kc G.
+
+    Parameters
+    ----------
+    design : CGSADesign
+        The autopilot (its Kc(s), psi error deg -> rudder deg).
+    plant : control.TransferFunction, optional
+        The plant G (psi/delta, deg/deg); None: the design's own model.
+
+    Returns
+    -------
+    control.TransferFunction
+        L(s), dimensionless.
+    """
     return ct.minreal(design.controller * (design.model if plant is None else plant), verbose=False)
 
 
@@ -194,8 +280,20 @@ def setpoint_response_tf(design: CGSADesign, plant: ct.TransferFunction | None =
                          derivative_on: str = "measurement") -> ct.TransferFunction:
     """Course set-point -> heading transfer function.
 
-    ``derivative_on='error'``: the CGSA target L/(1+L) (= 1/(Tw s + 1) on the design model).
-    ``'measurement'`` (what the simulator does): Kp G/(1 + Kc G).
+    Parameters
+    ----------
+    design : CGSADesign
+        The autopilot.
+    plant : control.TransferFunction, optional
+        The plant G (psi/delta, deg/deg); None: the design's own model.
+    derivative_on : str
+        ``"error"``: the CGSA target L/(1+L) (= 1/(Tw s + 1) on the design model);
+        ``"measurement"`` (what the simulator does): Kp G/(1 + Kc G).
+
+    Returns
+    -------
+    control.TransferFunction
+        psi(s)/psi_set(s), deg/deg.
     """
     g = design.model if plant is None else plant
     loop = design.controller * g
@@ -207,7 +305,22 @@ def setpoint_response_tf(design: CGSADesign, plant: ct.TransferFunction | None =
 
 
 def bode_data(loop: ct.TransferFunction, *, n: int = 200, wmin: float = 1e-3, wmax: float = 1e2) -> dict:
-    """Bode data of L: omega rad/s, magnitude dB, phase deg (unwrapped)."""
+    """Bode data of the open loop L.
+
+    Parameters
+    ----------
+    loop : control.TransferFunction
+        The open loop L(s) (:func:`open_loop`).
+    n : int
+        Frequencies, log-spaced.
+    wmin, wmax : float
+        Frequency range, rad/s.
+
+    Returns
+    -------
+    dict
+        ``omega`` (rad/s), ``mag_db`` (dB), ``phase_deg`` (deg, unwrapped), arrays of ``n``.
+    """
     omega = np.logspace(np.log10(wmin), np.log10(wmax), int(n))
     h = np.asarray(ct.frequency_response(loop, omega).complex).reshape(-1)
     return {"omega": omega, "mag_db": 20 * np.log10(np.abs(h)),

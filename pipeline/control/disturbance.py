@@ -25,7 +25,27 @@ from pipeline.units import deg2rad
 
 
 def wind_equivalent_rudder(kw: float, speed_ratio: float, angle_deg: float) -> float:
-    """Eq. 14 form: Kw (Vw/U)^2 sin(theta_w), deg.  Kw must lie in [0.5, 1], Vw/U >= 0."""
+    """Wind as equivalent rudder (the paper's Eq. 14 form): Kw (Vw/U)^2 sin(theta_w).
+
+    Parameters
+    ----------
+    kw : float
+        Wind coefficient Kw, deg, in [0.5, 1].
+    speed_ratio : float
+        Wind to ship speed Vw/U (>= 0).
+    angle_deg : float
+        Relative wind angle theta_w, deg.
+
+    Returns
+    -------
+    float
+        Equivalent rudder, deg.
+
+    Raises
+    ------
+    ModelError
+        Kw outside [0.5, 1] or a negative speed ratio.
+    """
     if not 0.5 <= float(kw) <= 1.0:
         raise ModelError(f"wind coefficient Kw = {kw} must lie in [0.5, 1]")
     if not float(speed_ratio) >= 0:
@@ -57,10 +77,26 @@ def wave_filter(num, den, dt: float) -> ct.StateSpace:
 
 def wave_sequence(n: int, dt: float, seed: int, *, num=ControlConfig.wave_num,
                   den=ControlConfig.wave_den) -> np.ndarray:
-    """Wave disturbance, deg of equivalent rudder, ``n`` samples at step ``dt`` s.
+    """Wave disturbance in deg of equivalent rudder.
 
     Unit continuous white noise (N(0, 1/dt) samples from ``numpy.random.default_rng(seed)``, held
     over each step) through G discretised exactly; the filter starts at rest.
+
+    Parameters
+    ----------
+    n : int
+        Samples.
+    dt : float
+        Sample step, s.
+    seed : int
+        The noise's seed (same seed, same sequence).
+    num, den : tuple of float
+        Numerator and denominator of the wave filter G(s) (s in rad/s), highest power first.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The disturbance, deg of equivalent rudder.
     """
     sysd = wave_filter(num, den, dt)
     a, b, c, d = (np.asarray(m, dtype=float) for m in (sysd.A, sysd.B, sysd.C, sysd.D))

@@ -101,8 +101,33 @@ def course_metrics(t, psi, delta, setpoint: float, *, band: float = ControlConfi
                    reversal_threshold: float = ControlConfig.reversal_threshold) -> dict:
     """All course and rudder metrics of one run (definitions in the module docstring).
 
-    ``t`` s, ``psi`` deg, ``delta`` deg (actual rudder), ``setpoint`` deg.  The steady window is
-    t >= ``steady_start`` s (InputError if it holds fewer than 2 samples).
+    Parameters
+    ----------
+    t : ndarray
+        Time, s.
+    psi : ndarray
+        Heading, deg.
+    delta : ndarray
+        Actual rudder angle, deg.
+    setpoint : float
+        The set course, deg.
+    band : float
+        The rise-time band, a fraction of the step (0.05: within 5 %).
+    steady_start : float
+        Start of the steady window, s.
+    reversal_threshold : float
+        Least rudder swing counted as a reversal, deg.
+
+    Returns
+    -------
+    dict
+        The metrics of the module docstring by name (times s, angles deg, ``rudder_energy`` deg^2 s,
+        ``rudder_reversals`` a count).
+
+    Raises
+    ------
+    InputError
+        A steady window of fewer than 2 samples.
     """
     t, psi, delta = _arrays(t, psi, delta)
     start = psi[0]
@@ -136,7 +161,24 @@ def course_metrics(t, psi, delta, setpoint: float, *, band: float = ControlConfi
 
 
 def seed_statistics(rows: list[dict]) -> dict:
-    """Mean, std (ddof 1; 0 for one row), worst (see :data:`WORST`) of each metric over seeds."""
+    """Mean, standard deviation and worst value of each metric over seeds.
+
+    Parameters
+    ----------
+    rows : list of dict
+        One :func:`course_metrics` result per seed.
+
+    Returns
+    -------
+    dict
+        {metric: {"mean", "std" (ddof 1; 0 for one row), "worst" (see :data:`WORST`), "n" (finite
+        values)}}, in the metric's own unit; NaN where no value is finite.
+
+    Raises
+    ------
+    InputError
+        No rows.
+    """
     if not rows:
         raise InputError("no runs to summarise")
     out = {}

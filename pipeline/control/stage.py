@@ -244,8 +244,30 @@ def run_control(indices: dict, cfg: ControlConfig | None = None, *, source: str 
                 plants: tuple[str, ...] | None = None, progress: bool = True,
                 design_choice: dict | None = None,
                 robustness: dict | None = None) -> tuple[dict, pd.DataFrame]:
-    """:func:`control_result` with the metrics in their JSON form (the content of metrics.json);
-    the parameters are the same."""
+    """:func:`control_result` with the metrics in their JSON form (the content of metrics.json).
+
+    Parameters
+    ----------
+    indices : dict
+        The parsed indices document ("control_model" K 1/s, T1 T2 T3 T s; "provenance").
+    cfg : ControlConfig, optional
+        Control settings; None: the defaults.
+    source : str
+        File name used in error messages.
+    plants : tuple of str, optional
+        Which plants to run (default: 'nomoto', plus 'kcs' for virtual data).
+    progress : bool
+        Show a progress bar over the runs.
+    design_choice, robustness : dict, optional
+        As for :func:`control_result`.
+
+    Returns
+    -------
+    metrics : dict
+        metrics.json's content (docs/contract.md).
+    series : pandas.DataFrame
+        Plant, design, seed, time (s), psi_ref, psi (deg), r (deg/s), delta_cmd, delta, wave, wind (deg).
+    """
     result, ts = control_result(indices, cfg, source=source, plants=plants, progress=progress,
                                 design_choice=design_choice, robustness=robustness)
     return result.to_json(), ts

@@ -206,8 +206,26 @@ def _exchangeable(a: list[Series], b: list[Series], tol: float) -> bool:
 
 
 def residual_structure(fit: FitResult, series: list[Series], per: list[dict], ctx: Context) -> dict:
-    """How much of the model's one-step yaw-acceleration error each effect's signature explains
-    (correlations; R^2 of all together), the mean psi error, and the r error against r."""
+    """What a model leaves in its held-out residuals, by effect signature.
+
+    Parameters
+    ----------
+    fit : FitResult
+        The model (baseline or extended).
+    series : list of Series
+        The held-out runs.
+    per : list of dict
+        Its per-run evaluation on them (:func:`~pipeline.diagnose.fit.evaluate`, with ``"sim"``).
+    ctx : Context
+        The ship's context (time scale, largest motions).
+
+    Returns
+    -------
+    dict
+        ``correlation``: per effect, the correlation (-1..1) of the one-step yaw-acceleration error with
+        the effect's signature; ``explained_fraction``: R^2 of all signatures together (0..1);
+        ``mean_psi_error_deg`` (deg); ``r_error_vs_r``: the correlation of the r error with r.
+    """
     from pipeline.diagnose.extended import predict_segments
 
     errs, sigs = [], {}

@@ -266,8 +266,35 @@ def speed_half(t, u_ratio, exponent: float) -> np.ndarray:
 
 
 def simulate_terms(theta, terms: Terms, x0, t, delta, u_ratio=None, substeps: int = 1) -> np.ndarray:
-    """Free-run of the extended model from ``x0`` = (v, r, psi), driven by the logged ``delta`` (deg) at
-    times ``t`` (s, uniform).  Returns (N, 3) (v, r, psi); row 0 is x0."""
+    """Free-run of the extended model from ``x0``, driven by the logged rudder.
+
+    Parameters
+    ----------
+    theta : array_like, shape (6,)
+        The linear part (a11, a12, a21, a22, b11, b21), units of pipeline.model.
+    terms : Terms
+        The effects' terms (:meth:`pipeline.diagnose.effects.base.Effect.apply`).
+    x0 : array_like, shape (3,)
+        The start (v m/s, r deg/s, psi deg).
+    t : ndarray, shape (N,)
+        Uniform time, s.
+    delta : ndarray, shape (N,)
+        Logged rudder, deg.
+    u_ratio : ndarray, optional
+        u/U per sample (speed-dependent terms); None: constant speed.
+    substeps : int
+        RK4 steps per sample (more where a servo lag needs them).
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        (v m/s, r deg/s, psi deg); row 0 is ``x0``.
+
+    Raises
+    ------
+    ModelError
+        A rudder series not one-dimensional, shorter than 2 samples or not as long as ``t``.
+    """
     th = as_theta(theta)
     d = np.asarray(delta, dtype=float)
     t = np.asarray(t, dtype=float)
@@ -345,8 +372,40 @@ def simulate_extended(
     speed_exponent: float = 0.0,
     substeps: int = 1,
 ) -> np.ndarray:
-    """Convenience free-run with the classic effects by keyword (see module docstring); ``delay_s``
-    is the physical dead time (None or 0: none).  Returns (N, 3) of (v, r, psi)."""
+    """Free-run with the classic effects by keyword (see module docstring).
+
+    Parameters
+    ----------
+    theta : array_like, shape (6,)
+        The linear part (a11, a12, a21, a22, b11, b21), units of pipeline.model.
+    x0 : array_like, shape (3,)
+        The start (v m/s, r deg/s, psi deg).
+    delta : ndarray, shape (N,)
+        Logged rudder, deg.
+    h : float
+        Sample step, s (the time grid when ``t`` is None).
+    t : ndarray, optional
+        Uniform time, s.
+    offset_deg : float
+        Rudder offset, deg.
+    n_rrr_s_per_deg2 : float
+        Cubic yaw damping, s/deg^2.
+    delay_s : float, optional
+        The physical dead time, s (None or 0: none).
+    lag_s : float
+        First-order servo lag, s.
+    u_ratio : ndarray, optional
+        u/U per sample; None: constant speed.
+    speed_exponent : float
+        The speed factor's exponent (speed_loss).
+    substeps : int
+        RK4 steps per sample.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        (v m/s, r deg/s, psi deg).
+    """
     d = np.asarray(delta, dtype=float)
     if t is None:
         t = np.arange(d.size) * h

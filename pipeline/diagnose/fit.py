@@ -308,8 +308,27 @@ MIN_RUDDER_EXCITATION_DEG = 1.0
 
 
 def series_from_run(run: Run, min_samples: int = 50) -> Series:
-    """Take the columns the diagnosis needs from a processed run (docs/contract.md#run-data units); refuse
-    runs the diagnosis cannot use (one line naming the run and the column)."""
+    """The columns the diagnosis needs, from a processed run; refuses runs the diagnosis cannot use.
+
+    Parameters
+    ----------
+    run : Run
+        A processed run (docs/contract.md#run-data: time s, psi deg, r deg/s, delta deg; v, u m/s where
+        measured).
+    min_samples : int
+        Fewest samples of a usable run.
+
+    Returns
+    -------
+    Series
+        The run's arrays in those units, starting from its first sample (:data:`FIRST_SAMPLE`).
+
+    Raises
+    ------
+    InputError
+        One line naming the run and the column: a column missing or not finite, too few samples, a
+        time grid not uniform, no rudder excitation, a surge speed astern or zero at the start.
+    """
     f = run.frame
     for c in ("time", "psi", "r", "delta"):
         if c not in f.columns:
@@ -1330,9 +1349,27 @@ def growth_rate(theta) -> float:
 
 
 def evaluate(fit: FitResult, series: list[Series]) -> tuple[dict, list[dict]]:
-    """Free-run metrics on ``series``: mean over runs of MAE psi (deg), MSE r ((deg/s)^2), MSE v ((m/s)^2);
-    and per run (with the simulated arrays under ``"sim"``).  A run whose :class:`Start` has a model
-    window starts from :func:`model_initial_state` over it, else from ``s.x0`` (within its box)."""
+    """Free-run metrics of ``fit`` on ``series``.
+
+    A run whose :class:`Start` has a model window starts from :func:`model_initial_state` over it,
+    else from ``s.x0`` (within its box, :func:`boxed_initial_state`).
+
+    Parameters
+    ----------
+    fit : FitResult
+        The model.
+    series : list of Series
+        The runs it is run on.
+
+    Returns
+    -------
+    mean : dict
+        Mean over runs of ``mae_psi_deg`` (deg), ``mse_r`` ((deg/s)^2), ``mse_v`` ((m/s)^2; None where
+        no run measures v).
+    per_run : list of dict
+        The same per run with its ``run_id``, the simulated (v, r, psi) under ``"sim"`` and, from the
+        approach's own estimate, ``"sim_common"``.
+    """
     per = []
     for s in series:
         win = s.start.model_window_s

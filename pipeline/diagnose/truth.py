@@ -72,9 +72,25 @@ def zigzag_truth(
     duration: float = 100.0,
     cfg: TruthConfig = TruthConfig(),
 ) -> Run:
-    """Simulate a rudder/heading zigzag of the truth model; returns a processed-style :class:`Run`.
+    """Simulate a rudder/heading zigzag of the truth model.
 
-    ``first_side`` 'starboard' (positive rudder first) or 'port'.  Units of docs/contract.md#run-data.
+    Parameters
+    ----------
+    rudder_deg : float
+        Rudder amplitude, deg.
+    heading_deg : float
+        Heading change that triggers each rudder reversal, deg.
+    first_side : str
+        ``"starboard"`` (positive rudder first) or ``"port"``.
+    duration : float
+        Length of the run, s.
+    cfg : TruthConfig
+        The truth model, its effects, noise and seed (same config, same bytes).
+
+    Returns
+    -------
+    Run
+        A processed-style run in the units of docs/contract.md#run-data (provenance "virtual").
     """
     a11, a12, a21, a22, b11, b21 = as_theta(cfg.theta)
     rng = np.random.default_rng(cfg.seed)

@@ -62,7 +62,18 @@ class FilterOutput:
 
 
 def measured_indices(v: np.ndarray | None) -> np.ndarray:
-    """Indices of the measured states: (0, 1, 2), or (1, 2) when v is absent or not finite."""
+    """Indices of the measured states among (v, r, psi).
+
+    Parameters
+    ----------
+    v : ndarray or None
+        The sway-velocity column (m/s), None where the run has none.
+
+    Returns
+    -------
+    ndarray of int
+        (0, 1, 2), or (1, 2) when ``v`` is absent or not finite everywhere.
+    """
     if v is None or not np.all(np.isfinite(v)):
         return np.array([1, 2], dtype=np.int64)
     return np.array([0, 1, 2], dtype=np.int64)
@@ -81,7 +92,24 @@ def fuzzy_channel(cfg: FilterConfig, meas_idx) -> int:
 
 
 def initial_state(y0: np.ndarray, meas_idx, cfg: FilterConfig) -> tuple[np.ndarray, np.ndarray]:
-    """x0 and P0 from the first measured sample ``y0`` = (v, r, psi) (v may be NaN)."""
+    """The filter's initial state and covariance from the first measured sample (module docstring).
+
+    Parameters
+    ----------
+    y0 : ndarray, shape (3,)
+        The first sample's (v m/s, r deg/s, psi deg); v may be NaN.
+    meas_idx : array of int
+        The measured states (:func:`measured_indices`).
+    cfg : FilterConfig
+        ``r_std``, ``v0_std``, ``theta0``, ``theta0_std`` and ``pin_std`` are read.
+
+    Returns
+    -------
+    x0 : ndarray, shape (9,)
+        (v m/s, r deg/s, psi deg, then the six parameters in the units of pipeline.model).
+    P0 : ndarray, shape (9, 9)
+        Diagonal covariance in the squares of those units.
+    """
     x0 = np.zeros(9)
     std = np.zeros(9)
     for i in range(3):
@@ -244,8 +272,33 @@ def identify_arrays(time: np.ndarray, delta: np.ndarray, Y3: np.ndarray, cfg: Fi
                     name: str = "run") -> Identification:
     """Identify the six parameters from the first ``samples`` samples.
 
-    time (N,) s uniform; delta (N,) deg; Y3 (N, 3) measured v m/s (NaN column when absent), r deg/s,
-    psi deg.  Returns an :class:`Identification` (parameters, 6x6 covariance, Nomoto indices, trace).
+    Parameters
+    ----------
+    time : ndarray, shape (N,)
+        Uniform time, s.
+    delta : ndarray, shape (N,)
+        Rudder angle, deg.
+    Y3 : ndarray, shape (N, 3)
+        Measured v (m/s; a NaN column when absent), r (deg/s), psi (deg).
+    cfg : FilterConfig
+        The filter's settings.
+    algorithm : str, optional
+        ``"srukf-ffm"`` or ``"ffm-ukf"`` (the filterpy baseline); None: ``cfg.algorithm``.
+    samples : int, optional
+        Samples of the window (at least 3); None: ``cfg.samples``.
+    name : str
+        The run's name, for messages.
+
+    Returns
+    -------
+    Identification
+        Parameters (units of pipeline.model), their 6 x 6 covariance, the Nomoto indices (K 1/s, T1 T2
+        T3 T s) and the per-sample trace.
+
+    Raises
+    ------
+    InputError
+        Too few samples, a non-positive time step or unusable columns (one line naming the run).
     """
     algorithm = algorithm or cfg.algorithm
     n_req = int(samples if samples is not None else cfg.samples)
@@ -513,10 +566,30 @@ def identify_run(run: Run, cfg: FilterConfig | None = None, *, algorithm: str | 
                  samples: int | None = None) -> Identification:
     """Identify a processed run (docs/contract.md#run-data columns) from its identification window.
 
-    The window: :func:`identification_window`.  Refused (one line): a window of
-    fewer than ``cfg.min_samples`` samples, a rudder that moves less than ``cfg.min_rudder_range``
-    deg in it (nothing to learn the rudder coefficients from), a sway velocity with NaN values.
-    Results that fail a check carry ``flags`` (:func:`trust_flags`).
+    Parameters
+    ----------
+    run : Run
+        A processed run: time s, delta deg, r deg/s, psi deg, and v m/s where measured.
+    cfg : FilterConfig, optional
+        The filter's settings; None: the defaults (the paper's).
+    algorithm : str, optional
+        ``"srukf-ffm"`` or ``"ffm-ukf"``; None: ``cfg.algorithm``.
+    samples : int, optional
+        The window's length in samples; None: :func:`identification_window` chooses it.
+
+    Returns
+    -------
+    Identification
+        Parameters (units of pipeline.model), covariance, Nomoto indices (K 1/s, T1 T2 T3 T s), trace;
+        results that fail a check carry ``flags`` (:func:`trust_flags`), ``window`` says how the window
+        was chosen.
+
+    Raises
+    ------
+    InputError
+        One line naming the run: a window of fewer than ``cfg.min_samples`` samples, a rudder that
+        moves less than ``cfg.min_rudder_range`` deg in it (nothing to learn the rudder coefficients
+        from), a sway velocity with NaN values.
     """
     cfg = cfg or FilterConfig()
     t, d, Y3 = _arrays(run)
@@ -665,8 +738,25 @@ def estimates(ident: Identification, meta: dict[str, Any], cfg: FilterConfig, *,
 
 def estimates_json(ident: Identification, meta: dict[str, Any], cfg: FilterConfig, *,
                    dataset: str | None = None) -> dict[str, Any]:
-    """estimates.json content (docs/contract.md#identifyalgorithm-identify): :func:`estimates` in its
-    JSON form."""
+    """estimates.json content (docs/contract.md#identifyalgorithm-identify): :func:`estimates` as JSON.
+
+    Parameters
+    ----------
+    ident : Identification
+        The identification of one run.
+    meta : dict
+        The run's metadata (provenance, scale).
+    cfg : FilterConfig
+        The settings it ran with (written into the file).
+    dataset : str, optional
+        The dataset's name, written beside the run's.
+
+    Returns
+    -------
+    dict
+        JSON-ready, keys of docs/contract.md (parameters in the units of pipeline.model, indices K 1/s,
+        T1 T2 T3 T s).
+    """
     return estimates(ident, meta, cfg, dataset=dataset).to_json()
 
 
@@ -674,9 +764,30 @@ def identify_batch(Y3: np.ndarray, delta: np.ndarray, h: float, cfg: FilterConfi
                    parallel: bool = False):
     """SR-UKF-FFM (numba kernel) on R runs of equal length at once.
 
-    Y3 (R, N, 3) measured v, r, psi (all three measured); delta (R, N) deg.  ``parallel``: the runs
-    are split into blocks over numba's threads (every core; each run's numbers are the serial ones).
-    Returns (theta (R, 6), P_theta (R, 6, 6), status (R,) 0 = ok, seconds for the loop alone).
+    Parameters
+    ----------
+    Y3 : ndarray, shape (R, N, 3)
+        Measured v (m/s), r (deg/s), psi (deg) of each run; all three measured.
+    delta : ndarray, shape (R, N)
+        Rudder angle, deg.
+    h : float
+        Sample step, s.
+    cfg : FilterConfig, optional
+        The filter's settings; None: the defaults.
+    parallel : bool
+        Split the runs into blocks over numba's threads (every core; each run's numbers are the serial
+        ones).
+
+    Returns
+    -------
+    theta : ndarray, shape (R, 6)
+        The parameters at the last sample (units of pipeline.model).
+    P_theta : ndarray, shape (R, 6, 6)
+        Their covariance.
+    status : ndarray of int, shape (R,)
+        0 = ok, else the kernel's status code (pipeline.identify.fast).
+    seconds : float
+        Wall time of the filter loop alone, s.
     """
     cfg = cfg or FilterConfig()
     _check_cfg(cfg)

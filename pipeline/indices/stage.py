@@ -359,10 +359,23 @@ def _amplitude_label(res: dict[str, Any]) -> str:
 def build(index: dict[str, Any], runs: dict[str, Run], estimates: dict[str, dict[str, Any]],
           config: IndicesConfig | None = None, *, identification: str | None = None,
           progress: bool = True) -> tuple[dict, dict, pd.DataFrame]:
-    """The indices stage's three outputs in their file form: (indices.json, zigzag.json, table7).
+    """The indices stage's three outputs in their file form (:func:`build_documents`, as JSON-ready dicts).
 
-    :func:`build_documents` with the two documents as JSON-ready dicts (``to_json()``); the
-    parameters are the same.
+    Parameters
+    ----------
+    index, runs, estimates, config, identification, progress
+        As for :func:`build_documents`: runs/index.json, the runs by id (units of
+        docs/contract.md#run-data), the estimates.json documents by algorithm, the settings, the
+        identification run's id and the progress bar.
+
+    Returns
+    -------
+    indices : dict
+        indices.json's content (K 1/s, T1 T2 T3 T s).
+    zigzag : dict
+        zigzag.json's content (overshoots deg, times s).
+    table7 : pandas.DataFrame
+        Table 7, one row an index.
     """
     ind, zz, table = build_documents(index, runs, estimates, config, identification=identification,
                                      progress=progress)

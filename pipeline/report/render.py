@@ -76,7 +76,20 @@ def load_notebook(notebook: str):
 
 
 def required_inputs(notebook: str, cat: Catalog) -> list[Path]:
-    """Stage outputs that ``notebook`` reads (it reads nothing else).  Order = order of the stages."""
+    """Stage outputs that ``notebook`` reads (it reads nothing else).
+
+    Parameters
+    ----------
+    notebook : str
+        A report's name (notebooks/<name>.py).
+    cat : Catalog
+        The dataset's processed outputs.
+
+    Returns
+    -------
+    list of Path
+        The files, in the order of the stages.
+    """
     runs = [cat.runs_index]
     ident = [cat.identify_dir(a) / f for a in ALGORITHMS for f in ("estimates.json", "trace.parquet")]
     table: dict[str, list[Path]] = {
@@ -110,8 +123,21 @@ def _cannot_run(stage: str, cat: Catalog) -> str | None:
 
 
 def check_inputs(notebook: str, cat: Catalog) -> None:
-    """Raise InputError naming the first stage output of ``notebook`` that is missing, and why the stage
-    cannot run where the data say so."""
+    """Check that ``notebook`` can run on the dataset of ``cat``.
+
+    Parameters
+    ----------
+    notebook : str
+        A report's name.
+    cat : Catalog
+        The dataset's processed outputs.
+
+    Raises
+    ------
+    InputError
+        Naming the first stage output of ``notebook`` that is missing, and why the stage cannot run
+        where the data say so.
+    """
     for path in required_inputs(notebook, cat):
         if not Path(path).is_file():
             stage = Path(path).relative_to(cat.base).parts[0] if cat.base in Path(path).parents else "?"
@@ -137,7 +163,19 @@ def ensure_kernel(name: str = KERNEL_NAME, install: Callable[[list[str]], object
     A missing kernelspec is installed from ``sys.executable`` into ``sys.prefix`` (as the Makefile
     does: ``python -m ipykernel install --sys-prefix --name tanktest``), never from whatever Python
     is first on PATH.  A kernelspec that points at another Python is reinstalled when it lives in
-    this environment, refused otherwise.  Returns the kernelspec directory.
+    this environment, refused otherwise.
+
+    Parameters
+    ----------
+    name : str
+        The kernel's name.
+    install : callable, optional
+        Runs an install command (a list of arguments); None: a subprocess.
+
+    Returns
+    -------
+    Path
+        The kernelspec directory.
     """
     from jupyter_client.kernelspec import KernelSpecManager, NoSuchKernel
 
@@ -203,7 +241,20 @@ _EXTERNAL = re.compile(r"""<(?:script|link|img|iframe)\b[^>]*\b(?:src|href)\s*=\
 
 
 def to_html(nb, title: str = "tanktest report") -> str:
-    """Render an executed notebook to one self-contained HTML page (see module docstring)."""
+    """Render an executed notebook to one self-contained HTML page (see module docstring).
+
+    Parameters
+    ----------
+    nb : nbformat.NotebookNode
+        The executed notebook.
+    title : str
+        The page's title.
+
+    Returns
+    -------
+    str
+        The HTML page (figures inline, no external resource).
+    """
     from jinja2 import DictLoader
     from nbconvert import HTMLExporter
 
@@ -375,7 +426,29 @@ def _stderr_to(path: Path):
 
 
 def render(notebook: str, cat: Catalog, out_dir: Path, kernel: str = KERNEL_NAME) -> Report:
-    """Check inputs, execute, convert; write ``out_dir/<notebook>-<dataset>.html`` atomically."""
+    """Check inputs, execute, convert; write ``out_dir/<notebook>-<dataset>.html`` atomically.
+
+    Parameters
+    ----------
+    notebook : str
+        A report's name (notebooks/<name>.py).
+    cat : Catalog
+        The dataset's processed outputs.
+    out_dir : Path
+        The reports' folder.
+    kernel : str
+        The Jupyter kernel that executes the notebook.
+
+    Returns
+    -------
+    Report
+        The page, its dataset's provenance and ship, its render time (s) and fingerprint.
+
+    Raises
+    ------
+    InputError
+        A stage output the notebook needs is missing (:func:`check_inputs`).
+    """
     check_inputs(notebook, cat)
     t0 = time.perf_counter()
     fp = fingerprint(notebook, cat)
@@ -431,6 +504,18 @@ def write_index(out_dir: Path, reports: Sequence[Report]) -> Path:
     whose HTML file no longer exists are dropped.
     Neither holds a clock: the page depends only on the manifest, so the same reports give the same
     bytes; render times and wall clocks go to ``out_dir/timing.json`` (:data:`TIMING_FILE`).
+
+    Parameters
+    ----------
+    out_dir : Path
+        The reports' folder.
+    reports : sequence of Report
+        The pages rendered (or kept) now.
+
+    Returns
+    -------
+    Path
+        index.html.
     """
     out_dir = Path(out_dir)
     manifest_path = out_dir / "reports.json"
@@ -496,14 +581,44 @@ def render_all(datasets: Sequence[str], notebooks: Sequence[str], out_dir: Path,
                root: Path = Path("data/processed"), kernel: str = KERNEL_NAME,
                keep_going: bool = False, progress: Callable[[str], None] | None = None,
                force: bool = True) -> tuple[list[Report], list[str]]:
-    """Render every (dataset, notebook) pair; returns (reports, errors).
+    """Render every (dataset, notebook) pair.
 
     ``force=False`` re-renders only what changed: a page whose HTML exists and whose
     :func:`fingerprint` equals the one recorded in ``reports.json`` is kept (``Report.skipped``).
-
     All inputs are checked before any notebook runs: unless ``keep_going``, the first missing
     stage output raises InputError and nothing is written.  With ``keep_going`` the pairs whose
     inputs are present (and that run) are rendered and the others listed in ``errors``.
+
+    Parameters
+    ----------
+    datasets : sequence of str
+        Dataset names (folders of ``root``).
+    notebooks : sequence of str
+        Report names.
+    out_dir : Path
+        The reports' folder.
+    root : Path
+        The processed data's root.
+    kernel : str
+        The Jupyter kernel.
+    keep_going : bool
+        Render what can be rendered and list the rest, instead of stopping at the first error.
+    progress : callable, optional
+        Called with one line per page.
+    force : bool
+        Re-render pages that are up to date.
+
+    Returns
+    -------
+    reports : list of Report
+        The pages, rendered or kept.
+    errors : list of str
+        One line per pair that could not be rendered (``keep_going`` only).
+
+    Raises
+    ------
+    InputError
+        A missing stage output, unless ``keep_going``.
     """
     for nb in notebooks:
         if nb not in NOTEBOOKS:

@@ -17,7 +17,23 @@ KIND_MODULES = ("detection_power", "autopilot_monte_carlo", "batch_identify")
 
 
 def get_kind(name: str):
-    """The :class:`~pipeline.study.kind.StudyKind` called ``name`` (InputError when unknown)."""
+    """The registered study kind called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A kind's name (a ``[study] kind`` of a spec), e.g. ``"detection_power"``.
+
+    Returns
+    -------
+    StudyKind
+        Its :class:`~pipeline.study.kind.StudyKind`.
+
+    Raises
+    ------
+    InputError
+        No kind of that name.
+    """
     from pipeline.errors import InputError
 
     for mod in KIND_MODULES:
@@ -28,7 +44,13 @@ def get_kind(name: str):
 
 
 def kinds() -> list:
-    """Every registered kind, in registration order."""
+    """Every registered study kind.
+
+    Returns
+    -------
+    list of StudyKind
+        In registration order (:data:`KIND_MODULES`).
+    """
     return [importlib.import_module(f"{__name__}.{mod}").KIND for mod in KIND_MODULES]
 
 

@@ -185,9 +185,27 @@ def run_study(spec: Spec, out: str | Path, *, scheduler: str | None = None, work
               progress: bool = True, client=None, dashboard: bool = False) -> dict[str, Any]:
     """Run (or resume) a study; write DIR/results.parquet, DIR/summary.json, DIR/timings.json.
 
-    ``client``: an existing dask Client to use (else one is made from ``scheduler`` /
-    DASK_SCHEDULER_ADDRESS, or a LocalCluster of ``workers`` processes listening on 127.0.0.1 only;
-    ``dashboard`` starts its web dashboard, also on 127.0.0.1).  Returns the summary.
+    Parameters
+    ----------
+    spec : Spec
+        The study (:func:`~pipeline.study.spec.load_spec`).
+    out : str or Path
+        Its folder; cases already in DIR/results.parquet are not run again.
+    scheduler : str, optional
+        A dask scheduler's address (else DASK_SCHEDULER_ADDRESS, else a local cluster).
+    workers : int, optional
+        Worker processes of the local cluster (listening on 127.0.0.1 only).
+    progress : bool
+        Show a progress bar over the cases.
+    client : dask.distributed.Client, optional
+        An existing client to use instead of making one.
+    dashboard : bool
+        Start the local cluster's web dashboard (on 127.0.0.1).
+
+    Returns
+    -------
+    dict
+        The summary (summary.json's content: the kind's statistics per group, docs/studies.md).
     """
     from pipeline.study import get_kind
 

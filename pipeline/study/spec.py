@@ -107,7 +107,24 @@ def _check_memory_limit(value: str, file: str) -> None:
 
 
 def load_spec(path: str | Path) -> Spec:
-    """Read and check a study spec file."""
+    """Read and check a study spec file (docs/studies.md).
+
+    Parameters
+    ----------
+    path : str or Path
+        The spec's TOML file.
+
+    Returns
+    -------
+    Spec
+        Its ``[study]`` settings and its kind's typed settings.
+
+    Raises
+    ------
+    InputError
+        The file is missing, not valid TOML, or a table or value is wrong (one line naming the file
+        and the key).
+    """
     path = Path(path)
     try:
         doc = tomllib.loads(path.read_text())
