@@ -430,10 +430,8 @@ def render(notebook: str, cat: Catalog, out_dir: Path, kernel: str = KERNEL_NAME
 
     Parameters
     ----------
-    notebook : str
-        A report's name (notebooks/<name>.py).
-    cat : Catalog
-        The dataset's processed outputs.
+    notebook, cat
+        The report's name and the dataset's outputs, as for :func:`required_inputs`.
     out_dir : Path
         The reports' folder.
     kernel : str
