@@ -563,21 +563,34 @@ def _check_count(rows: list[str], linenos: np.ndarray, names: tuple[str, ...], f
                          f"not the {fmt} layout (docs/dataset.md)", file=file, row=int(linenos[0]))
 
 
-def parse_marin(lines: list[str], file=None) -> RawTable:
-    """MARIN SIMMAN free-running .dat: rudder sign flipped, u, v from dx0, dy0 and psi."""
+def _fixed_layout(lines: list[str], names: tuple[str, ...], fmt: str, file, test_line: int):
+    """The numeric block of a fixed-layout .dat (columns ``names``, whitespace-separated, after a
+    header of text lines) and the metadata its header gives: (raw frame, line numbers, header lines,
+    meta with provenance, the test's name from header line ``test_line`` (0-based; '' where the
+    header is shorter), the institute (the first line) and a note of the empty rows dropped at the
+    end).  InputError (naming the file) without numeric rows or with another column count."""
     j = _first_numeric_line(lines)
     if j is None:
-        raise InputError("no numeric data rows found (MARIN .dat)", file=file)
+        raise InputError(f"no numeric data rows found ({fmt} .dat)", file=file)
     rows, linenos, dropped = _data_rows(lines, j)
-    _check_count(rows, linenos, MARIN_COLUMNS, "MARIN", file)
-    raw = _numeric_block(rows, linenos, MARIN_COLUMNS, "ws", file)
+    _check_count(rows, linenos, names, fmt, file)
+    raw = _numeric_block(rows, linenos, names, "ws", file)
     head = [s.strip() for s in lines[:j]]
-    test = head[1] if len(head) > 1 else (head[0] if head else "")
+    test = head[test_line] if len(head) > test_line else ""
     meta: dict[str, Any] = {"provenance": "measured", "test_name": test}
     if dropped:
         meta["ingest_notes"] = [f"{dropped} empty or NaN rows at the end of the file dropped"]
     if head:
         meta["institute"] = head[0]
+    return raw, linenos, head, meta
+
+
+def parse_marin(lines: list[str], file=None) -> RawTable:
+    """MARIN SIMMAN free-running .dat: rudder sign flipped, u, v from dx0, dy0 and psi."""
+    raw, linenos, head, meta = _fixed_layout(lines, MARIN_COLUMNS, "MARIN", file, 1)
+    if len(head) == 1:
+        meta["test_name"] = head[0]
+    test = meta["test_name"]
     m = re.search(r"\bfor\s+([A-Za-z0-9-]+)", test)
     if m:
         meta["ship"] = m[1].upper()
@@ -591,18 +604,7 @@ def parse_marin(lines: list[str], file=None) -> RawTable:
 
 def parse_hsva(lines: list[str], file=None) -> RawTable:
     """HSVA CPMC .dat (column meanings in this module's docstring)."""
-    j = _first_numeric_line(lines)
-    if j is None:
-        raise InputError("no numeric data rows found (HSVA .dat)", file=file)
-    rows, linenos, dropped = _data_rows(lines, j)
-    _check_count(rows, linenos, HSVA_COLUMNS, "HSVA", file)
-    raw = _numeric_block(rows, linenos, HSVA_COLUMNS, "ws", file)
-    head = [s.strip() for s in lines[:j]]
-    meta: dict[str, Any] = {"provenance": "measured", "test_name": head[2] if len(head) > 2 else ""}
-    if dropped:
-        meta["ingest_notes"] = [f"{dropped} empty or NaN rows at the end of the file dropped"]
-    if head:
-        meta["institute"] = head[0]
+    raw, linenos, head, meta = _fixed_layout(lines, HSVA_COLUMNS, "HSVA", file, 2)
     if len(head) > 1 and head[1]:
         meta["ship"] = head[1].split()[0].upper()
     if len(head) > 3:
