@@ -905,8 +905,8 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
     :func:`_pair_pool`.  The group passes when the step cur -> cur + group passes with EACH member's
     physical floor, and each member is needed: the step from (cur + the group without it) to the group
     passes too.  The group is fitted from each of those smaller structures' fits (the result of least
-    training cost is kept; a triple from one start only was measured no cheaper on the bench: 50.2
-    against 50.3 s CPU, where triples cost 6 s over pairs alone, 43.9 s).  Returns (first member,
+    training cost is kept; fitting a triple from one start only saves no measurable CPU time on the
+    bench case, ``python -m pipeline bench``).  Returns (first member,
     structure, step) of the best passing group by pooled gain, or None."""
     best = None
     forms = {e: dict(st)[e] for e, (st, _) in pool}
