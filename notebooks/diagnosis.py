@@ -442,12 +442,11 @@ for f in findings:
                  "_o": (order.get(v, 99), -(g if isinstance(g, (int, float)) else -1e9))})
 if rows:
     tab = pd.DataFrame(rows).sort_values("_o").drop(columns="_o").set_index("effect")
-    page.table(tab, "Every effect of the catalogue, named effects first, then by verdict (immaterial, "
-               "failed a fold, harms a held-out run, worse from the measured state, carried by one "
-               "held-out run, hinges on a training run, not significant, not tried, fit failed) and "
-               "within a verdict by held-out gain, largest first. Held-out gain: the relative cut of the "
-               "validation runs' free-run MAE of psi when the effect is added to the model it was judged "
-               "against (for a named effect: when it is removed from the final model).")
+    page.table(tab, "Every effect of the catalogue, named effects first, then by verdict ("
+               + ", ".join(dt.VERDICTS[1:]) + ") and within a verdict by held-out gain, largest first. "
+               "Held-out gain: the relative cut of the validation runs' free-run MAE of psi when the "
+               "effect is added to the model it was judged against (for a named effect: when it is "
+               "removed from the final model).")
 
 stab = dg.get("stability") or {}
 causes = stab.get("causes") or []

@@ -106,3 +106,35 @@ def test_adequacy_is_a_multiple_of_the_noise_floor():
     assert "inadequate" in text and "nonlinear sway damping (-0.54)" in text and "'None' here" in text
     # the floor is the repeatability where the noise is smaller than half of it
     assert _adequacy(0.5, 0.01, cfg, {}).threshold_deg == pytest.approx(10 * cfg.min_abs_gain_deg)
+
+
+def _evidence(**kw):
+    """A step's evidence that passes every gate but the one a test sets up (deg, shares)."""
+    from pipeline.diagnose.gates import Evidence
+    base = dict(gain=0.3, fold_gains=(0.3, 0.3), min_gain=0.1, abs_gain_deg=1.0, noise_floor_deg=0.1,
+                t=4.0, t_crit=1.7, blocks=20, carried=(), floor_ok=(True, True), floor_words="", harm=(),
+                harm_level="0.05/4", short_gain=0.2, short_t=3.0, short_t_crit=1.7, short_horizon_T=1.0,
+                runaway=(), hinges=(), model_mae_deg=3.0, best_linear_mae_deg=None)
+    base.update(kw)
+    return Evidence(**base)
+
+
+def test_an_extension_of_the_bounded_fit_must_beat_the_best_linear_model():
+    """A step that cuts the bounded fit's held-out error by 30 % but leaves the model at 3.0 deg, where
+    the linear model fitted without the sign bounds predicts the same runs at 2.9 deg, is refused
+    (beats_best_linear, value 3.0 against threshold 2.9) and read as "no better than the best linear
+    model"; at 2.5 deg it passes; where the family's own linear fit is the best linear model the gate
+    passes with no threshold."""
+    from pipeline.diagnose.gates import BeatsBestLinear, judge
+    gate = BeatsBestLinear()
+    worse = gate.judge(_evidence(best_linear_mae_deg=2.9))
+    assert (worse.passed, worse.value, worse.threshold) == (False, 3.0, 2.9)
+    assert "3.00 deg not below the best linear model's 2.90 deg" in worse.words
+    assert gate.judge(_evidence(model_mae_deg=2.5, best_linear_mae_deg=2.9)).passed
+    own = gate.judge(_evidence())
+    assert own.passed and own.threshold is None
+    results = judge(_evidence(best_linear_mae_deg=2.9), last=False)
+    assert [r.code for r in results if not r.passed] == ["beats_best_linear"]
+    f = {"effect": "rudder_offset", "significant": False, "validation_gain": 0.3,
+         "gates": [r.to_json() for r in results]}
+    assert dt.verdict(f, {})[0] == "no better than the best linear model"

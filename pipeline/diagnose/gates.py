@@ -79,6 +79,11 @@ class Evidence:
     runaway: tuple[RunTest, ...]        # held-out runs whose error grew by more than their swing
     #: training runs the step hinges on; None: not judged (another criterion refused the step first)
     hinges: tuple[str, ...] | None = None
+    #: the stepped-to model's pooled held-out MAE psi (mean over the folds), deg
+    model_mae_deg: float = float("nan")
+    #: the reported linear baseline's, deg, where it is not the linear model the step's family extends
+    #: (the best linear model without the sign bounds beside a bounded family); None where it is
+    best_linear_mae_deg: float | None = None
 
 
 @dataclass(frozen=True)
@@ -174,6 +179,28 @@ class PhysicalFloor:
 
 
 @dataclass(frozen=True)
+class BeatsBestLinear:
+    """The stepped-to model predicts the held-out runs better (pooled MAE psi, deg) than the reported
+    linear baseline where that is not the linear model the step's family extends (the best linear
+    model fitted without the sign bounds, :meth:`~.select.Search.choose_baseline`).  A step's gain is
+    measured inside its family; without this gate an extension of the bounded fit could be named while
+    predicting worse than a linear model at hand, and its gain be one over a crippled baseline."""
+
+    code: str = "beats_best_linear"
+    last: bool = False
+
+    def judge(self, ev: Evidence) -> GateResult:
+        if ev.best_linear_mae_deg is None:
+            return GateResult(self.code, True, ev.model_mae_deg, None,
+                              "the family's own linear model is the best linear model")
+        ok = ev.model_mae_deg < ev.best_linear_mae_deg
+        rel = "below" if ok else "not below"
+        return GateResult(self.code, ok, ev.model_mae_deg, ev.best_linear_mae_deg,
+                          f"held-out MAE psi {ev.model_mae_deg:.2f} deg {rel} the best linear model's "
+                          f"{ev.best_linear_mae_deg:.2f} deg")
+
+
+@dataclass(frozen=True)
 class NoHarm:
     """No held-out run made significantly worse (value: the lowest per-run block t; threshold: minus
     the Bonferroni critical value)."""
@@ -250,8 +277,8 @@ class NoHinge:
 
 #: the criteria of a step, in the order their reasons are read; a gate with ``last`` is judged only
 #: when every other one passed
-GATES = (MinGain(), EveryFold(), NoiseFloor(), BlockT(), CarriedByOneRun(), PhysicalFloor(), NoHarm(),
-         ShortHorizon(), NoRunaway(), NoHinge())
+GATES = (MinGain(), EveryFold(), NoiseFloor(), BlockT(), CarriedByOneRun(), PhysicalFloor(),
+         BeatsBestLinear(), NoHarm(), ShortHorizon(), NoRunaway(), NoHinge())
 #: every gate's code
 CODES = tuple(g.code for g in GATES)
 

@@ -422,6 +422,13 @@ class Search:
         except ModelError:
             return None
 
+    def _best_linear_mae(self, ks) -> float | None:
+        """The reported linear baseline's pooled held-out MAE psi over folds ``ks`` (deg), where it is
+        not the linear model the selection's family extends; None where it is (or is not chosen)."""
+        if self.baseline_bounded is None or (self.baseline_bounded is not False) == self.family_bounds:
+            return None
+        return float(np.mean([self.linear_eval(k)[0]["mae_psi_deg"] for k in ks]))
+
     def linear_eval(self, k: int, bounded: bool | None = None):
         """Held-out evaluation of fold ``k``'s linear fit: the reported baseline (``bounded`` None), or
         the bounded / unconstrained one."""
@@ -765,7 +772,8 @@ class Search:
             floor_words=floor_failure(mats, floors, ks) if not all(mats) else "",
             harm=tuple(harm), harm_level=f"{cfg.alpha:g}/{len(per_run)}", short_gain=short_gain,
             short_t=short_t, short_t_crit=short_tc, short_horizon_T=cfg.short_horizon_T,
-            runaway=tuple(runaway),
+            runaway=tuple(runaway), model_mae_deg=asum / len(ks),
+            best_linear_mae_deg=self._best_linear_mae(ks),
         )
         results = judge(ev, last=False)
         # last, and only for a step that passes all else: it costs two fits per training run

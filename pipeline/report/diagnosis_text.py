@@ -129,9 +129,9 @@ def estimate_text(estimate: dict | None, uncertainty: dict | None) -> str:
 
 
 # ------------------------------------------------------------------------------- verdicts
-VERDICTS = ("named", "immaterial", "failed a fold", "harms a held-out run", "worse from the measured state",
-            "carried by one held-out run", "hinges on a training run", "not significant", "not tried",
-            "fit failed")
+VERDICTS = ("named", "immaterial", "failed a fold", "no better than the best linear model",
+            "harms a held-out run", "worse from the measured state", "carried by one held-out run",
+            "hinges on a training run", "not significant", "not tried", "fit failed")
 
 
 def rivals_text(f: dict) -> str:
@@ -144,15 +144,16 @@ def rivals_text(f: dict) -> str:
 def verdict(f: dict, settings: dict | None = None, *, all_tests: bool = False) -> tuple[str, ...]:
     """(verdict, reason in words) of one finding of diagnosis.json.
 
-    The verdict is the first that applies, in this order: named (significant); not tried (the data
-    cannot carry it); fit failed; immaterial (below its physical floor, a heading cut below the noise
-    level, or a relative gain below the threshold); failed a fold (not better in every fold); harms
-    a held-out run (significantly worse on one, or runs away on it); worse from the measured state
-    (the held-out runs' pieces of a ship time scale, each from the measured state, predicted
-    significantly worse: select.py's short-horizon judge); carried by one held-out run (significant
-    only with that run's blocks: select.carried_by_one_run); hinges on a training run (refitted
-    without one of its training runs, the model no longer makes that run: select.py's Search.hinges);
-    not significant (block t-test).
+    The verdict is the first that applies, in this order: named (significant); not tried (the data cannot
+    carry it); fit failed; immaterial (below its physical floor, a heading cut below the noise level, or a
+    relative gain below the threshold); failed a fold (not better in every fold); no better than the best
+    linear model (the extension of the bounded fit predicts the held-out runs no better than the linear
+    model fitted without the bounds); harms a held-out run (significantly worse on one, or runs away on
+    it); worse from the measured state (the held-out runs' pieces of a ship time scale, each from the
+    measured state, predicted significantly worse: select.py's short-horizon judge); carried by one
+    held-out run (significant only with that run's blocks: select.carried_by_one_run); hinges on a
+    training run (refitted without one of its training runs, the model no longer makes that run: select.py's
+    Search.hinges); not significant (block t-test).
     The reason lists every test it failed, with its numbers: the words of the finding's failed
     ``gates`` (diagnosis.json, read by code), or for a finding without them its numeric keys.
     ``all_tests``: return every verdict it earns instead (see :func:`failed_tests`).
@@ -190,6 +191,7 @@ GATE_VERDICT = {
     "every_fold": "failed a fold", "no_harm": "harms a held-out run", "no_runaway": "harms a held-out run",
     "short_horizon": "worse from the measured state", "carried_by_one_run": "carried by one held-out run",
     "hinge": "hinges on a training run", "block_t": "not significant",
+    "beats_best_linear": "no better than the best linear model",
 }
 
 
