@@ -66,8 +66,9 @@ reports: $(STAMP)
 # make test-long  only those long tests (tens of minutes on 2 cores)
 # make test-all   both
 # --dist loadgroup: tests that share an expensive module fixture carry one xdist_group mark, so it is
-# built once, on one worker
-PYTEST := $(PY) -m pytest -n 2 --dist loadgroup
+# built once, on one worker.  --no-loadscope-reorder: the tests are handed out in tests/conftest.py's
+# order, the known slow ones (tests/known_slow.txt) longest first, so that both workers finish together
+PYTEST := $(PY) -m pytest -n 2 --dist loadgroup --no-loadscope-reorder
 .PHONY: test-long test-all
 test: $(STAMP)
 	$(PYTEST) --durations=15
