@@ -55,16 +55,24 @@ SHARED_WORK_GROUPS = {"kv_files": "kvlcc2", "hsva_design": "hsva_design", "rende
 KNOWN_SLOW = Path(__file__).with_name("known_slow.txt")
 
 
+def _grouped(nodeid: str) -> bool:
+    """The node id ends in an xdist group (``...@group``; pytest-xdist's own test: an ``@`` after the
+    parameters' ``]``)."""
+    return nodeid.rfind("@") > nodeid.rfind("]")
+
+
 def known_seconds(path: Path = KNOWN_SLOW) -> dict[str, float]:
-    """{node id: seconds} of ``path`` (lines ``seconds node-id``; ``#`` starts a comment); {} when absent."""
+    """{node id: seconds} of ``path`` (lines ``seconds node-id``, an ``@group`` end dropped; ``#`` starts
+    a comment); {} when absent."""
     if not path.is_file():
         return {}
-    out = {}
+    out: dict[str, float] = {}
     for line in path.read_text(encoding="utf-8").splitlines():
         line = line.split("#", 1)[0].strip()
         if line:
             seconds, nodeid = line.split(maxsplit=1)
-            out[nodeid] = float(seconds)
+            nodeid = nodeid.rsplit("@", 1)[0] if _grouped(nodeid) else nodeid
+            out[nodeid] = out.get(nodeid, 0.0) + float(seconds)
     return out
 
 
@@ -103,3 +111,22 @@ def pytest_collection_modifyitems(config, items):
             if name in getattr(item, "fixturenames", ()):
                 item.add_marker(pytest.mark.xdist_group(group))
     items[:] = longest_first(items, known_seconds())
+    if getattr(config.option, "loadgroup", False):      # an xdist worker under --dist loadgroup
+        _group_in_node_ids(items)
+
+
+def _group_in_node_ids(items) -> None:
+    """Each test's ``xdist_group`` as the ``@group`` end of its node id, where pytest-xdist's loadgroup
+    scheduler reads it.  pytest-xdist (3.8) writes it to ``Item._nodeid``, which pytest 9 no longer
+    reads (``Node.nodeid`` is made from the structured ``Node._id``): without this the groups are
+    silently ignored and each worker builds the shared results again.  Written here where pytest 9
+    reads it, the same string xdist writes; nothing is done on a pytest whose ids xdist can write."""
+    try:
+        from _pytest.nodeid import NodeId
+    except ImportError:              # pytest < 9: xdist's own write takes
+        return
+    for item in items:
+        groups = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+                         for m in item.iter_markers("xdist_group")})
+        if groups and isinstance(getattr(item, "_id", None), NodeId) and not _grouped(item.nodeid):
+            item._id = NodeId.parse(f"{item.nodeid}@{'_'.join(groups)}")
