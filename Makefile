@@ -60,9 +60,10 @@ dataset: $(STAMP)
 reports: $(STAMP)
 	$(PY) -m pipeline report --all --changed --out reports
 
-# make test       every area, CI-sized (under 10 minutes on 2 cores); the tests marked `long` are left
-#                 out (pyproject.toml's addopts): whole-pipeline builds and rebuilds, every report
-#                 rendered, process kills, long selections (docs/operations.md, "Tests")
+# make test       every area, CI-sized (meant for under 10 minutes on 2 cores; measured 1,436 s of test
+#                 CPU time, about 12 min on 2 idle cores: docs/operations.md, "Tests"); the tests marked
+#                 `long` are left out (pyproject.toml's addopts): whole-pipeline builds and rebuilds, every
+#                 report rendered, process kills, long selections
 # make test-long  only those long tests (tens of minutes on 2 cores)
 # make test-all   both
 # --dist loadgroup: tests that share an expensive module fixture carry one xdist_group mark, so it is
