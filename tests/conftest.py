@@ -43,8 +43,57 @@ def study_client():
 #: tests that share a costly result made once per process (a module fixture, or a module cache keyed
 #: by what the fixture gives) run on one xdist worker under ``--dist loadgroup`` (make test): the
 #: fixture's name -> the group.  Without it each worker that ran one of them made the result again
-#: (the MARIN KVLCC2 fold 1 diagnosis, reused by its model-scale twin: tests/test_diagnose_generalise.py)
-SHARED_WORK_GROUPS = {"kv_files": "kvlcc2", "hsva_design": "hsva_design", "rendered": "report_security"}
+#: (the MARIN KVLCC2 fold 1 diagnosis, reused by its model-scale twin: tests/test_diagnose_generalise.py;
+#: the two diagnoses and rendered pages of tests/test_diagnosis_numbers.py, 47 s; the diagnosis of
+#: tests/test_diagnose_result.py)
+SHARED_WORK_GROUPS = {"kv_files": "kvlcc2", "hsva_design": "hsva_design", "rendered": "report_security",
+                      "cases": "diagnosis_numbers", "diag": "diagnose_result"}
+
+
+#: the known cost of the slow tests (tests/known_slow.txt: seconds, node id), by which `make test` hands
+#: them out longest first (docs/operations.md, "Tests")
+KNOWN_SLOW = Path(__file__).with_name("known_slow.txt")
+
+
+def _grouped(nodeid: str) -> bool:
+    """The node id ends in an xdist group (``...@group``; pytest-xdist's own test: an ``@`` after the
+    parameters' ``]``)."""
+    return nodeid.rfind("@") > nodeid.rfind("]")
+
+
+def known_seconds(path: Path = KNOWN_SLOW) -> dict[str, float]:
+    """{node id: seconds} of ``path`` (lines ``seconds node-id``, an ``@group`` end dropped; ``#`` starts
+    a comment); {} when absent."""
+    if not path.is_file():
+        return {}
+    out: dict[str, float] = {}
+    for line in path.read_text(encoding="utf-8").splitlines():
+        line = line.split("#", 1)[0].strip()
+        if line:
+            seconds, nodeid = line.split(maxsplit=1)
+            nodeid = nodeid.rsplit("@", 1)[0] if _grouped(nodeid) else nodeid
+            out[nodeid] = out.get(nodeid, 0.0) + float(seconds)
+    return out
+
+
+def longest_first(items: list, seconds: dict[str, float]) -> list:
+    """``items`` as xdist should hand them out: the units of work (an ``xdist_group``, else one test)
+    by their known seconds, longest first, so that the two workers of `make test` finish together
+    instead of one waiting on a long test handed out last; a unit's tests stay together, and units of
+    equal (or unknown: 0) cost keep their collection order."""
+    def unit(item) -> str:
+        groups = sorted(m.args[0] if m.args else m.kwargs.get("name", "default")
+                        for m in item.iter_markers("xdist_group"))
+        return "@" + "_".join(groups) if groups else item.nodeid
+
+    cost: dict[str, float] = {}
+    first: dict[str, int] = {}
+    for k, item in enumerate(items):
+        u = unit(item)
+        cost[u] = cost.get(u, 0.0) + seconds.get(item.nodeid, 0.0)
+        first.setdefault(u, k)
+    order = {id(item): k for k, item in enumerate(items)}
+    return sorted(items, key=lambda it: (-cost[unit(it)], first[unit(it)], order[id(it)]))
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -52,7 +101,8 @@ def pytest_collection_modifyitems(config, items):
     """An ``xdist_group`` mark on every test that uses a fixture of :data:`SHARED_WORK_GROUPS` (before
     xdist reads the marks); a ``long`` mark on every test a module names in its ``LONG_TESTS`` (test
     names with their parameter ids: the cases of a parametrised family that ``make test`` leaves to
-    ``make test-long``), before ``-m "not long"`` deselects them."""
+    ``make test-long``), before ``-m "not long"`` deselects them; then the tests in
+    :func:`longest_first` order (the same on every worker, as xdist requires)."""
     for item in items:
         long_names = getattr(getattr(item, "module", None), "LONG_TESTS", ())
         if item.name in long_names:
@@ -60,3 +110,23 @@ def pytest_collection_modifyitems(config, items):
         for name, group in SHARED_WORK_GROUPS.items():
             if name in getattr(item, "fixturenames", ()):
                 item.add_marker(pytest.mark.xdist_group(group))
+    items[:] = longest_first(items, known_seconds())
+    if getattr(config.option, "loadgroup", False):      # an xdist worker under --dist loadgroup
+        _group_in_node_ids(items)
+
+
+def _group_in_node_ids(items) -> None:
+    """Each test's ``xdist_group`` as the ``@group`` end of its node id, where pytest-xdist's loadgroup
+    scheduler reads it.  pytest-xdist (3.8) writes it to ``Item._nodeid``, which pytest 9 no longer
+    reads (``Node.nodeid`` is made from the structured ``Node._id``): without this the groups are
+    silently ignored and each worker builds the shared results again.  Written here where pytest 9
+    reads it, the same string xdist writes; nothing is done on a pytest whose ids xdist can write."""
+    try:
+        from _pytest.nodeid import NodeId
+    except ImportError:              # pytest < 9: xdist's own write takes
+        return
+    for item in items:
+        groups = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+                         for m in item.iter_markers("xdist_group")})
+        if groups and isinstance(getattr(item, "_id", None), NodeId) and not _grouped(item.nodeid):
+            item._id = NodeId.parse(f"{item.nodeid}@{'_'.join(groups)}")
