@@ -484,6 +484,17 @@ class DiagnoseConfig:
     # it named r|r| on HSVA and made the three test runs worse (3.54 -> 5.66 deg); anchored to the best
     # linear model it names none there and the test runs keep the baseline's 2.90 deg
     anchor_small_motion: bool = True
+    # the anchored form holds the baseline's rudder gains b11, b21 too, not only a11 ... a22: its added
+    # hull terms vanish at v = r = 0, so at small motion the anchored extension is the baseline itself
+    # and cannot buy its large manoeuvres with a rudder gain the small ones do not support
+    # (docs/diagnosis.md, "Sound at every amplitude", with the measured figures)
+    anchor_rudder_gains: bool = False
+    # the damping terms of every effect's form (Param.damping: y_vv, n_rrr, n_rr and the cross terms
+    # that are a damping growing with the other motion) held <= 0 in the free form too, not only in the
+    # anchored one: a cross-flow drag or a yaw damping that pushes the motion further is no hull's, and
+    # a free fit that takes one buys a compromise of the linear part (docs/diagnosis.md, "Sound at every
+    # amplitude")
+    signed_damping: bool = False
     # fit the selection's structures in the family of the reported baseline: without the ship-sign
     # bounds where the best linear model is the unconstrained fit (pipeline.diagnose.select.Search.fit),
     # so that every extension contains the baseline it is judged against.  Off: the structures keep the

@@ -682,13 +682,16 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
 
     Made only where the baseline is inadequate (``adequate`` False) and ``DiagnoseConfig.reference_fit``
     is on: where the linear model is within its noise floors there is nothing for a richer model to
-    carry.  MAEs in deg (mean over the runs, each run alike), reductions relative (0.6 = 60 %)."""
+    carry.  MAEs in deg (mean over the runs, each run alike), reductions relative (0.6 = 60 %).
+    ``material``: whether its pooled validation reduction reaches ``material_threshold``
+    (``DiagnoseConfig.min_gain``); None where not made."""
     folds, te, ctx, cfg = design.folds, design.te, design.ctx, design.cfg
     structure = structure_of(*[(e, f) for e, f in REFERENCE if BY_NAME[e].applicable(ctx) is None])
     out = {"computed": False, "effects": [e for e, _ in structure], "forms": dict(structure),
            "validation_mae_psi_deg": None, "per_fold": [], "validation_mae_psi_relative_reduction": None,
            "test_mae_psi_deg": None, "test_baseline_mae_psi_deg": None,
-           "test_mae_psi_relative_reduction": None, "test_interval_95": None, "reason": None}
+           "test_mae_psi_relative_reduction": None, "test_interval_95": None, "reason": None,
+           "material": None, "material_threshold": cfg.min_gain}
     if not cfg.reference_fit:
         return out | {"reason": "not made: DiagnoseConfig.reference_fit is off"}
     if adequate:
@@ -696,7 +699,7 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
     if "hull_nonlinearity" not in out["effects"]:
         return out | {"reason": "not made: the runs have no sway velocity, so no hull term can be fitted"}
     kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds,
-          "memo": design.memo}
+          "signed_damping": cfg.signed_damping, "memo": design.memo}
     base_maes, maes = [], []
     try:
         for k in ks:
@@ -709,6 +712,11 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
             maes.append(m)
         out["validation_mae_psi_deg"] = float(np.mean(maes))
         out["validation_mae_psi_relative_reduction"] = _gain(float(np.mean(base_maes)), float(np.mean(maes)))
+        # material: the reference cuts the baseline's pooled held-out error by at least the selection's
+        # own materiality, DiagnoseConfig.min_gain (the same reason: below it no naval architect changes
+        # the model); where it does not, the catalogue's terms told everything do not carry what the
+        # linear model misses on these runs, and a verdict of none is not a term the selection missed
+        out["material"] = bool(out["validation_mae_psi_relative_reduction"] >= cfg.min_gain)
         if te:
             allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
                             baseline_bounded=search.baseline_bounded, memo=design.memo)
@@ -718,7 +726,7 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> dict:
             out |= {"test_mae_psi_deg": em, "test_baseline_mae_psi_deg": bm,
                     "test_mae_psi_relative_reduction": g, "test_interval_95": iv}
     except ModelError as err:
-        return out | {"per_fold": [], "validation_mae_psi_deg": None,
+        return out | {"per_fold": [], "validation_mae_psi_deg": None, "material": None,
                       "validation_mae_psi_relative_reduction": None, "reason": f"not made: {err}"}
     return out | {"computed": True}
 

@@ -499,7 +499,26 @@ def reference_text(dg: dict) -> str:
                  f"{num(ref['test_mae_psi_deg'], 3, 'deg')} "
                  f"against the baseline's {num(ref.get('test_baseline_mae_psi_deg'), 3, 'deg')}, "
                  f"{gain_sentence(ref.get('test_mae_psi_relative_reduction'), ref.get('test_interval_95'))}.")
-    return text
+    reading = reference_reading(dg)
+    return text + (" " + reading if reading else "")
+
+
+def reference_reading(dg: dict) -> str:
+    """Where the verdict is none and the reference fit does not beat the baseline by a material margin
+    (diagnosis.json ``reference.material`` false), the plain reading: the catalogue's terms told
+    everything at once do not carry what the linear model misses on these runs, with the reference's
+    pooled held-out reduction against its threshold (``reference.material_threshold``) and the honest
+    gain with its interval (:func:`honest_gain_text`); "" otherwise."""
+    ref = dg.get("reference")
+    if dg.get("cause") != "none" or not isinstance(ref, dict) or ref.get("material") is not False:
+        return ""
+    text = (f"Not a term the selection missed: told every term of the catalogue at once, the reference "
+            f"fit cuts the baseline's held-out heading error by "
+            f"{pct(ref.get('validation_mae_psi_relative_reduction'), signed=True)}, short of the "
+            f"{pct(ref.get('material_threshold'))} a model change needs, so what the linear model lacks on "
+            f"these runs is not carried by the catalogue's hull and rudder terms.")
+    honest = honest_gain_text(dg)
+    return text + (f" {honest}." if honest else "")
 
 
 #: the two modes of the honest gain (diagnosis.json ``test_runs`` given or not)
