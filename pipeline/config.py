@@ -491,12 +491,12 @@ class DiagnoseConfig:
     anchor_rudder_gains: bool = False
     # the damping terms of every effect's form (Param.damping: y_vv, n_rrr, n_rr and the cross terms
     # that are a damping growing with the other motion) held <= 0 in the free form too, not only in the
-    # anchored one.  Off: measured harmful (docs/diagnosis.md, "Sound at every amplitude").  On the HSVA
-    # KVLCC2's catalog design the signed free r|r| took all the yaw damping (a22 = 0, n_rr = -0.039
-    # 1/deg, growth rate 0: neutral at small motion, so within the small-motion allowance), was named,
-    # and the three unseen test runs got worse, 2.90 -> 5.66 deg (the 5/1 zigzag 3.82 -> 13.43 deg);
-    # unsigned, none is named there.  A sign alone does not make a term vanish at small motion: the
-    # linear part it leaves behind does
+    # anchored one.  Off: measured to change nothing where it was measured, and not measured on the
+    # truth families (docs/diagnosis.md, "Sound at every amplitude").  On the HSVA KVLCC2 the free fits
+    # already take these terms negative (fold 0's free sway damping y_vv = -0.023 1/m, which runs away
+    # on the 1 deg zigzag all the same: its linear part, not the term's sign, is what fails there), and
+    # the catalog design's verdict and test-run figures were the same signed or not.  A sign alone does
+    # not make a term vanish at small motion: the linear part it leaves behind decides that
     signed_damping: bool = False
     # fit the selection's structures in the family of the reported baseline: without the ship-sign
     # bounds where the best linear model is the unconstrained fit (pipeline.diagnose.select.Search.fit),
