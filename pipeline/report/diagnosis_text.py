@@ -512,11 +512,13 @@ def reference_reading(dg: dict) -> str:
     ref = dg.get("reference")
     if dg.get("cause") != "none" or not isinstance(ref, dict) or ref.get("material") is not False:
         return ""
+    g = ref.get("validation_mae_psi_relative_reduction")
+    how = (f"makes the baseline's held-out heading error worse by {pct(-g)}" if isinstance(g, (int, float))
+           and g < 0 else f"cuts the baseline's held-out heading error by only {pct(g)}")
     text = (f"Not a term the selection missed: told every term of the catalogue at once, the reference "
-            f"fit cuts the baseline's held-out heading error by "
-            f"{pct(ref.get('validation_mae_psi_relative_reduction'), signed=True)}, short of the "
-            f"{pct(ref.get('material_threshold'))} a model change needs, so what the linear model lacks on "
-            f"these runs is not carried by the catalogue's hull and rudder terms.")
+            f"fit {how}, short of the {pct(ref.get('material_threshold'))} cut a model change needs, so "
+            f"what the linear model lacks on these runs is not carried by the catalogue's hull and rudder "
+            f"terms.")
     honest = honest_gain_text(dg)
     return text + (f" {honest}." if honest else "")
 
