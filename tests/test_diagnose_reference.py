@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 from test_diagnose_baseline import _search
 
@@ -51,6 +52,7 @@ def test_reference_fit_on_the_virtual_tank_is_the_known_answer():
         assert f.validation_runs == [x.name for x in s.folds[k].val]
         assert f.reference_mae_psi_deg < 0.5 * f.baseline_mae_psi_deg, f
     assert ref.validation_mae_psi_relative_reduction > 0.5, ref
+    assert ref.material is True and ref.material_threshold == s.cfg.min_gain
 
 
 def test_reference_fit_is_not_made_where_it_has_nothing_to_carry():
@@ -66,3 +68,122 @@ def test_reference_fit_is_not_made_where_it_has_nothing_to_carry():
         assert not ref.computed and why in ref.reason and s._fits == {}, ref
         assert ref.validation_mae_psi_deg is None and ref.per_fold == []
     assert "hull_nonlinearity" not in ref.effects
+
+
+def _truth_search(cfg: DiagnoseConfig) -> Search:
+    """Two folds of the LINEAR truth model (pipeline.diagnose.truth, the paper's Table 4 hull, noise on):
+    20/20 starboard and 10/10 port train, their mirror runs validate, and the reverse."""
+    from pipeline.diagnose.core import _context
+    from pipeline.diagnose.fit import series_from_run, with_initial_states
+    from pipeline.diagnose.truth import TruthConfig, zigzag_truth
+
+    def leg(seed, first):
+        return [series_from_run(zigzag_truth(a, a, side, duration=60.0, cfg=TruthConfig(seed=seed + i)))
+                for i, (a, side) in enumerate(((20, first), (10, "port" if first == "starboard" else
+                                                             "starboard")))]
+
+    tr, va = leg(1, "starboard"), leg(3, "port")
+    ctx = _context(tr + va)
+    tr, va = (with_initial_states(x, cfg.x0_window_T * ctx.t_ship, cfg.x0_model_window_T * ctx.t_ship,
+                                  cfg.x0_box_sigma) for x in (tr, va))
+    return Search([Fold(tr, va), Fold(va, tr)], ctx, cfg)
+
+
+def test_reference_fit_on_a_linear_ship_is_not_material_and_the_report_says_so():
+    """The known answer is the truth's: its hull is linear, so the catalogue's terms told everything at
+    once have nothing to carry, and on the runs they did not see they cannot cut the best linear
+    model's error by the 10 % a model change needs (``reference.material`` false; the fit is forced
+    here, as the stage makes it only where the baseline is inadequate).  Where the verdict is none the
+    report then says plainly that what the linear model lacks is not in the catalogue, with the honest
+    gain and its interval; where the verdict names a cause, or the reference is material, it does not.
+    Measured: best linear 0.042 / 0.043 deg held out, the reference 0.045 / 0.049 deg (-11 % pooled:
+    eight hull terms and an offset fitted to the noise of two runs)."""
+    from pipeline.report import diagnosis_text as dt
+
+    cfg = DiagnoseConfig()
+    s = _truth_search(cfg)
+    s.choose_baseline([0, 1])
+    ref = reference_fit(_design(s), s, [0, 1], adequate=False)
+    assert ref.computed, ref
+    assert ref.material_threshold == cfg.min_gain
+    assert ref.validation_mae_psi_relative_reduction < cfg.min_gain, ref
+    assert ref.material is False
+    ref = ref.to_json()
+    # the sentence, from those keys and the honest gain's (a test-run case as the stage writes it)
+    dg = {"cause": "none", "reference": ref, "ladder": [{"validation_mae_psi_deg": 1.0}],
+          "test_runs": ["t1"], "extended": {"effects": []},
+          "gain": {"mae_psi_relative_reduction": 0.0, "interval_95": [-0.02, 0.03], "measured_on": ["t1"],
+                   "baseline_mae_psi_deg": 2.905, "extended_mae_psi_deg": 2.905}}
+    text = dt.reference_text(dg)
+    reading = dt.reference_reading(dg)
+    assert reading and reading in text
+    assert "not carried by the catalogue" in reading and "short of the 10 % cut" in reading
+    # measured -11 %: said as the worse error it is
+    assert f"worse by {dt.pct(-ref['validation_mae_psi_relative_reduction'])}" in reading
+    assert "cuts the baseline's held-out heading error by only 4 %" in dt.reference_reading(
+        dg | {"reference": ref | {"validation_mae_psi_relative_reduction": 0.04}})
+    assert "[-2 %, 3 %]" in reading and "2.905 deg" in reading      # the honest gain and its interval
+    assert dt.reference_reading(dg | {"cause": "rudder_offset"}) == ""
+    assert dt.reference_reading(dg | {"reference": ref | {"material": True}}) == ""
+    assert dt.reference_reading(dg | {"reference": ref | {"material": None, "computed": False}}) == ""
+
+
+#: the drop-one structures of the reference on the virtual tank's default design (docs/diagnosis.md,
+#: "Known limits", the turning circles): the reference without its hull terms, and its hull terms
+#: without the sway cross-flow drag v|v| (r|r| and the cross terms kept)
+_OFFSET, _SPEED = ("rudder_offset", "constant"), ("speed_loss", "power")
+_DROP = {"reference": REFERENCE, "without hull terms": (_OFFSET, _SPEED),
+         "without v|v|": (_OFFSET, _SPEED, ("nonlinear_yaw_damping", "abs"),
+                          ("sway_yaw_coupling", "abkowitz"))}
+
+
+@pytest.mark.slow
+@pytest.mark.long
+def test_what_brings_the_turning_circles_down_in_the_reference():
+    """The virtual tank's six default runs in the design's two folds (three training, three held-out
+    runs each, a 35 deg turning circle on each side): refitted without its hull terms, the reference
+    predicts each held-out circle worse than with them (measured: port 11.38 against 4.51 deg, starboard
+    19.57 against 5.81), and with the hull terms but without the sway cross-flow drag v|v| both circles
+    diverge (measured: thousands of degrees).  The truth is the tank's MMG hull, whose cross-flow drag
+    grows with the drift of a steady turn; nothing here is written in the reference's formulas."""
+    from pipeline.config import TankConfig
+    from pipeline.diagnose.core import _context
+    from pipeline.diagnose.design import pick_catalog_runs
+    from pipeline.diagnose.fit import (
+        evaluate,
+        fit_structure,
+        series_from_run,
+        structure_of,
+        with_initial_states,
+    )
+    from pipeline.tank.manoeuvres import default_set
+
+    runs = {}
+    for m in default_set():
+        r = tank.simulate(m, TankConfig())
+        runs[r.meta["run_id"]] = r
+    keys = ("kind", "rudder_deg", "heading_deg", "first_side")
+    a, b, _ = pick_catalog_runs([{"run_id": k, **{m: r.meta.get(m) for m in keys}} for k, r in runs.items()])
+    cfg = DiagnoseConfig()
+    tr, va = [series_from_run(runs[k]) for k in a], [series_from_run(runs[k]) for k in b]
+    ctx = _context(tr + va)
+    tr, va = (with_initial_states(x, cfg.x0_window_T * ctx.t_ship, cfg.x0_model_window_T * ctx.t_ship,
+                                  cfg.x0_box_sigma) for x in (tr, va))
+    s = Search([Fold(tr, va), Fold(va, tr)], ctx, cfg, memo=FitMemo())
+    s.choose_baseline([0, 1])
+    circle = {}
+    for name, st in _DROP.items():
+        for k in (0, 1):
+            f = fit_structure(s.folds[k].train, structure_of(*st), ctx, start=s.fit(k, ()),
+                              max_nfev=cfg.max_nfev, block_T=cfg.block_T, sign_bounds=s.family_bounds,
+                              memo=s.memo)
+            for p in evaluate(f, s.folds[k].val)[1]:
+                if "turning" in p["run_id"]:
+                    circle[(name, p["run_id"])] = p["mae_psi_deg"]
+    circles = sorted({run for _, run in circle})
+    assert len(circles) == 2, circle
+    for run in circles:
+        swing = float(np.ptp(next(x for x in tr + va if x.name == run).psi))
+        assert circle[("reference", run)] < circle[("without hull terms", run)], circle
+        # without v|v| the circle is not made: its error beyond the run's whole heading swing
+        assert circle[("without v|v|", run)] > swing, (circle, swing)

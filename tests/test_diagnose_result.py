@@ -74,7 +74,7 @@ REFERENCE_KEYS = [
     "computed", "effects", "forms", "validation_mae_psi_deg", "per_fold",
     "validation_mae_psi_relative_reduction", "test_mae_psi_deg", "test_baseline_mae_psi_deg",
     "test_mae_psi_relative_reduction", "test_interval_95",
-    "reason",
+    "reason", "material", "material_threshold",
 ]
 
 

@@ -735,13 +735,16 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> Refere
 
     Made only where the baseline is inadequate (``adequate`` False) and ``DiagnoseConfig.reference_fit``
     is on: where the linear model is within its noise floors there is nothing for a richer model to
-    carry.  MAEs in deg (mean over the runs, each run alike), reductions relative (0.6 = 60 %)."""
+    carry.  MAEs in deg (mean over the runs, each run alike), reductions relative (0.6 = 60 %).
+    ``material``: whether its pooled validation reduction reaches ``material_threshold``
+    (``DiagnoseConfig.min_gain``); None where not made."""
     folds, te, ctx, cfg = design.folds, design.te, design.ctx, design.cfg
     structure = structure_of(*[(e, f) for e, f in REFERENCE if BY_NAME[e].applicable(ctx) is None])
     effects = [e for e, _ in structure]
 
     def not_made(why: str) -> Reference:
-        return Reference(computed=False, effects=effects, forms=dict(structure), reason=f"not made: {why}")
+        return Reference(computed=False, effects=effects, forms=dict(structure), reason=f"not made: {why}",
+                         material_threshold=cfg.min_gain)
 
     if not cfg.reference_fit:
         return not_made("DiagnoseConfig.reference_fit is off")
@@ -750,7 +753,7 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> Refere
     if "hull_nonlinearity" not in effects:
         return not_made("the runs have no sway velocity, so no hull term can be fitted")
     kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds,
-          "memo": design.memo, "plain": cfg.plain_fits}
+          "signed_damping": cfg.signed_damping, "memo": design.memo, "plain": cfg.plain_fits}
     per_fold = []
     test = {}
     try:
@@ -771,11 +774,14 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> Refere
     except ModelError as err:
         return not_made(str(err))
     mae = float(np.mean([f.reference_mae_psi_deg for f in per_fold]))
+    red = _gain(float(np.mean([f.baseline_mae_psi_deg for f in per_fold])), mae)
+    # material: the reference cuts the baseline's pooled held-out error by at least the selection's
+    # own materiality, DiagnoseConfig.min_gain (the same reason: below it no naval architect changes
+    # the model); where it does not, the catalogue's terms told everything do not carry what the
+    # linear model misses on these runs, and a verdict of none is not a term the selection missed
     return Reference(computed=True, effects=effects, forms=dict(structure), validation_mae_psi_deg=mae,
-                     per_fold=per_fold,
-                     validation_mae_psi_relative_reduction=_gain(
-                         float(np.mean([f.baseline_mae_psi_deg for f in per_fold])), mae),
-                     **test)
+                     per_fold=per_fold, validation_mae_psi_relative_reduction=red,
+                     **test, material=bool(red >= cfg.min_gain), material_threshold=cfg.min_gain)
 
 
 def _no_honest_gain(why: str) -> Gain:

@@ -72,6 +72,8 @@ def _feature(code, v, r, s=1.0):  # pragma: no cover - compiled; held to effects
         return v * v * r / s
     if code == 9:
         return v * r * r / s
+    if code == 10:
+        return r * r * r / s
     return v * v * v
 
 
@@ -497,6 +499,8 @@ def _feature_grad(code, v, r, s):  # pragma: no cover - compiled; held to finite
         return 2.0 * v * r / s, v * v / s
     if code == 9:
         return r * r / s, 2.0 * v * r / s
+    if code == 10:
+        return 0.0, 3.0 * r * r / s
     return 3.0 * v * v, 0.0
 
 

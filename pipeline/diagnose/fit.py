@@ -406,9 +406,14 @@ class Layout:
     #: the ship-sign bounds a11, a12, a21, a22 <= 0 on (the default); off for the unconstrained
     #: linear fit the baseline is chosen against (docs/diagnosis.md, "The baseline")
     sign_bounds: bool = True
-    #: (a11, a12, a21, a22) held at these values (the anchored form of an extension: its linear part is
-    #: the baseline's, its damping terms signed; docs/diagnosis.md "Sound at every amplitude"); None: free
-    hold_linear: tuple[float, float, float, float] | None = None
+    #: (a11, a12, a21, a22) or (a11, a12, a21, a22, b11, b21) held at these values, in the units of
+    #: :data:`~pipeline.model.PARAM_NAMES` (the anchored form of an extension: its linear part, and with six
+    #: values its rudder gains, the baseline's, its damping terms signed; docs/diagnosis.md "Sound at every
+    #: amplitude"); None: free
+    hold_linear: tuple[float, ...] | None = None
+    #: the effects' damping terms (``Param.damping``) held <= 0 in every form, not only the anchored one
+    #: (``DiagnoseConfig.signed_damping`` says why)
+    signed_damping: bool = False
 
     @property
     def params(self):
@@ -452,7 +457,7 @@ class Layout:
                 w = 1e-9 * max(1.0, abs(float(x)))
                 lo[i], hi[i] = float(x) - w, float(x) + w
         for _, p in self.params:
-            a, b = p.bounds(self.ctx, signed=self.hold_linear is not None)
+            a, b = p.bounds(self.ctx, signed=self.signed_damping or self.hold_linear is not None)
             lo.append(a)
             hi.append(b)
         return np.array(lo), np.array(hi)
@@ -529,8 +534,9 @@ class FitResult:
     start_z: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: whether the ship-sign bounds (Layout.bounds) were on in this fit
     sign_bounds: bool = True
-    #: the linear part held in this fit (the anchored form, Layout.hold_linear); None: fitted freely
-    hold_linear: tuple[float, float, float, float] | None = None
+    #: the linear part (and with six values the rudder gains) held in this fit (the anchored form,
+    #: Layout.hold_linear); None: fitted freely
+    hold_linear: tuple[float, ...] | None = None
     #: made without the speed devices (``fit_structure(plain=True)``); its held-out starts
     #: (:func:`boxed_initial_state`) are then fitted with SciPy's forward differences too
     plain: bool = False
@@ -1048,7 +1054,8 @@ def fit_structure(
     block_T: float = 2.0,
     *,
     sign_bounds: bool = True,
-    hold_linear: tuple[float, float, float, float] | None = None,
+    hold_linear: tuple[float, ...] | None = None,
+    signed_damping: bool = False,
     memo: FitMemo | None = None,
     plain: bool = False,
 ) -> FitResult:
@@ -1072,9 +1079,12 @@ def fit_structure(
         Cluster length of the sandwich covariance, in ship time scales T_ship (dimensionless).
     sign_bounds : bool
         Keep a11, a12, a21, a22 <= 0 (:meth:`Layout.bounds`); False fits them free.
-    hold_linear : tuple of 4 float, optional
-        (a11 1/s, a12 (m/s^2)/(deg/s), a21 (deg/s^2)/(m/s), a22 1/s) held, the damping terms signed
-        (the anchored form, :attr:`Layout.hold_linear`); None fits the linear part.
+    hold_linear : tuple of 4 or 6 float, optional
+        (a11 1/s, a12 (m/s^2)/(deg/s), a21 (deg/s^2)/(m/s), a22 1/s[, b11 (m/s^2)/deg, b21 1/s^2])
+        held, the damping terms signed (the anchored form, :attr:`Layout.hold_linear`); None fits the
+        linear part.
+    signed_damping : bool
+        The damping terms signed in the free form too (:attr:`Layout.signed_damping`).
     memo : FitMemo, optional
         The fits already made in this diagnosis: the same fit is returned, not made again.  None:
         fitted anew.
@@ -1097,7 +1107,8 @@ def fit_structure(
     """
     hold = None if hold_linear is None else tuple(float(x) for x in hold_linear)
     if memo is None or plain:
-        return _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold, plain)
+        return _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold,
+                              signed_damping, plain)
     key = (
         tuple(s.content_key() for s in series),
         structure_of(*structure),
@@ -1107,11 +1118,13 @@ def fit_structure(
         block_T,
         sign_bounds,
         hold,
+        bool(signed_damping),
     )
     hit = memo.get(key)
     if hit is None:
         try:
-            hit = _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold)
+            hit = _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold,
+                                 signed_damping)
         except ModelError as err:
             hit = err
         memo.put(key, hit)
@@ -1121,8 +1134,8 @@ def fit_structure(
 
 
 def _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds=True,
-                   hold_linear=None, plain=False) -> FitResult:
-    layout = Layout(structure_of(*structure), ctx, sign_bounds, hold_linear)
+                   hold_linear=None, signed_damping=False, plain=False) -> FitResult:
+    layout = Layout(structure_of(*structure), ctx, sign_bounds, hold_linear, signed_damping)
     lo, hi = layout.bounds()
     need_u = [e for e, _ in layout.structure if BY_NAME[e].needs_u]
     u_ref = reference_speed(series) if need_u else None
@@ -1243,7 +1256,7 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
     n_p = len(names)
     held = {1} if latent_sway_a12(ctx) is not None else set()    # a12 held: it has no variance
     if layout.hold_linear is not None:     # the anchored form: the linear part is given, not estimated
-        held |= {0, 1, 2, 3}
+        held |= set(range(len(layout.hold_linear)))
     keep = [i for i in range(res.x.size) if i not in held]
     full = np.zeros((res.x.size, res.x.size))
     full[np.ix_(keep, keep)] = sandwich_cov(res.jac[:, keep], res.fun,

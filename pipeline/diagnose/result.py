@@ -237,7 +237,8 @@ class Reference(Result):
     chosen; docs/diagnosis.md, "The reference fit").  ``computed`` False with ``reason`` where it was not
     made (every figure then None, ``per_fold`` empty); its ``effects`` and ``forms``; the pooled
     validation MAE psi (deg), per fold, and its relative cut against the baseline; with --test runs its
-    MAE psi there, the baseline's, the relative cut and its 95 % interval (None without test runs)."""
+    MAE psi there, the baseline's, the relative cut and its 95 % interval (None without test runs);
+    ``material``: whether its pooled validation cut reaches ``material_threshold``."""
 
     computed: bool
     effects: list[str]
@@ -250,6 +251,10 @@ class Reference(Result):
     test_mae_psi_relative_reduction: float | None = None
     test_interval_95: list[float] | None = None
     reason: str | None = None
+    #: whether the pooled validation cut reaches ``material_threshold`` (DiagnoseConfig.min_gain, the
+    #: selection's own materiality); None where not made
+    material: bool | None = None
+    material_threshold: float | None = None
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Reference:

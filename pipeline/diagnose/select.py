@@ -256,13 +256,16 @@ class Search:
         reported baseline's (a11 ... a22), the damping terms signed; fitted from the baseline and from
         each of ``starts``, the fit of least TRAINING cost kept.  Raises ModelError where none fits."""
         anchor = self.linear(k)
-        hold = tuple(float(x) for x in anchor.theta[:4])
+        # with DiagnoseConfig.anchor_rudder_gains the rudder gains b11, b21 are held too: the anchored
+        # extension is then the baseline itself at small motion, not only in its hull's linear part
+        hold = tuple(float(x) for x in anchor.theta[:6 if self.cfg.anchor_rudder_gains else 4])
         fits, err = [], None
         for st in (anchor, *starts):
             try:
                 fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
                                           max_nfev=self.cfg.max_nfev, block_T=self.cfg.block_T,
-                                          hold_linear=hold, sign_bounds=self.family_bounds, memo=self.memo,
+                                          hold_linear=hold, sign_bounds=self.family_bounds,
+                                          signed_damping=self.cfg.signed_damping, memo=self.memo,
                                           plain=self.cfg.plain_fits))
             except ModelError as e:
                 err = e
@@ -453,7 +456,8 @@ class Search:
         def one(s):
             return fit_structure(
                 self.folds[k].train, structure, self.ctx, start=s, max_nfev=self.cfg.max_nfev,
-                block_T=self.cfg.block_T, sign_bounds=bounds, memo=self.memo, plain=self.cfg.plain_fits,
+                block_T=self.cfg.block_T, sign_bounds=bounds, signed_damping=self.cfg.signed_damping,
+                memo=self.memo, plain=self.cfg.plain_fits,
             )
 
         warm = one(start)
@@ -496,6 +500,7 @@ class Search:
                 block_T=self.cfg.block_T,
                 hold_linear=old.hold_linear,
                 sign_bounds=self.family_bounds,
+                signed_damping=self.cfg.signed_damping,
                 memo=self.memo,
                 plain=self.cfg.plain_fits,
             )

@@ -501,7 +501,28 @@ def reference_text(dg: dict) -> str:
                  f"{num(ref['test_mae_psi_deg'], 3, 'deg')} "
                  f"against the baseline's {num(ref.get('test_baseline_mae_psi_deg'), 3, 'deg')}, "
                  f"{gain_sentence(ref.get('test_mae_psi_relative_reduction'), ref.get('test_interval_95'))}.")
-    return text
+    reading = reference_reading(dg)
+    return text + (" " + reading if reading else "")
+
+
+def reference_reading(dg: dict) -> str:
+    """Where the verdict is none and the reference fit does not beat the baseline by a material margin
+    (diagnosis.json ``reference.material`` false), the plain reading: the catalogue's terms told
+    everything at once do not carry what the linear model misses on these runs, with the reference's
+    pooled held-out reduction against its threshold (``reference.material_threshold``) and the honest
+    gain with its interval (:func:`honest_gain_text`); "" otherwise."""
+    ref = dg.get("reference")
+    if dg.get("cause") != "none" or not isinstance(ref, dict) or ref.get("material") is not False:
+        return ""
+    g = ref.get("validation_mae_psi_relative_reduction")
+    how = (f"makes the baseline's held-out heading error worse by {pct(-g)}" if isinstance(g, (int, float))
+           and g < 0 else f"cuts the baseline's held-out heading error by only {pct(g)}")
+    text = (f"Not a term the selection missed: told every term of the catalogue at once, the reference "
+            f"fit {how}, short of the {pct(ref.get('material_threshold'))} cut a model change needs, so "
+            f"what the linear model lacks on these runs is not carried by the catalogue's hull and rudder "
+            f"terms.")
+    honest = honest_gain_text(dg)
+    return text + (f" {honest}." if honest else "")
 
 
 #: the two modes of the honest gain (diagnosis.json ``test_runs`` given or not)

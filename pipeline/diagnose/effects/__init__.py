@@ -39,7 +39,9 @@ CATALOGUE: tuple[Effect, ...] = (
 #: took the MARIN KVLCC2 side-swap fold 1's honest gain from 57 % to 18 % (its nested selections chose
 #: the eight-term set where sway damping + asymmetry hold on the unseen runs), and on the virtual KCS
 #: with its turning circles it cut the pooled held-out heading MAE by 24 % but was worse in one fold
-#: (-12 %), so the verdict stayed "none" (docs/diagnosis.md, "Known limits").
+#: (-12 %), so the verdict stayed "none"; against the best linear baseline, the anchored form holding
+#: the rudder gains, the same: +27 % pooled, -11 % / +64 % per fold, none (docs/diagnosis.md, "Known
+#: limits").
 TRIAL: tuple[Effect, ...] = (hull_nonlinearity.EFFECT,)
 BY_NAME = {e.name: e for e in CATALOGUE + TRIAL}
 #: the reference fit's structure (pipeline.diagnose.core.reference_fit, diagnosis.json ``reference``):

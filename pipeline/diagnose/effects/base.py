@@ -52,6 +52,7 @@ FEATURES = {
     7: "v^3",
     8: "v^2 r / s",
     9: "v r^2 / s",
+    10: "r^3 / s",
 }
 #: equation index of a feature term: 0 adds to dv/dt (m/s^2), 1 to dr/dt (deg/s^2)
 V_EQ, R_EQ = 0, 1
@@ -74,6 +75,7 @@ def feature_value(code: int, v, r, s=1.0):
         7: lambda: v**3,
         8: lambda: v * v * r / s,
         9: lambda: v * r * r / s,
+        10: lambda: r**3 / s,
     }[code]()
 
 

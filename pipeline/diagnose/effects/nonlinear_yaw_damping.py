@@ -1,4 +1,9 @@
-"""nonlinear_yaw_damping: yaw damping growing faster than linearly with r (Norrbin r^3, or r|r|)."""
+"""nonlinear_yaw_damping: yaw damping growing faster than linearly with r (Norrbin r^3, or r|r|).
+
+Both forms in the speed scaling of the non-dimensional form (r' = r L/u, moments on u^2): r'|r'| u^2 =
+r|r| L^2 gives a yaw acceleration independent of u, r'^3 u^2 = r^3 L^3 / u one divided by u, read
+through the kernel's speed factor s (feature code 10, r^3 / s: 1 without speed_loss, so the cubic form
+is r^3 there; docs/diagnosis.md, "The catalogue")."""
 
 from __future__ import annotations
 
@@ -13,13 +18,14 @@ class NonlinearYawDamping(Effect):
     magnitude_unit = "cut of the 20/20 yaw-rate amplitude"
     injection = Injection(plants=("truth",), solver="damping_for_cut", field="n_rrr")
     forms = (
-        Form("cubic", (Param("n_rrr_s_per_deg2", 0.0, -1.0, 1.0, 0.0, "s/deg^2", feature=(0, R_EQ),
+        Form("cubic", (Param("n_rrr_s_per_deg2", 0.0, -1.0, 1.0, 0.0, "s/deg^2", feature=(10, R_EQ),
                              damping=True),)),
         Form("abs", (Param("n_rr_per_deg", 0.0, -2.0, 2.0, 0.0, "1/deg", feature=(1, R_EQ),
                            damping=True),)),
     )
     words = "nonlinear yaw damping"
-    term = "dr/dt gains n_rrr r^3 (cubic form) or n_rr r|r| (modulus form); negative = more damping"
+    term = ("dr/dt gains n_rrr r^3 / s (cubic form, s the speed factor) or n_rr r|r| (modulus form); "
+            "negative = more damping")
     signature = "yaw-acceleration error odd in r, growing with |r|: large manoeuvres over-predicted"
     floor_reason = f"{RESPONSE_FLOOR} (the precision model tests are trusted to)"
 

@@ -1,4 +1,9 @@
-"""sway_yaw_coupling: nonlinear sway-yaw cross terms v^2 r and v r^2 in both equations (Abkowitz)."""
+"""sway_yaw_coupling: nonlinear sway-yaw cross terms v^2 r and v r^2 in both equations (Abkowitz).
+
+In the speed scaling of the non-dimensional form (v' = v/u, r' = r L/u, forces on u^2): the cubic
+terms give accelerations divided by u (v'^2 r' u^2 = v^2 r L / u), read through the kernel's speed
+factor s (feature codes 8, 9: 1 without speed_loss); the modulus form's second-order terms
+(|v'| r' u^2 = |v| r L) are independent of u (docs/diagnosis.md, "The catalogue")."""
 
 from __future__ import annotations
 
@@ -21,11 +26,11 @@ class SwayYawCoupling(Effect):
         Form(
             "abkowitz",
             (
-                Param("y_vvr_s_per_m_deg", 0.0, -1e3, 1e3, 0.0, "s/(m deg)", feature=(3, V_EQ)),
-                Param("y_vrr_s2_per_deg2", 0.0, -10.0, 10.0, 0.0, "s^2/deg^2", feature=(4, V_EQ),
+                Param("y_vvr_s_per_m_deg", 0.0, -1e3, 1e3, 0.0, "s/(m deg)", feature=(8, V_EQ)),
+                Param("y_vrr_s2_per_deg2", 0.0, -10.0, 10.0, 0.0, "s^2/deg^2", feature=(9, V_EQ),
                       damping=True),
-                Param("n_vvr_s_per_m2", 0.0, -1e5, 1e5, 0.0, "s/m^2", feature=(3, R_EQ), damping=True),
-                Param("n_vrr_s_per_m_deg", 0.0, -1e3, 1e3, 0.0, "s/(m deg)", feature=(4, R_EQ)),
+                Param("n_vvr_s_per_m2", 0.0, -1e5, 1e5, 0.0, "s/m^2", feature=(8, R_EQ), damping=True),
+                Param("n_vrr_s_per_m_deg", 0.0, -1e3, 1e3, 0.0, "s/(m deg)", feature=(9, R_EQ)),
             ),
         ),
         # the modulus form of Norrbin-type models (e.g. Van Berlekom & Goddard's N_|v|r |v| r): the same
@@ -42,7 +47,8 @@ class SwayYawCoupling(Effect):
     )
     needs_v = True
     words = "nonlinear sway-yaw coupling"
-    term = ("dv/dt and dr/dt each gain c_vvr v^2 r + c_vrr v r^2 (Abkowitz cross terms) or c_avr |v| r + "
+    term = ("dv/dt and dr/dt each gain (c_vvr v^2 r + c_vrr v r^2) / s (Abkowitz cross terms, s the speed "
+            "factor) or c_avr |v| r + "
             "c_var v |r| (modulus form)")
     signature = "errors that grow with the product of drift and turn: large manoeuvres mis-shaped in v and r"
     floor_reason = RESPONSE_FLOOR
