@@ -68,7 +68,9 @@ def hsva_fold(hsva_dir):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("bounded", [True, False], ids=["bounded_baseline", "best_linear_baseline"])
+# make test: anchored at the best linear model (the default); anchored at the bounded fit in make test-long
+@pytest.mark.parametrize("bounded", [pytest.param(True, marks=pytest.mark.long, id="bounded_baseline"),
+                                     pytest.param(False, id="best_linear_baseline")])
 def test_sway_damping_runs_away_at_small_amplitude_in_the_free_form_and_holds_anchored(hsva_fold, bounded):
     """Anchored at the bounded linear fit or at the unconstrained one (the best linear model on the HSVA
     selection: docs/diagnosis.md, "The baseline"), the anchored form makes the 1 deg zigzag the free

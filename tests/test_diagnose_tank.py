@@ -299,8 +299,15 @@ def _found_on_top_of_the_ship(rep, kind: str) -> dict:
     return finding
 
 
+#: the tank cases in make test: the first draw of each kind (none, offset, yaw damping); the second
+#: draws of the offset and the yaw damping are marked long (make test-long)
+TANK_CI_DRAWS = 3
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("case", CASES, ids=[f"{c[0]:02d}-{c[1]}" for c in CASES])
+@pytest.mark.parametrize("case", [
+    pytest.param(c, id=f"{c[0]:02d}-{c[1]}", marks=[] if c[0] < TANK_CI_DRAWS else [pytest.mark.long])
+    for c in CASES])
 def test_tank_hidden_effect_is_found_on_top_of_the_ship(case):
     i, kind, mag = case
     if kind == "none":
