@@ -752,8 +752,7 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> Refere
         return not_made("the linear baseline is adequate (within its noise floors)")
     if "hull_nonlinearity" not in effects:
         return not_made("the runs have no sway velocity, so no hull term can be fitted")
-    kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T, "sign_bounds": search.family_bounds,
-          "signed_damping": cfg.signed_damping, "memo": design.memo, "plain": cfg.plain_fits}
+    kw = search.fit_options() | {"memo": design.memo}
     per_fold = []
     test = {}
     try:

@@ -263,10 +263,7 @@ class Search:
         for st in (anchor, *starts):
             try:
                 fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
-                                          max_nfev=self.cfg.max_nfev, block_T=self.cfg.block_T,
-                                          hold_linear=hold, sign_bounds=self.family_bounds,
-                                          signed_damping=self.cfg.signed_damping, memo=self.memo,
-                                          plain=self.cfg.plain_fits))
+                                          hold_linear=hold, **self.fit_options()))
             except ModelError as e:
                 err = e
         if not fits:
@@ -343,9 +340,7 @@ class Search:
         fit from the equation-error start and the one warm from ``start``, the one of least TRAINING cost
         (the output-error cost has local optima; the choice uses no held-out run)."""
         def one(s):
-            return fit_structure(self.folds[k].train, (), self.ctx, start=s, max_nfev=self.cfg.max_nfev,
-                                 block_T=self.cfg.block_T, sign_bounds=sign_bounds, memo=self.memo,
-                                 plain=self.cfg.plain_fits)
+            return fit_structure(self.folds[k].train, (), self.ctx, start=s, **self.fit_options(sign_bounds))
 
         fits = []
         for s in (None, start):
@@ -425,6 +420,15 @@ class Search:
         except ModelError:
             return None
 
+    def fit_options(self, sign_bounds: bool | None = None) -> dict:
+        """The keyword options of every fit this search makes (:func:`fit_structure`): the settings'
+        evaluation budget, cluster length (T_ship), free-form damping signs and plain fits, the shared
+        memo, and the ship-sign bounds (``sign_bounds`` None: the family's, :attr:`family_bounds`)."""
+        cfg = self.cfg
+        return {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T,
+                "sign_bounds": self.family_bounds if sign_bounds is None else sign_bounds,
+                "signed_damping": cfg.signed_damping, "memo": self.memo, "plain": cfg.plain_fits}
+
     def _best_linear_mae(self, ks) -> float | None:
         """The reported linear baseline's pooled held-out MAE psi over folds ``ks`` (deg), where it is
         not the linear model the selection's family extends; None where it is (or is not chosen)."""
@@ -451,14 +455,9 @@ class Search:
         of the two the one that predicts fold ``k``'s VALIDATION runs better (DiagnoseConfig.cold_start
         says why).  Ties, and a cold fit that fails, keep the warm one."""
 
-        bounds = self.family_bounds if sign_bounds is None else sign_bounds
-
         def one(s):
-            return fit_structure(
-                self.folds[k].train, structure, self.ctx, start=s, max_nfev=self.cfg.max_nfev,
-                block_T=self.cfg.block_T, sign_bounds=bounds, signed_damping=self.cfg.signed_damping,
-                memo=self.memo, plain=self.cfg.plain_fits,
-            )
+            return fit_structure(self.folds[k].train, structure, self.ctx, start=s,
+                                 **self.fit_options(sign_bounds))
 
         warm = one(start)
         # round one only (one effect on the baseline): there the warm start is the linear baseline,
@@ -491,19 +490,8 @@ class Search:
             return False
         old = self.fit(k, structure)
         try:
-            new = fit_structure(
-                self.folds[k].train,
-                key[1],
-                self.ctx,
-                start=self._fits[rkey],
-                max_nfev=self.cfg.max_nfev,
-                block_T=self.cfg.block_T,
-                hold_linear=old.hold_linear,
-                sign_bounds=self.family_bounds,
-                signed_damping=self.cfg.signed_damping,
-                memo=self.memo,
-                plain=self.cfg.plain_fits,
-            )
+            new = fit_structure(self.folds[k].train, key[1], self.ctx, start=self._fits[rkey],
+                                hold_linear=old.hold_linear, **self.fit_options())
         except ModelError:
             return False
         if old.hold_linear is None:
