@@ -155,6 +155,31 @@ def test_every_figure_of_the_diagnosis_page_is_its_key(cases, mode):
                         r"folds", text)
     assert pooled and all(_said(x, doc["ladder"][0]["validation_mae_psi_deg"]) for x in pooled)
 
+    # the reference fit under the honest gain's protocol (nested mode): the same held-out runs and the
+    # same baseline figures as gain.*, its pooled MAE the mean of the held-out selections' entries, its
+    # interval holding its point, and the page's sentence from those keys
+    ref = doc["reference"]
+    if mode == "test runs":
+        assert ref.get("nested_mae_psi_deg") is None and ref.get("nested_measured_on") in (None, [])
+    else:
+        assert ref["computed"], ref        # the 1 deg offset leaves the linear baseline inadequate
+        assert ref["nested_measured_on"] == g["measured_on"]
+        assert ref["nested_baseline_mae_psi_deg"] == pytest.approx(g["baseline_mae_psi_deg"], rel=1e-12)
+        assert ref["nested_mae_psi_deg"] == pytest.approx(
+            sum(e["reference_mae_psi_deg"] for e in g["nested"]) / len(g["nested"]), rel=1e-12)
+        lo, hi = ref["nested_interval_95"]
+        assert lo <= ref["nested_mae_psi_relative_reduction"] <= hi
+        said_ref = re.findall(
+            r"Under the honest gain's protocol \(nested leave-one-run-out: refitted without each run and "
+            rf"measured on it, (\d+) runs\), the reference cuts the heading error by {NUM} % \(95 % interval "
+            rf"\[{NUM} %, {NUM} %\]\) \({NUM} deg -> {NUM} deg\)", text)
+        assert said_ref, text
+        for n, pct, lo_, hi_, bm, rm in said_ref:
+            assert int(n) == len(g["measured_on"])
+            assert _pct_said(pct, ref["nested_mae_psi_relative_reduction"])
+            assert _pct_said(lo_, lo) and _pct_said(hi_, hi)
+            assert _said(bm, g["baseline_mae_psi_deg"]) and _said(rm, ref["nested_mae_psi_deg"])
+
     # the words follow the mode actually used
     assert f"({other_mode})" not in text
     if mode == "test runs":

@@ -111,13 +111,15 @@ class _Design:
 class _Outcome:
     """What the selection decided, for the report: the search (every fit made), the selection on all
     folds, the selection of each fold alone (with test runs and two folds; else empty), the honest
-    gain and, with test runs, each rung of the ladder there (:func:`_honest_gain`)."""
+    gain and, with test runs, each rung of the ladder there, and the reference structure's figures under
+    the nested protocol where made (:func:`_honest_gain`)."""
 
     search: Search
     sel: Selection
     per_fold: list[Selection]
     honest: Gain
     test_ladder: dict
+    reference_nested: dict | None = None
 
 
 @dataclass
@@ -468,11 +470,12 @@ def _select_and_report(design: _Design, runs: list[Run], rates: dict, *, progres
         for _ in concurrent.futures.as_completed(futures):
             bar.update(1)
         nested = [f.result() for f in futures]
-    honest, test_ladder = _honest_gain(design, search, sel, nested_results=nested, tick=lambda: bar.update(1))
+    honest, test_ladder, ref_nested = _honest_gain(design, search, sel, nested_results=nested,
+                                                   tick=lambda: bar.update(1))
     # stability: each fold alone (with --test runs; otherwise the leave-one-run-out selections are the folds)
     per_fold = [select(search, [k], noise) for k in ks] if te and len(folds) > 1 else []
     bar.close()
-    outcome = _Outcome(search, sel, per_fold, honest, test_ladder)
+    outcome = _Outcome(search, sel, per_fold, honest, test_ladder, ref_nested)
     result, base, ext, series = _report(design, outcome, runs, rates)
     return Diagnosis(
         report=result.to_json(),
@@ -573,6 +576,7 @@ def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
     pe = refit.eval(0, st)[1] if st else pb
     other = refit.other_linear(0)
     po = evaluate(other, [held])[1] if other is not None else None
+    pr = _nested_reference(refit, held, pb[0]["mae_psi_deg"], noise)
     entry = HeldOutSelection(
         fold=f"hold out {held.name}",
         effects=[e for e, _ in st],
@@ -584,8 +588,36 @@ def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
         gain=_gain(pb[0]["mae_psi_deg"], pe[0]["mae_psi_deg"]),
         baseline_sign_bounds=bool(isearch.baseline_bounded),
         other_linear_mae_psi_deg=po[0]["mae_psi_deg"] if po is not None else None,
+        reference_mae_psi_deg=pr[0]["mae_psi_deg"] if pr is not None else None,
     )
-    return (pb, pe, po), entry
+    return (pb, pe, po, pr), entry
+
+
+def reference_structure(ctx: Context) -> tuple:
+    """The reference structure for runs of context ``ctx``: each effect of :data:`~pipeline.diagnose.
+    effects.REFERENCE` in its form, where it applies to the runs."""
+    return structure_of(*[(e, f) for e, f in REFERENCE if BY_NAME[e].applicable(ctx) is None])
+
+
+def _nested_reference(refit: Search, held: Series, base_mae: float, noise: float):
+    """The reference structure fitted as :func:`reference_fit` fits it (in ``refit``'s family, from its
+    linear fit) on ``refit``'s training runs and evaluated on ``held`` (:func:`evaluate`'s per-run list),
+    for the reference's figures under the nested protocol (``Reference.nested_*``).  None where
+    ``DiagnoseConfig.reference_fit`` is off, no hull term applies, the baseline's MAE psi on ``held``
+    (``base_mae``, deg) is within the inadequacy limit of :func:`_adequacy` (noise ``noise`` deg: the
+    same rule the stage applies to the pooled error before it makes any reference fit) or the fit
+    fails."""
+    cfg, ctx = refit.cfg, refit.ctx
+    structure = reference_structure(ctx)
+    limit = cfg.inadequate_floors * max(2.0 * noise, cfg.min_abs_gain_deg)
+    if not cfg.reference_fit or "hull_nonlinearity" not in dict(structure) or not base_mae > limit:
+        return None
+    try:
+        fit = fit_structure(refit.folds[0].train, structure, refit.ctx, start=refit.fit(0, ()),
+                            **refit.fit_options())
+    except ModelError:
+        return None
+    return evaluate(fit, [held])[1]
 
 
 def _nested_task(folds, i: int, ctx, cfg, noise):
@@ -616,12 +648,14 @@ def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
 
 
 def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_results=None,
-                 tick=None) -> tuple[Gain, dict]:
+                 tick=None) -> tuple[Gain, dict, dict | None]:
     """The gain on runs no choice has seen, with its 95 % interval (its ``flag`` and validation cut
-    are the report's, :func:`_report`); and, with test runs, each rung of the ladder there ({structure:
-    {"mae": deg, "gain": relative, "interval": 95 % interval}}; empty without).  ``nested_results``:
-    :func:`_nested_one` of every training and validation run, when already made (in worker
-    processes); otherwise they are made here."""
+    are the report's, :func:`_report`); with test runs, each rung of the ladder there ({structure:
+    {"mae": deg, "gain": relative, "interval": 95 % interval}}; empty without); and in the nested mode
+    the reference structure's figures on the same held-out runs against the same baselines
+    (``Reference.nested_*`` keys without the prefix; None where not made on every held-out run).
+    ``nested_results``: :func:`_nested_one` of every training and validation run, when already made (in
+    worker processes); otherwise they are made here."""
     folds, te, ctx, cfg, noise = design.folds, design.te, design.ctx, design.cfg, design.noise
     block_s = cfg.block_T * ctx.t_ship
     rungs = [st for st, _ in sel.ladder]
@@ -669,13 +703,13 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
             per_run=_per_run(te, b[1], e[1]),
             nested=[],
             against_other_linear=_against_other([(te, po, e[1])] if po is not None else [], cfg, block_s),
-        ), ladder_test
+        ), ladder_test, None
     # nested leave-one-run-out: every run of the selection is held out in turn; the whole selection is
     # repeated on the others, the chosen structure refitted on all of them, and measured on the held-out
     # run alone.  Inner folds: :func:`_inner_folds` (the outer design repeated on the remaining runs).
     if not cfg.nested_gain:
         return _no_honest_gain("not measured: the nested leave-one-run-out is switched off "
-                               "(DiagnoseConfig.nested_gain), and no --test runs were given"), {}
+                               "(DiagnoseConfig.nested_gain), and no --test runs were given"), {}, None
     pairs, nested, measured = [], [], []
     runs = folds[0].train + folds[0].val
     if nested_results is None:  # in this process, sharing the fits already made (the memo)
@@ -684,18 +718,19 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
             nested_results.append(_nested_one(folds, held, ctx, cfg, noise, design.memo))
             if tick is not None:
                 tick()
-    others = []
+    others, refs = [], []
     for held, res in zip(runs, nested_results, strict=True):
         if res is None:
             continue
-        (pb, pe, po), entry = res
+        (pb, pe, po, pr), entry = res
         pairs.append(([held], pb, pe))
         others.append(([held], po, pe) if po is not None else None)
+        refs.append(([held], pb, pr) if pr is not None else None)
         measured.append(held.name)
         nested.append(entry)
     if not pairs:
         return _no_honest_gain("none: fewer than three runs, so no run can be held out of a selection, and "
-                               "no --test runs were given"), {}
+                               "no --test runs were given"), {}, None
     g, iv, bm, em = _pair_gain(pairs, cfg, block_s)
     return Gain(
         mae_psi_relative_reduction=g,
@@ -710,7 +745,19 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
         nested=nested,
         against_other_linear=_against_other(others if all(o is not None for o in others) else [],
                                             cfg, block_s),
-    ), {}
+    ), {}, _reference_nested(refs, cfg, block_s)
+
+
+def _reference_nested(refs, cfg, block_s) -> dict | None:
+    """The reference structure's nested figures from [(held-out runs, the baseline's evaluations, the
+    reference's)] (None entries where it was not made): its pooled MAE psi and the baseline's (deg), the
+    relative cut with its bootstrap 95 % interval and the runs, as the honest gain's; None unless made on
+    every held-out run (a pooled figure over some of them is no figure of the protocol)."""
+    if not refs or any(r is None for r in refs):
+        return None
+    g, iv, bm, rm = _pair_gain(refs, cfg, block_s)
+    return {"mae_psi_deg": rm, "baseline_mae_psi_deg": bm, "mae_psi_relative_reduction": g,
+            "interval_95": iv, "measured_on": [s.name for v, _, _ in refs for s in v]}
 
 
 def _against_other(pairs, cfg, block_s) -> OtherLinearGain | None:
@@ -724,7 +771,8 @@ def _against_other(pairs, cfg, block_s) -> OtherLinearGain | None:
                            extended_mae_psi_deg=em)
 
 
-def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> Reference:
+def reference_fit(design: _Design, search: Search, ks, adequate: bool,
+                  nested: dict | None = None) -> Reference:
     """diagnosis.json's ``reference``: the reference structure (:data:`~pipeline.diagnose.effects.
     REFERENCE`, each effect where it applies to the runs) fitted in every fold on its training runs in
     the selection's family (:attr:`~pipeline.diagnose.select.Search.family_bounds`), from its linear
@@ -737,9 +785,10 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> Refere
     is on: where the linear model is within its noise floors there is nothing for a richer model to
     carry.  MAEs in deg (mean over the runs, each run alike), reductions relative (0.6 = 60 %).
     ``material``: whether its pooled validation reduction reaches ``material_threshold``
-    (``DiagnoseConfig.min_gain``); None where not made."""
+    (``DiagnoseConfig.min_gain``); None where not made.  ``nested``: its figures under the nested
+    leave-one-run-out, made with the honest gain (:func:`_honest_gain`), reported as ``nested_*``."""
     folds, te, ctx, cfg = design.folds, design.te, design.ctx, design.cfg
-    structure = structure_of(*[(e, f) for e, f in REFERENCE if BY_NAME[e].applicable(ctx) is None])
+    structure = reference_structure(ctx)
     effects = [e for e, _ in structure]
 
     def not_made(why: str) -> Reference:
@@ -780,7 +829,8 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool) -> Refere
     # linear model misses on these runs, and a verdict of none is not a term the selection missed
     return Reference(computed=True, effects=effects, forms=dict(structure), validation_mae_psi_deg=mae,
                      per_fold=per_fold, validation_mae_psi_relative_reduction=red,
-                     **test, material=bool(red >= cfg.min_gain), material_threshold=cfg.min_gain)
+                     **test, **{f"nested_{k}": v for k, v in (nested or {}).items()},
+                     material=bool(red >= cfg.min_gain), material_threshold=cfg.min_gain)
 
 
 def _no_honest_gain(why: str) -> Gain:
@@ -1149,7 +1199,7 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         gain=gain,
         ladder=ladder,
         # the catalogue's terms told everything at once, not chosen (reference_fit): beside the ladder
-        reference=reference_fit(design, search, ks, adequacy.adequate),
+        reference=reference_fit(design, search, ks, adequacy.adequate, outcome.reference_nested),
         stability=Stability(
             folds_agreeing=agree,
             total=len(causes),

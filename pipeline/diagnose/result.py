@@ -168,6 +168,10 @@ class HeldOutSelection(Result):
     gain: float
     baseline_sign_bounds: bool
     other_linear_mae_psi_deg: float | None
+    #: the reference structure (``reference``) refitted on the same runs ``chosen_on`` and measured on
+    #: the held-out run (deg); None where not made: the baseline within its noise floors there,
+    #: DiagnoseConfig.reference_fit off, no hull term applicable, or its fit failed
+    reference_mae_psi_deg: float | None = None
 
 
 @dataclass(frozen=True)
@@ -238,6 +242,9 @@ class Reference(Result):
     made (every figure then None, ``per_fold`` empty); its ``effects`` and ``forms``; the pooled
     validation MAE psi (deg), per fold, and its relative cut against the baseline; with --test runs its
     MAE psi there, the baseline's, the relative cut and its 95 % interval (None without test runs);
+    without them, where the honest gain is the nested leave-one-run-out, the same figures under that
+    protocol (``nested_*``: refitted without each held-out run on the runs its selection saw, measured on
+    that run against the same baseline as ``gain``; None where not made on every held-out run);
     ``material``: whether its pooled validation cut reaches ``material_threshold``."""
 
     computed: bool
@@ -250,6 +257,11 @@ class Reference(Result):
     test_baseline_mae_psi_deg: float | None = None
     test_mae_psi_relative_reduction: float | None = None
     test_interval_95: list[float] | None = None
+    nested_mae_psi_deg: float | None = None
+    nested_baseline_mae_psi_deg: float | None = None
+    nested_mae_psi_relative_reduction: float | None = None
+    nested_interval_95: list[float] | None = None
+    nested_measured_on: list[str] = field(default_factory=list)
     reason: str | None = None
     #: whether the pooled validation cut reaches ``material_threshold`` (DiagnoseConfig.min_gain, the
     #: selection's own materiality); None where not made

@@ -484,7 +484,8 @@ def reference_text(dg: dict) -> str:
     """The reference fit beside the selection (diagnosis.json ``reference``: the catalogue's terms told
     everything at once, not chosen): its held-out MAE psi (deg) on the validation runs, the mean over
     the folds as the ladder's, against the baseline's and the selection's; with test runs its figure
-    there too.  "" when the stage made none."""
+    there too, and in the nested mode its figure under that protocol beside the honest gain's.  "" when
+    the stage made none."""
     ref = dg.get("reference")
     if not isinstance(ref, dict) or not ref.get("computed"):
         return ""
@@ -501,18 +502,38 @@ def reference_text(dg: dict) -> str:
                  f"{num(ref['test_mae_psi_deg'], 3, 'deg')} "
                  f"against the baseline's {num(ref.get('test_baseline_mae_psi_deg'), 3, 'deg')}, "
                  f"{gain_sentence(ref.get('test_mae_psi_relative_reduction'), ref.get('test_interval_95'))}.")
+    if isinstance(ref.get("nested_mae_psi_deg"), (int, float)):
+        g = dg.get("gain") or {}
+        cut = gain_sentence(ref.get("nested_mae_psi_relative_reduction"), ref.get("nested_interval_95"))
+        text += (f" Under the honest gain's protocol (nested leave-one-run-out: refitted without each run "
+                 f"and measured on it, {len(ref.get('nested_measured_on') or [])} runs), the reference {cut}"
+                 f" ({num(ref.get('nested_baseline_mae_psi_deg'), 3, 'deg')} -> "
+                 f"{num(ref['nested_mae_psi_deg'], 3, 'deg')}), where the selection's honest gain is "
+                 f"{gain_text(g.get('mae_psi_relative_reduction'))}.")
     reading = reference_reading(dg)
     return text + (" " + reading if reading else "")
 
 
 def reference_reading(dg: dict) -> str:
-    """Where the verdict is none and the reference fit does not beat the baseline by a material margin
-    (diagnosis.json ``reference.material`` false), the plain reading: the catalogue's terms told
-    everything at once do not carry what the linear model misses on these runs, with the reference's
-    pooled held-out reduction against its threshold (``reference.material_threshold``) and the honest
-    gain with its interval (:func:`honest_gain_text`); "" otherwise."""
+    """Where the verdict is none, the plain reading of the reference fit: where it does not beat the
+    baseline by a material margin (diagnosis.json ``reference.material`` false), the catalogue's terms
+    told everything at once do not carry what the linear model misses on these runs, with the
+    reference's pooled held-out reduction against its threshold (``reference.material_threshold``) and
+    the honest gain with its interval (:func:`honest_gain_text`); where it is material and its cut under
+    the nested protocol is at least that threshold at 95 % (``reference.nested_interval_95``), they do
+    carry it together, and none means the cause could not be named; "" otherwise."""
     ref = dg.get("reference")
-    if dg.get("cause") != "none" or not isinstance(ref, dict) or ref.get("material") is not False:
+    if dg.get("cause") != "none" or not isinstance(ref, dict):
+        return ""
+    iv = ref.get("nested_interval_95")
+    if ref.get("material") is True and isinstance(iv, list) and len(iv) == 2 \
+            and isinstance(iv[0], (int, float)) and iv[0] >= (ref.get("material_threshold") or 0.0):
+        return (f"So the catalogue's terms, taken together, carry what the linear model lacks on these runs "
+                f"(the reference's honest cut is at least {pct(iv[0])} at 95 %, above the "
+                f"{pct(ref.get('material_threshold'))} a model change needs), but no effect or small group "
+                f"of them passed the selection's tests on its own: the verdict none says that the cause "
+                f"could not be named, not that the linear model will do.")
+    if ref.get("material") is not False:
         return ""
     g = ref.get("validation_mae_psi_relative_reduction")
     how = (f"makes the baseline's held-out heading error worse by {pct(-g)}" if isinstance(g, (int, float))
