@@ -1133,8 +1133,17 @@ def fit_structure(
     return hit
 
 
-def _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds=True,
-                   hold_linear=None, signed_damping=False, plain=False) -> FitResult:
+def _fit_structure(*args, **kwargs) -> FitResult:
+    """:func:`_fit_in` with floating-point overflow silent: a trial point whose free run nearly
+    diverges overflows in SciPy's trust-region arithmetic (its step-size root finder), and the point is
+    then rejected by its cost (:func:`_representable` refuses non-finite residuals and sums), so the
+    overflow is an expected event of the search, not a warning for the user's terminal."""
+    with np.errstate(over="ignore"):
+        return _fit_in(*args, **kwargs)
+
+
+def _fit_in(series, structure, ctx, start, max_nfev, block_T, sign_bounds=True,
+            hold_linear=None, signed_damping=False, plain=False) -> FitResult:
     layout = Layout(structure_of(*structure), ctx, sign_bounds, hold_linear, signed_damping)
     lo, hi = layout.bounds()
     need_u = [e for e, _ in layout.structure if BY_NAME[e].needs_u]
