@@ -66,15 +66,16 @@ GAIN_NOT_MEASURED_KEYS = [k for k in GAIN_KEYS if k not in ("baseline_mae_psi_de
                                                             "per_run")]
 NESTED_KEYS = [
     "fold", "effects", "cause", "chosen_on", "measured_on", "baseline_mae_psi_deg", "extended_mae_psi_deg",
-    "gain", "baseline_sign_bounds", "other_linear_mae_psi_deg",
+    "gain", "baseline_sign_bounds", "other_linear_mae_psi_deg", "reference_mae_psi_deg",
 ]
 OTHER_LINEAR_KEYS = ["mae_psi_relative_reduction", "interval_95", "other_linear_mae_psi_deg",
                      "extended_mae_psi_deg", "validation_mae_psi_relative_reduction"]
 REFERENCE_KEYS = [
     "computed", "effects", "forms", "validation_mae_psi_deg", "per_fold",
     "validation_mae_psi_relative_reduction", "test_mae_psi_deg", "test_baseline_mae_psi_deg",
-    "test_mae_psi_relative_reduction", "test_interval_95",
-    "reason", "material", "material_threshold",
+    "test_mae_psi_relative_reduction", "test_interval_95", "nested_mae_psi_deg",
+    "nested_baseline_mae_psi_deg", "nested_mae_psi_relative_reduction", "nested_interval_95",
+    "nested_measured_on", "reason", "material", "material_threshold",
 ]
 
 
@@ -172,7 +173,7 @@ def _held(run: str, effects: list[str]) -> HeldOutSelection:
     return HeldOutSelection(fold=f"hold out {run}", effects=effects, cause=effects[0] if effects else None,
                             chosen_on=["a", "b"], measured_on=[run], baseline_mae_psi_deg=1.2,
                             extended_mae_psi_deg=0.9, gain=0.25, baseline_sign_bounds=True,
-                            other_linear_mae_psi_deg=None)
+                            other_linear_mae_psi_deg=None, reference_mae_psi_deg=0.7 if effects else None)
 
 
 @pytest.mark.parametrize("validation", [0.31, None], ids=["other linear in every fold", "without"])
@@ -216,3 +217,13 @@ def test_computed_reference_keys_and_round_trip(tmp_path):
                                                    "reference_mae_psi_deg"]] * 2
     back = Reference.from_json(doc)
     assert back == ref and isinstance(back.per_fold[0], ReferenceFold)
+    # in the nested mode: its figures under the honest gain's protocol, in the same order
+    nested = Reference(computed=True, effects=ref.effects, forms=ref.forms, validation_mae_psi_deg=1.0,
+                       per_fold=folds, validation_mae_psi_relative_reduction=0.6, nested_mae_psi_deg=5.2,
+                       nested_baseline_mae_psi_deg=9.7, nested_mae_psi_relative_reduction=0.46,
+                       nested_interval_95=[0.34, 0.56], nested_measured_on=["a", "b"], material=True,
+                       material_threshold=0.1)
+    doc = read_json(write_json(tmp_path / "nested.json", nested.to_json()))
+    assert list(doc) == REFERENCE_KEYS and doc["nested_measured_on"] == ["a", "b"]
+    assert doc["test_mae_psi_deg"] is None
+    assert Reference.from_json(doc) == nested
