@@ -1002,7 +1002,10 @@ def _representable(a: np.ndarray, f: np.ndarray | None = None) -> bool:
     the gradient J^T f): sensitivities that grew beyond about 1e154 along a diverging free run are
     finite numbers whose squares are not."""
     with np.errstate(over="ignore", invalid="ignore"):
-        ok = bool(np.all(np.isfinite(a)) and np.isfinite(np.sum(a * a)))
+        # the sum of squares is finite only where every entry is (a NaN or an infinity makes it NaN or
+        # infinite), so one dot product says both
+        flat = a.ravel()
+        ok = bool(np.isfinite(flat @ flat))
         if ok and f is not None:
             ok = bool(np.all(np.isfinite(a.T @ f)))
     return ok
