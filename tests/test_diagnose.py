@@ -860,7 +860,8 @@ def test_nested_workers_give_the_same_report_bytes():
     """The nested leave-one-run-out in 2 worker processes (forked while the parent makes the main
     selection) gives the report of the in-process run byte for byte, in a fresh single-threaded
     interpreter (the only place the workers are used; tests/nested_bytes.py).  And switched off
-    (DiagnoseConfig.nested_gain), it changes nothing but the gain and the stability."""
+    (DiagnoseConfig.nested_gain), it changes nothing but the gain, the stability and the reference
+    fit's nested figures."""
     import subprocess
     import sys
     from pathlib import Path
@@ -873,8 +874,12 @@ def test_nested_workers_give_the_same_report_bytes():
     got = json.loads(done.stdout.strip().splitlines()[-1])
     assert got["same"] is True and got["nested"] == 4
     # nested_gain off (a detection study's setting): the main selection and every finding are the
-    # same; only the honest gain (none, with the reason) and the held-out-run stability are not made
-    assert got["off_differ"] == ["gain", "stability"], got
+    # same; only the honest gain (none, with the reason), the held-out-run stability and the reference
+    # fit's figures under the nested protocol (reference.nested_*) are not made
+    assert got["off_differ"] == ["gain", "reference", "stability"], got
+    assert got["reference_differ"] == ["nested_baseline_mae_psi_deg", "nested_interval_95",
+                                       "nested_mae_psi_deg", "nested_mae_psi_relative_reduction",
+                                       "nested_measured_on"], got
     assert got["off_gain"] is None and "switched off" in got["off_method"]
     assert got["cause"][0] == got["cause"][1] != "none"
 
