@@ -609,8 +609,8 @@ def _nested_reference(refit: Search, held: Series, base_mae: float, noise: float
     fails."""
     cfg, ctx = refit.cfg, refit.ctx
     structure = reference_structure(ctx)
-    limit = cfg.inadequate_floors * max(2.0 * noise, cfg.min_abs_gain_deg)
-    if not cfg.reference_fit or "hull_nonlinearity" not in dict(structure) or not base_mae > limit:
+    if not cfg.reference_fit or "hull_nonlinearity" not in dict(structure) \
+            or not base_mae > _inadequacy_limit(noise, cfg)[1]:
         return None
     try:
         fit = fit_structure(refit.folds[0].train, structure, refit.ctx, start=refit.fit(0, ()),
@@ -976,12 +976,18 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
     )
 
 
+def _inadequacy_limit(noise: float, cfg: DiagnoseConfig) -> tuple[float, float]:
+    """(noise floor, inadequacy limit) in deg for heading noise ``noise`` (deg): the floor of a step's
+    cut, max(2 x noise, ``cfg.min_abs_gain_deg``), and ``cfg.inadequate_floors`` of them."""
+    floor = max(2.0 * noise, cfg.min_abs_gain_deg)
+    return floor, cfg.inadequate_floors * floor
+
+
 def _adequacy(base_mae: float, noise: float, cfg: DiagnoseConfig, residuals: dict) -> Adequacy:
     """diagnosis.json's ``baseline_adequacy``: whether the linear baseline's pooled held-out MAE psi
     (deg) is within ``cfg.inadequate_floors`` noise floors (the floor of a step's cut, deg), and, when
     it is not, the effect signatures its residual correlates with most (strongest first)."""
-    floor = max(2.0 * noise, cfg.min_abs_gain_deg)
-    limit = cfg.inadequate_floors * floor
+    floor, limit = _inadequacy_limit(noise, cfg)
     ok = not base_mae > limit
     corr = residuals.get("correlation") or {}
     sig = sorted(corr.items(), key=lambda kv: -abs(kv[1]))[:3]
