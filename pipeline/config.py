@@ -494,6 +494,26 @@ class DiagnoseConfig:
     # it, the verdict is none and the test runs keep 2.90 deg (without that gate they went to 5.66 deg).
     # MARIN fold 0 and the virtual KCS: the same verdicts on or off
     anchor_rudder_gains: bool = True
+    # an unsound extension (above) is refitted in its bounded form instead of its anchored one: every
+    # parameter fitted, its linear part's growth rate held at most at the allowance the data give
+    # (pipeline.diagnose.select.Search._bounded_form; fit_structure(growth_bound=...)).  What the
+    # anchored form asks of the small-motion model is that it grow no faster than the data allow;
+    # freezing a11 ... a22 at the reported baseline asks more, and where that baseline is the
+    # unconstrained fit it inherits a free-run compromise: on the virtual KCS fold 1 its a21 = +78.6,
+    # a22 = +3.0 predict the ship over one ship time scale from the measured state at 10.9 / 8.1 /
+    # 3.7 deg per piece against the bounded fit's 1.45 / 1.48 / 0.83, and the reference structure
+    # anchored there fails the short-horizon gate; in its bounded form (growth 0.0067 1/s, at the
+    # allowance) it predicts 0.33 / 0.25 / 0.23 deg per piece and holds its validation runs out at
+    # 4.74 deg against the anchored 5.21.  The anchored form stays the fall-back where this fit fails
+    bound_small_motion: bool = False
+    # where no effect, pair or triple of the catalogue passes from the baseline, the reference structure
+    # (rudder offset, Abkowitz-type hull terms, speed-scaled coefficients) is tried as one step, taken
+    # when it passes with each member's floor, and the backward pass drops what it does not need
+    # (pipeline.diagnose.select._reference_group).  Forward selection misses terms that only act
+    # together: on the virtual KCS the offset, the hull terms and the speed loss each fail alone, the
+    # three together pass every gate in the bounded form (with jackknife_same_kind) at 5.13 deg held
+    # out against the best linear model's 6.31.  Off: not yet measured on the truth families
+    reference_step: bool = False
     # the damping terms of every effect's form (Param.damping: y_vv, n_rrr, n_rr and the cross terms
     # that are a damping growing with the other motion) held <= 0 in the free form too, not only in the
     # anchored one.  Off: measured to change nothing where it was measured, and not measured on the
@@ -545,6 +565,13 @@ class DiagnoseConfig:
     # whose extrapolation to the other is no fair test of a nonlinear term (at 2, real effects of the
     # generalisation cases are lost: make generalise).  0 = off
     jackknife_min_train: int = 3
+    # the jackknife leaves out a turning run only where another turning run trains beside it: without
+    # it the rest are zigzags, whose rudder and drift stop short of a turn's (35 deg rudder, a steady
+    # drift and speed loss no zigzag reaches), so the extrapolation to the turn is no fair test, for
+    # the reason above (a single manoeuvre kind left to predict another).  Measured on the virtual KCS
+    # (each design fold trains on one circle): the reference structure fitted on the two zigzags runs
+    # away on the circle (61.8 -> 6843 deg) while with the circle it holds the other side's circle out
+    jackknife_same_kind: bool = False
     # relative: runs whose approach speeds differ by more than this are refused together (Froude
     # number, hence the dimensional coefficients, would differ by as much: 15 % of U is ~30 % of the
     # rudder force)

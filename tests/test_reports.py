@@ -354,17 +354,20 @@ def test_diagnosis_report_shows_ladder_physics_and_honest_gain(tmp_path):
     # the gain is theirs, not the linear model's, and the page says so (the stage's own flag,
     # pipeline.diagnose.core._gain_flag), never "the extended model cuts ..." under "Cause: none"
     from pipeline.diagnose.core import _gain_flag
+    from pipeline.diagnose.result import Gain
 
     none = json.loads(path.read_text())
     nested = [{"fold": f"hold out {r}", "effects": eff, "cause": eff[0] if eff else "none",
-               "measured_on": [r], "gain": g}
+               "chosen_on": ["zz20", "zz10"], "measured_on": [r], "baseline_mae_psi_deg": 10.0,
+               "extended_mae_psi_deg": 10.0 * (1 - g), "gain": g, "baseline_sign_bounds": True,
+               "other_linear_mae_psi_deg": None}
               for r, eff, g in (("zz20", ["rudder_offset", "sway_yaw_coupling"], 0.85), ("zz10", [], 0.0))]
     none["gain"].update(mae_psi_relative_reduction=0.45, interval_95=[0.23, 0.65],
                         measured_on=["zz20", "zz10"], method="nested leave-one-run-out", nested=nested,
                         per_run=[{"run_id": n["measured_on"][0], "baseline_mae_psi_deg": 10.0,
                                   "extended_mae_psi_deg": 10.0 * (1 - n["gain"]), "gain": n["gain"]}
                                  for n in nested])
-    none["gain"]["flag"] = _gain_flag(none["gain"], [])
+    none["gain"]["flag"] = _gain_flag(Gain.from_json({"against_other_linear": None} | none["gain"]), [])
     none.update(cause="none", ladder=none["ladder"][:1], test_runs=[])   # nested mode: no test runs
     none["extended"].update(effects=[], effect_estimates={})
     for f in none["findings"]:

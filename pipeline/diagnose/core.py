@@ -41,7 +41,7 @@ from threadpoolctl import threadpool_limits
 
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose.datacheck import approach_drift, correct_rate_bias, rate_bias
-from pipeline.diagnose.effects import BY_NAME, CATALOGUE, REFERENCE, Context
+from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
 from pipeline.diagnose.effects.rudder_delay import time_floor
 from pipeline.diagnose.fit import (
     FitMemo,
@@ -84,7 +84,16 @@ from pipeline.diagnose.result import (
     Stability,
     UnjudgedFinding,
 )
-from pipeline.diagnose.select import Fold, Search, Selection, _gain, heading_noise_deg, select
+from pipeline.diagnose.select import (
+    Fold,
+    Search,
+    Selection,
+    _gain,
+    heading_noise_deg,
+    is_turning,
+    reference_structure,
+    select,
+)
 from pipeline.errors import InputError, ModelError
 from pipeline.io import Run
 from pipeline.lifeline import die_with_parent
@@ -534,15 +543,10 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
     return inner
 
 
-#: deg: a run whose heading turns through this much is a turning circle, not a zigzag (the ingest
-#: stage's rule, pipeline.ingest.checks.infer_test_from_rudder: no zigzag's heading swings that far)
-TURNING_DEG = 90.0
-
-
 def _manoeuvre(s: Series) -> tuple[bool, float]:
     """Sort key that puts the same manoeuvres next to each other: turning (the heading turns through
     :data:`TURNING_DEG` or more, which no zigzag does) or not, then the rudder amplitude."""
-    return bool(np.ptp(s.psi) >= TURNING_DEG), _rudder_amplitude(s)
+    return is_turning(s), _rudder_amplitude(s)
 
 
 def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
@@ -591,12 +595,6 @@ def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
         reference_mae_psi_deg=pr[0]["mae_psi_deg"] if pr is not None else None,
     )
     return (pb, pe, po, pr), entry
-
-
-def reference_structure(ctx: Context) -> tuple:
-    """The reference structure for runs of context ``ctx``: each effect of :data:`~pipeline.diagnose.
-    effects.REFERENCE` in its form, where it applies to the runs."""
-    return structure_of(*[(e, f) for e, f in REFERENCE if BY_NAME[e].applicable(ctx) is None])
 
 
 def _nested_reference(refit: Search, held: Series, base_mae: float, noise: float):

@@ -414,6 +414,10 @@ class Layout:
     #: the effects' damping terms (``Param.damping``) held <= 0 in every form, not only the anchored one
     #: (``DiagnoseConfig.signed_damping`` says why)
     signed_damping: bool = False
+    #: 1/s: the largest growth rate (:func:`growth_rate`) the linear part may take, held by a penalty
+    #: in the output-error polish (:func:`_growth_penalty`; the bounded form of an extension, docs/
+    #: diagnosis.md "Sound at every amplitude"); None: free
+    growth_bound: float | None = None
 
     @property
     def params(self):
@@ -540,6 +544,8 @@ class FitResult:
     #: made without the speed devices (``fit_structure(plain=True)``); its held-out starts
     #: (:func:`boxed_initial_state`) are then fitted with SciPy's forward differences too
     plain: bool = False
+    #: 1/s: the growth-rate bound of its linear part (the bounded form, Layout.growth_bound); None: free
+    growth_bound: float | None = None
 
     @property
     def effects(self) -> list[str]:
@@ -1061,6 +1067,7 @@ def fit_structure(
     signed_damping: bool = False,
     memo: FitMemo | None = None,
     plain: bool = False,
+    growth_bound: float | None = None,
 ) -> FitResult:
     """Fit the linear model plus ``structure`` on ``series`` (the method: module docstring).
 
@@ -1088,6 +1095,9 @@ def fit_structure(
         linear part.
     signed_damping : bool
         The damping terms signed in the free form too (:attr:`Layout.signed_damping`).
+    growth_bound : float, optional
+        1/s: the largest growth rate of the linear part (:func:`growth_rate`), held in the polish (the
+        bounded form of an extension, :attr:`Layout.growth_bound`); None: free.
     memo : FitMemo, optional
         The fits already made in this diagnosis: the same fit is returned, not made again.  None:
         fitted anew.
@@ -1109,9 +1119,10 @@ def fit_structure(
         No finite fit, or an effect needs the surge speed u that a training run lacks.
     """
     hold = None if hold_linear is None else tuple(float(x) for x in hold_linear)
+    bound = None if growth_bound is None else float(growth_bound)
     if memo is None or plain:
         return _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold,
-                              signed_damping, plain)
+                              signed_damping, plain, bound)
     key = (
         tuple(s.content_key() for s in series),
         structure_of(*structure),
@@ -1122,12 +1133,13 @@ def fit_structure(
         sign_bounds,
         hold,
         bool(signed_damping),
+        bound,
     )
     hit = memo.get(key)
     if hit is None:
         try:
             hit = _fit_structure(series, structure, ctx, start, max_nfev, block_T, sign_bounds, hold,
-                                 signed_damping)
+                                 signed_damping, False, bound)
         except ModelError as err:
             hit = err
         memo.put(key, hit)
@@ -1146,8 +1158,8 @@ def _fit_structure(*args, **kwargs) -> FitResult:
 
 
 def _fit_in(series, structure, ctx, start, max_nfev, block_T, sign_bounds=True,
-            hold_linear=None, signed_damping=False, plain=False) -> FitResult:
-    layout = Layout(structure_of(*structure), ctx, sign_bounds, hold_linear, signed_damping)
+            hold_linear=None, signed_damping=False, plain=False, growth_bound=None) -> FitResult:
+    layout = Layout(structure_of(*structure), ctx, sign_bounds, hold_linear, signed_damping, growth_bound)
     lo, hi = layout.bounds()
     need_u = [e for e, _ in layout.structure if BY_NAME[e].needs_u]
     u_ref = reference_speed(series) if need_u else None
@@ -1247,24 +1259,31 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
                 best[free] = rr.x
         p0 = best
     joint = _JointStarts(series, len(names), layout, sc, u_ref, batch, (lo, hi), plain)
+    pen = _GrowthPenalty(layout.growth_bound, series)
     if joint.free:
         # the polish with each training run's own start, jointly (the docstring says why)
         if plain:
-            res = least_squares(joint, joint.extend(p0, z0), bounds=joint.bounds(lo, hi), x_scale="jac",
-                                max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL)
+            res = least_squares(pen.fun(joint), joint.extend(p0, z0), bounds=joint.bounds(lo, hi),
+                                x_scale="jac", max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL)
         else:
-            res = _compressed_lsq(joint.fun_jac, joint.extend(p0, z0), *joint.bounds(lo, hi), max_nfev)
+            res = _compressed_lsq(pen.fun_jac(joint.fun_jac), joint.extend(p0, z0), *joint.bounds(lo, hi),
+                                  max_nfev)
         msg.append("output-error polish from each training run's own start (within its box)"
                    + ("" if res.success else f" (stopped: {res.message})"))
     else:
         if plain:
-            res = least_squares(oe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
-                                tr_solver=_TR, **_TOL)
+            res = least_squares(pen.fun(oe), p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev,
+                                method="trf", tr_solver=_TR, **_TOL)
         else:
-            res = _compressed_lsq(lambda p: jacobian(batch, p, lo, hi), p0, lo, hi, max_nfev)
+            res = _compressed_lsq(pen.fun_jac(lambda p: jacobian(batch, p, lo, hi)), p0, lo, hi, max_nfev)
         msg.append("output-error polish" + ("" if res.success else f" (stopped: {res.message})"))
     if not (np.all(np.isfinite(res.x)) and np.isfinite(res.cost)):
         raise ModelError("the diagnosis fit produced no finite result")
+    if pen.bound is not None:
+        # the penalty row is no residual of the data: the covariance and the cost are the data's
+        res.fun, res.jac = res.fun[:-1], res.jac[:-1]
+        res.cost = 0.5 * float(res.fun @ res.fun)
+        msg.append(f"growth rate of the linear part held <= {pen.bound:.4g} 1/s")
     n_p = len(names)
     held = {1} if latent_sway_a12(ctx) is not None else set()    # a12 held: it has no variance
     if layout.hold_linear is not None:     # the anchored form: the linear part is given, not estimated
@@ -1295,7 +1314,58 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
         sign_bounds=layout.sign_bounds,
         hold_linear=layout.hold_linear,
         plain=plain,
+        growth_bound=layout.growth_bound,
     )
+
+
+class _GrowthPenalty:
+    """The bounded form's constraint (:attr:`Layout.growth_bound`): one residual row appended to the
+    output-error polish, w max(0, g - bound), g the linear part's growth rate (:func:`growth_rate`,
+    1/s), with its analytic derivative in a11 ... a22.  w = sqrt(N) D (N residual rows, D the longest
+    training run, s): a growth rate one neutral margin 1/D above the bound (the least growth a run can
+    tell from neutral, ``Search.growth_allowance``) costs as much as a residual of one scale unit on
+    every row, so the optimum sits on the bound to a small fraction of that margin.  ``bound`` None:
+    the functions are returned unchanged."""
+
+    def __init__(self, bound: float | None, series):
+        self.bound = bound
+        self.duration = max(float(s.t[-1] - s.t[0]) for s in series) if series else 1.0
+
+    def _row(self, x, n_rows: int):
+        a11, a12, a21, a22 = (float(v) for v in x[:4])
+        half = 0.5 * (a11 - a22)
+        disc = half * half + a12 * a21
+        root = float(np.sqrt(disc)) if disc > 0.0 else 0.0
+        g = 0.5 * (a11 + a22) + root
+        grad = np.zeros(x.size)
+        if not g > self.bound:
+            return 0.0, grad
+        w = float(np.sqrt(n_rows)) * self.duration
+        if root > 0.0:
+            grad[:4] = (0.5 + half / (2.0 * root), a21 / (2.0 * root), a12 / (2.0 * root),
+                        0.5 - half / (2.0 * root))
+        else:
+            grad[0] = grad[3] = 0.5
+        return w * (g - self.bound), w * grad
+
+    def fun(self, f):
+        if self.bound is None:
+            return f
+
+        def with_row(x):
+            r = f(x)
+            return np.append(r, self._row(x, r.size)[0])
+        return with_row
+
+    def fun_jac(self, fj):
+        if self.bound is None:
+            return fj
+
+        def with_row(x):
+            r, jx = fj(x)
+            v, grad = self._row(x, r.size)
+            return np.append(r, v), np.vstack([jx, grad[None, :]])
+        return with_row
 
 
 #: the states of a training run's start fitted with the model (:class:`_JointStarts`): r0 only.  An

@@ -99,7 +99,7 @@ import numpy as np
 from scipy import stats
 
 from pipeline.config import DiagnoseConfig
-from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
+from pipeline.diagnose.effects import BY_NAME, CATALOGUE, REFERENCE, Context
 from pipeline.diagnose.extended import predict_segments
 from pipeline.diagnose.fit import (
     FitMemo,
@@ -192,6 +192,22 @@ def carried_by_one_run(run_diffs: list, alpha: float) -> list[RunTest]:
         if not tj >= tcj:
             out.append(RunTest(name, tj, tcj, f"{name} (without it block t = {tj:.2f} below {tcj:.2f})"))
     return out
+
+
+#: deg: a run whose heading turns through this much is a turning circle, not a zigzag (the ingest
+#: stage's rule, pipeline.ingest.checks.infer_test_from_rudder: no zigzag's heading swings that far)
+TURNING_DEG = 90.0
+
+
+def is_turning(s: Series) -> bool:
+    """Whether run ``s`` is a turning manoeuvre (its heading turns through :data:`TURNING_DEG`)."""
+    return bool(np.ptp(s.psi) >= TURNING_DEG)
+
+
+def reference_structure(ctx: Context) -> tuple:
+    """The reference structure for runs of context ``ctx``: each effect of :data:`~pipeline.diagnose.
+    effects.REFERENCE` in its form, where it applies to the runs."""
+    return structure_of(*[(e, f) for e, f in REFERENCE if BY_NAME[e].applicable(ctx) is None])
 
 
 def heading_noise_deg(series: list[Series], t_ship: float) -> float:
@@ -324,16 +340,40 @@ class Search:
         baseline and from the free fit, the one of least TRAINING cost kept.  Off with
         ``DiagnoseConfig.anchor_small_motion`` False; a refit that fails keeps the free fit (the
         held-out gates judge it)."""
-        if not self.cfg.anchor_small_motion or not self._hull(structure) or fit.hold_linear is not None:
+        if not self.cfg.anchor_small_motion or not self._hull(structure) or fit.hold_linear is not None \
+                or fit.growth_bound is not None:
             return fit
         rate = growth_rate(fit.theta)
         # the allowance is at least 1/D (neutral): below it no linear fit need be looked at
         if rate <= self._neutral(k) or rate <= self.growth_allowance(k):
             return fit
+        if self.cfg.bound_small_motion:
+            try:
+                return self._bounded_form(k, structure, [fit])
+            except ModelError:
+                pass
         try:
             return self._anchored(k, structure, [fit])
         except ModelError:
             return fit
+
+    def _bounded_form(self, k: int, structure, starts) -> FitResult:
+        """The bounded form of ``structure`` in fold ``k`` (:meth:`sound`,
+        ``DiagnoseConfig.bound_small_motion``): every parameter fitted, the linear part's growth rate
+        held at most at :meth:`growth_allowance` (``fit_structure(growth_bound=...)``); fitted from
+        each of ``starts``, the fold's bounded linear fit and its reported baseline, the fit of least
+        TRAINING cost kept.  Raises ModelError where none fits."""
+        bound = self.growth_allowance(k)
+        fits, err = [], None
+        for st in (*starts, self.bounded(k), self.linear(k)):
+            try:
+                fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
+                                          growth_bound=bound, **self.fit_options()))
+            except ModelError as e:
+                err = e
+        if not fits:
+            raise err
+        return min(fits, key=lambda f: f.cost)
 
     def _linear(self, k: int, sign_bounds: bool, start: FitResult | None) -> FitResult:
         """The linear model fitted on fold ``k``'s training runs with or without the sign bounds: of the
@@ -520,6 +560,9 @@ class Search:
             for k, f in enumerate(self.folds):
                 if len(f.train) >= self.cfg.jackknife_min_train:
                     for j, run in enumerate(f.train):
+                        if self.cfg.jackknife_same_kind and is_turning(run) and not any(
+                                is_turning(x) for x in f.train if x is not run):
+                            continue  # the only turn of the fold: DiagnoseConfig.jackknife_same_kind
                         index[(k, j)] = len(folds)
                         folds.append(Fold([x for x in f.train if x is not run], [run]))
             jcfg = replace(self.cfg, cold_start=False)
@@ -936,6 +979,26 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
     return best
 
 
+def _reference_group(search: Search, ks, noise_deg):
+    """The reference structure (:func:`reference_structure`) as one step from the baseline, where no
+    single effect or group of the catalogue passes (``DiagnoseConfig.reference_step``): taken when the
+    step passes with EACH member's physical floor; the backward pass then drops the members it does
+    not need.  Returns (first member, structure, step) or None (no hull term applies, a fit fails, or
+    a member's step fails)."""
+    st = reference_structure(search.ctx)
+    if "hull_nonlinearity" not in dict(st):
+        return None
+    try:
+        for k in ks:
+            search.fit(k, st)
+    except ModelError:
+        return None
+    steps = [search.step(ks, (), st, m, noise_deg) for m, _ in st]
+    if not all(s.passes for s in steps):
+        return None
+    return st[0][0], st, steps[0]
+
+
 #: re-judgements of one forward round after the current structure found a better optimum (each one
 #: follows a strict fall of its training cost; two are enough in practice, the cap bounds the time)
 _MAX_REJUDGE = 2
@@ -993,6 +1056,8 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
             pick = _best_group(search, ks, cur, pool, noise_deg, 2)
             if pick is None and len(cur) + 3 <= cfg.max_effects:
                 pick = _best_group(search, ks, cur, pool, noise_deg, 3)
+        if pick is None and not cur and cfg.reference_step:
+            pick = _reference_group(search, ks, noise_deg)
         if pick is None:
             break
         e, st, s = pick
