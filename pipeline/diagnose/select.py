@@ -275,11 +275,17 @@ class Search:
         # with DiagnoseConfig.anchor_rudder_gains the rudder gains b11, b21 are held too: the anchored
         # extension is then the baseline itself at small motion, not only in its hull's linear part
         hold = tuple(float(x) for x in anchor.theta[:6 if self.cfg.anchor_rudder_gains else 4])
+        return self._least_cost(k, structure, (anchor, *starts), hold_linear=hold)
+
+    def _least_cost(self, k: int, structure, starts, **form) -> FitResult:
+        """Fold ``k``'s fit of ``structure`` in the form ``form`` (keywords of :func:`fit_structure`)
+        from each of ``starts``, the one of least TRAINING cost (the first of equal ones).  Raises the
+        last ModelError where none fits."""
         fits, err = [], None
-        for st in (anchor, *starts):
+        for st in starts:
             try:
-                fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
-                                          hold_linear=hold, **self.fit_options()))
+                fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st, **form,
+                                          **self.fit_options()))
             except ModelError as e:
                 err = e
         if not fits:
@@ -363,17 +369,8 @@ class Search:
         held at most at :meth:`growth_allowance` (``fit_structure(growth_bound=...)``); fitted from
         each of ``starts``, the fold's bounded linear fit and its reported baseline, the fit of least
         TRAINING cost kept.  Raises ModelError where none fits."""
-        bound = self.growth_allowance(k)
-        fits, err = [], None
-        for st in (*starts, self.bounded(k), self.linear(k)):
-            try:
-                fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st,
-                                          growth_bound=bound, **self.fit_options()))
-            except ModelError as e:
-                err = e
-        if not fits:
-            raise err
-        return min(fits, key=lambda f: f.cost)
+        return self._least_cost(k, structure, (*starts, self.bounded(k), self.linear(k)),
+                                growth_bound=self.growth_allowance(k))
 
     def _linear(self, k: int, sign_bounds: bool, start: FitResult | None) -> FitResult:
         """The linear model fitted on fold ``k``'s training runs with or without the sign bounds: of the
