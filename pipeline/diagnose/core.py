@@ -1017,7 +1017,9 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
     else:
         ext, ext_val, ext_per = base, base_val, base_per
     chosen = [e for e, _ in st]
-    rows = [_finding(e.name, sel, search, ctx, cfg, e.name in chosen, st) for e in CATALOGUE]
+    # every effect tried: the catalogue's, and one the reference step brought in from outside it
+    tried = [e.name for e in CATALOGUE] + [e for e in chosen if e not in {x.name for x in CATALOGUE}]
+    rows = [_finding(e, sel, search, ctx, cfg, e in chosen, st) for e in tried]
     rows.sort(
         key=lambda r: (
             not r.significant,

@@ -92,6 +92,7 @@ class MinGain:
 
     code: str = "min_gain"
     last: bool = False
+    worth: bool = True
 
     def judge(self, ev: Evidence) -> GateResult:
         ok = ev.gain >= ev.min_gain
@@ -106,6 +107,7 @@ class EveryFold:
 
     code: str = "every_fold"
     last: bool = False
+    worth: bool = True
 
     def judge(self, ev: Evidence) -> GateResult:
         low = min(ev.fold_gains) if ev.fold_gains else 0.0
@@ -120,6 +122,7 @@ class NoiseFloor:
 
     code: str = "noise_floor"
     last: bool = False
+    worth: bool = True
 
     def judge(self, ev: Evidence) -> GateResult:
         ok = not ev.abs_gain_deg < ev.noise_floor_deg
@@ -135,6 +138,7 @@ class BlockT:
 
     code: str = "block_t"
     last: bool = False
+    worth: bool = True
 
     def judge(self, ev: Evidence) -> GateResult:
         ok = ev.t >= ev.t_crit
@@ -152,6 +156,7 @@ class CarriedByOneRun:
 
     code: str = "carried_by_one_run"
     last: bool = False
+    worth: bool = True
 
     def judge(self, ev: Evidence) -> GateResult:
         if not ev.carried:
@@ -171,6 +176,7 @@ class PhysicalFloor:
 
     code: str = "physical_floor"
     last: bool = False
+    worth: bool = True
 
     def judge(self, ev: Evidence) -> GateResult:
         ok = all(ev.floor_ok)
@@ -188,6 +194,7 @@ class BeatsBestLinear:
 
     code: str = "beats_best_linear"
     last: bool = False
+    worth: bool = False
 
     def judge(self, ev: Evidence) -> GateResult:
         if ev.best_linear_mae_deg is None:
@@ -207,6 +214,7 @@ class NoHarm:
 
     code: str = "no_harm"
     last: bool = False
+    worth: bool = False
 
     def judge(self, ev: Evidence) -> GateResult:
         if not ev.harm:
@@ -225,6 +233,7 @@ class ShortHorizon:
 
     code: str = "short_horizon"
     last: bool = False
+    worth: bool = False
 
     def judge(self, ev: Evidence) -> GateResult:
         ok = not ev.short_t < -ev.short_t_crit
@@ -246,6 +255,7 @@ class NoRunaway:
 
     code: str = "no_runaway"
     last: bool = False
+    worth: bool = False
 
     def judge(self, ev: Evidence) -> GateResult:
         if not ev.runaway:
@@ -264,6 +274,7 @@ class NoHinge:
 
     code: str = "hinge"
     last: bool = True
+    worth: bool = False
 
     def judge(self, ev: Evidence) -> GateResult:
         hinges = ev.hinges or ()
@@ -281,6 +292,10 @@ GATES = (MinGain(), EveryFold(), NoiseFloor(), BlockT(), CarriedByOneRun(), Phys
          BeatsBestLinear(), NoHarm(), ShortHorizon(), NoRunaway(), NoHinge())
 #: every gate's code
 CODES = tuple(g.code for g in GATES)
+#: the codes of the gates that measure what a step's effect is worth on the held-out runs (its gain,
+#: its significance, its physical size); the others ask whether the model after the step is sound
+#: (harm to one run, short-horizon prediction, run-away, the best linear model, one training run)
+WORTH = tuple(g.code for g in GATES if g.worth)
 
 
 def judge(ev: Evidence, last: bool) -> tuple[GateResult, ...]:

@@ -112,7 +112,7 @@ from pipeline.diagnose.fit import (
     simulate_fit,
     structure_of,
 )
-from pipeline.diagnose.gates import Evidence, RunTest, judge
+from pipeline.diagnose.gates import WORTH, Evidence, RunTest, judge
 from pipeline.errors import ModelError
 
 
@@ -1082,7 +1082,9 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
             # divergence itself, whose block differences are too heavy-tailed for t (a fresh truth
             # draw, seed 777 case 31, offset + r^3 on the slow ship: without the offset 469.5 deg
             # held-out against 0.23 with it, block t = 1.02, so the t-test alone drops the offset)
-            if not s.passes and not s.removal_runs_away and (worst is None or s.gain < worst[1].gain):
+            fails = (any(not r.passed for r in s.gates if r.code in WORTH) if cfg.backward_on_worth
+                     else not s.passes)
+            if fails and not s.removal_runs_away and (worst is None or s.gain < worst[1].gain):
                 worst = (e, s)
         if worst is None:
             break
