@@ -579,6 +579,8 @@ class DiagnoseConfig:
     # the reason above (a single manoeuvre kind left to predict another).  Measured on the virtual KCS
     # (each design fold trains on one circle): the reference structure fitted on the two zigzags runs
     # away on the circle (61.8 -> 6843 deg) while with the circle it holds the other side's circle out
+    # (and the nested leave-one-run-out's inner folds do the same: a turning run left alone among zigzags
+    # trains every inner fold and is validated by none, pipeline.diagnose.core._inner_folds)
     jackknife_same_kind: bool = False
     # relative: runs whose approach speeds differ by more than this are refused together (Froude
     # number, hence the dimensional coefficients, would differ by as much: 15 % of U is ~30 % of the

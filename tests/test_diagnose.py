@@ -1153,3 +1153,22 @@ def test_reverse_fold_follows_the_twin_tolerance():
     assert _names(_inner_folds(folds, e, DiagnoseConfig())) == [(["A", "B"], ["C", "D"]),
                                                                 (["C", "D"], ["A", "B"])]
     assert _names(_inner_folds(folds, e, DiagnoseConfig(twin_tolerance=0.05))) == [(["A", "B"], ["C", "D"])]
+
+
+def test_a_lone_turn_trains_every_inner_fold_with_jackknife_same_kind():
+    """The six-run design with a turning circle (C) held out leaves one turn (F) among zigzags: by
+    default it is dealt like the others and validated by a fold trained on zigzags alone (A B D); with
+    ``jackknife_same_kind`` it trains every inner fold and is validated by none, the zigzags dealt as
+    before.  With both turns left (a zigzag held out) the setting changes nothing."""
+    from pipeline.diagnose.core import _inner_folds
+    from pipeline.diagnose.select import Fold
+
+    runs = _runs("A", "B", "C", "D", "E", "F", rudder={"A": 20, "C": 35, "D": 20, "F": 35}, turning="CF")
+    folds = [Fold(runs[:3], runs[3:]), Fold(runs[3:], runs[:3])]
+    assert _names(_inner_folds(folds, runs[2], DiagnoseConfig())) == [
+        (["A", "E", "F"], ["B", "D"]), (["A", "B", "D"], ["E", "F"]), (["B", "D", "E", "F"], ["A"])]
+    same = DiagnoseConfig(jackknife_same_kind=True)
+    assert _names(_inner_folds(folds, runs[2], same)) == [
+        (["A", "E", "F"], ["B", "D"]), (["A", "B", "D", "F"], ["E"]), (["B", "D", "E", "F"], ["A"])]
+    default = _inner_folds(folds, runs[0], DiagnoseConfig())
+    assert _names(_inner_folds(folds, runs[0], same)) == _names(default)

@@ -517,15 +517,22 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
       20 four-run linear truth cases gave the same causes and gains under both rules (lsmr). The price,
       stated: one inner fold may train on the small zigzags alone (the reason of the rule before), so
       the held-out 20/20 P of the bench case gets yaw damping alone, gain 0; the three folds judged
-      together still chose better than one validation run.
+      together still chose better than one validation run.  With ``cfg.jackknife_same_kind``, a
+      turning run left alone among zigzags trains every inner fold and is validated by none.
     - One outer fold (sides not exchangeable, or the reverse fold switched off): the user's design
       is kept.  Every outer fold whose training runs do not include ``held`` is kept with ``held``
       removed from its validation runs (when some remain); only when none exists is ``held`` removed
       from the training runs instead, the roles kept."""
     rest = [s for s in folds[0].train + folds[0].val if s is not held]
     if len(folds) > 1 and len(rest) >= 2:
-        k = min(len(rest), max(2, cfg.inner_folds))
-        deal = sorted(rest, key=_manoeuvre)
+        # a turn left alone among zigzags trains every inner fold and is validated by none where
+        # DiagnoseConfig.jackknife_same_kind: validating it from zigzags alone is the extrapolation
+        # that setting refuses in the jackknife (a single manoeuvre kind left to predict another)
+        turns = [s for s in rest if is_turning(s)]
+        lone = turns if cfg.jackknife_same_kind and len(turns) == 1 and len(rest) >= 3 else []
+        dealt = [s for s in rest if all(s is not x for x in lone)]
+        k = min(len(dealt), max(2, cfg.inner_folds))
+        deal = sorted(dealt, key=_manoeuvre)
         groups = [deal[i::k] for i in range(k)]
         return [Fold([s for s in rest if all(s is not g for g in grp)], grp) for grp in groups]
     keep = [
