@@ -785,12 +785,14 @@ class OEBatch:
         _oe_batch(res, *packed, X0, self.runs, self.data, self.sc, self.scratch)
         return res
 
-    def jacobian(self, p, ids, cols, width: int, starts=(), x0=None) -> tuple[np.ndarray, np.ndarray]:
+    def jacobian(self, p, ids, cols, width: int, starts=(), x0=None, order: str = "C"
+                 ) -> tuple[np.ndarray, np.ndarray]:
         """(residuals (n_res,), derivatives (n_res, ``width``)) of the parameter vector ``p`` from the
         runs' starts ``x0`` (runs, 3; default their own): the residuals are :meth:`__call__`'s bits;
         column cols[j] holds the derivative along the kernel parameter ids[j] (:func:`kernel_vector`'s
         order), column width - len(starts) + c the derivative along start state i of run k times w
-        for starts[c] = (k, i, w) (:func:`_oe_jac`); other columns are zero."""
+        for starts[c] = (k, i, w) (:func:`_oe_jac`); other columns are zero.  ``order``: the Jacobian's
+        memory layout ("C" or "F"; "F" is what LAPACK's QR reads without a copy, the same numbers)."""
         th, terms = self.unpack(np.asarray(p, dtype=float))[:2]
         x0 = self.x0s if x0 is None else np.ascontiguousarray(x0, dtype=float)
         nk = len(self.t)
@@ -801,7 +803,7 @@ class OEBatch:
             xscale[k, i] = w
         thetas, coefs, blks, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off = self._pack([(th, terms)])
         res = np.empty(self.n_res)
-        jac = np.zeros((self.n_res, width))
+        jac = np.zeros((self.n_res, width), order=order)
         _oe_jac(res, jac, thetas[0], coefs[0], blks[0], lags[0], ms[0], codes, eqs, a_buf, a_off[0], s_buf,
                 s_off[0], x0, self.runs, self.data, self.sc, self.scratch, np.asarray(ids, dtype=np.int64),
                 np.asarray(cols, dtype=np.int64), xcols, xscale)

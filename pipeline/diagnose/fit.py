@@ -897,7 +897,8 @@ def _kernel_map(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray):
     return ids, dk[ids], fd
 
 
-def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=None, starts=()):
+def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=None, starts=(),
+             order: str = "C"):
     """(residuals, Jacobian) of :class:`OEBatch` ``batch`` at the parameter vector ``p`` (bounds
     ``lo``, ``hi``) from the runs' starts ``x0`` (runs, 3; default their own): the Jacobian's columns
     are d residuals / d p, then, for each (k, i, w) of ``starts``, w d residuals / d (start state i of
@@ -910,7 +911,8 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
     points, i.e. the unpacking is affine, as for every parameter of the catalogue, which enter as
     themselves).  A time input (dead time, servo lag, speed exponent: the rudder's time shift, the
     sub-steps and the speed factor's power have no sensitivity in the kernel) gets SciPy's forward
-    difference through the batch.  docs/performance.md, "Analytic Jacobian"."""
+    difference through the batch.  ``order``: the Jacobian's memory layout ("C" or "F", the same
+    numbers; :func:`_compressed_lsq` asks for "F", LAPACK's).  docs/performance.md, "Analytic Jacobian"."""
     p = np.asarray(p, dtype=float)
     key = (p.size, lo.tobytes(), hi.tobytes())
     cached = batch.__dict__.get("_kernel_map")
@@ -933,10 +935,10 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
                                    and np.all(np.count_nonzero(dk, axis=0) <= 1)))
     if direct:
         cols = np.argmax(dk != 0, axis=1) if dk.shape[0] else np.zeros(0, dtype=np.int64)
-        res, jac = batch.jacobian(p, ids, cols, width, starts, x0)
+        res, jac = batch.jacobian(p, ids, cols, width, starts, x0, order=order)
     else:
         res, jk = batch.jacobian(p, ids, np.arange(ids.size), ids.size + len(starts), starts, x0)
-        jac = np.zeros((res.size, width))
+        jac = np.zeros((res.size, width), order=order)
         jac[:, : p.size] = jk[:, : ids.size] @ dk
         jac[:, p.size:] = jk[:, ids.size:]
     if fd:
@@ -970,7 +972,9 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
         made.clear()
         if not (_representable(f) and _representable(jx, f)):
             return np.full(x.size + 1, np.nan)      # a trial point SciPy rejects (shrinks its region)
-        qtf, r = qr_multiply(jx, f, mode="right")
+        # in LAPACK's (Fortran) layout the QR reads the Jacobian in place instead of copying it (the
+        # same numbers, so the same bits); it is not used again
+        qtf, r = qr_multiply(np.asfortranarray(jx), f, mode="right", overwrite_a=True)
         made[x.tobytes()] = np.vstack([r, np.zeros((1, x.size))])
         return np.append(qtf, np.sqrt(max(float(f @ f) - float(qtf @ qtf), 0.0)))
 
@@ -983,7 +987,8 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
 
     res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
                         tr_solver=_TR, **_TOL)
-    res.fun, res.jac = _finite_jacobian(fj, res.x, lo, hi)
+    res.fun, jx = _finite_jacobian(fj, res.x, lo, hi)
+    res.jac = np.ascontiguousarray(jx)     # the covariance's products in the row layout, as before
     return res
 
 
@@ -1010,7 +1015,7 @@ def _representable(a: np.ndarray, f: np.ndarray | None = None) -> bool:
     with np.errstate(over="ignore", invalid="ignore"):
         # the sum of squares is finite only where every entry is (a NaN or an infinity makes it NaN or
         # infinite), so one dot product says both
-        flat = a.ravel()
+        flat = a.ravel(order="K")      # no copy in either layout; the order of the sum is immaterial
         ok = bool(np.isfinite(flat @ flat))
         if ok and f is not None:
             ok = bool(np.all(np.isfinite(a.T @ f)))
@@ -1244,7 +1249,7 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
             def fj(x, q=q, free=free):
                 z = q.copy()
                 z[free] = x
-                f, jz = jacobian(batch, z, lo, hi)
+                f, jz = jacobian(batch, z, lo, hi, order="F")
                 return f, jz[:, free]
 
             top = max(6, max_nfev // 25)
@@ -1275,7 +1280,8 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
             res = least_squares(pen.fun(oe), p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev,
                                 method="trf", tr_solver=_TR, **_TOL)
         else:
-            res = _compressed_lsq(pen.fun_jac(lambda p: jacobian(batch, p, lo, hi)), p0, lo, hi, max_nfev)
+            res = _compressed_lsq(pen.fun_jac(lambda p: jacobian(batch, p, lo, hi, order="F")), p0, lo, hi,
+                                  max_nfev)
         msg.append("output-error polish" + ("" if res.success else f" (stopped: {res.message})"))
     if not (np.all(np.isfinite(res.x)) and np.isfinite(res.cost)):
         raise ModelError("the diagnosis fit produced no finite result")
@@ -1423,7 +1429,7 @@ class _JointStarts:
         the starts' columns are the kernel's sensitivities to each run's start times the half-width of
         its box."""
         x0 = self.starts(pz[self.n_p:])
-        return jacobian(self.batch, pz[: self.n_p], self.lo, self.hi, x0, self.free)
+        return jacobian(self.batch, pz[: self.n_p], self.lo, self.hi, x0, self.free, order="F")
 
 
 def is_stable(theta) -> bool:
