@@ -38,6 +38,7 @@ diagnosis) is the same-run baseline: residuals from Python, SciPy's forward diff
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 from dataclasses import dataclass, field
@@ -1058,6 +1059,101 @@ class FitMemo:
         """Store the fit (or ModelError) ``hit`` under ``key``."""
         self._fits[key] = hit
 
+    def release(self, key) -> None:
+        """Give up making the fit under ``key`` (it failed with an error that is not a ModelError):
+        nothing to do in one process."""
+
+
+#: s: how often a process waiting for a fit that another process is making looks again
+_WAIT_S = 0.002
+
+
+class SharedFitMemo(FitMemo):
+    """:class:`FitMemo` shared by the processes of one diagnosis (the main selection and the nested
+    leave-one-run-out's worker processes, docs/performance.md): ``store`` is a dictionary every process
+    reaches (a ``multiprocessing`` manager's), keyed by the pickled memo key.  The first process that
+    asks for a fit claims it (an atomic ``setdefault`` of a claim naming it) and makes it; another that
+    asks meanwhile waits for it instead of making it twice.  A fit is a deterministic function of its
+    key, so the result is the same bits whoever makes it, and a key pickled differently by two
+    processes only costs a second making of the same fit.  No wait can go round in a circle: a claim is
+    held only while its process makes that one fit, which asks for no other; a claim whose process has
+    died is taken over.  Each process keeps what it has seen in its own dictionary too."""
+
+    def __init__(self, store) -> None:
+        super().__init__()
+        self._store = store
+        self._claims = 0
+
+    def __getstate__(self):
+        return {"store": self._store}            # a process's own fits stay with it
+
+    def __setstate__(self, state) -> None:
+        self.__init__(state["store"])
+
+    @staticmethod
+    def _key(key) -> bytes:
+        import pickle
+
+        return pickle.dumps(key, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def get(self, key):
+        """The fit (or ModelError) under ``key``, made by this or another process (waiting while another
+        makes it); None when this process has claimed it and must make it (then :meth:`put` or
+        :meth:`release`)."""
+        import os
+        import time
+
+        hit = self._fits.get(key)
+        if hit is not None:
+            return hit
+        kb = self._key(key)
+        self._claims += 1
+        mine = ("claim", os.getpid(), self._claims)
+        while True:
+            got = self._store.setdefault(kb, mine)
+            if got == mine:
+                return None
+            if not (isinstance(got, tuple) and len(got) == 3 and got[0] == "claim"):
+                self._fits[key] = got
+                return got
+            try:
+                os.kill(got[1], 0)
+            except ProcessLookupError:      # its maker has died: take it over
+                self._store.pop(kb, None)
+                continue
+            time.sleep(_WAIT_S)
+
+    def put(self, key, hit) -> None:
+        """Store the fit (or ModelError) ``hit`` under ``key``, for every process."""
+        self._fits[key] = hit
+        self._store[self._key(key)] = hit
+
+    def release(self, key) -> None:
+        """Withdraw this process's claim on ``key`` (its fit failed with an unexpected error)."""
+        self._store.pop(self._key(key), None)
+
+
+@contextlib.contextmanager
+def fit_memo(processes: int):
+    """The fit memo of one diagnosis run by ``processes`` processes: a :class:`FitMemo` for one, else a
+    :class:`SharedFitMemo` on a ``multiprocessing`` manager (forked, ended with this process on any
+    signal: pipeline.lifeline) that lives as long as the context."""
+    if processes <= 1:
+        yield FitMemo()
+        return
+    import multiprocessing
+    import os
+    from multiprocessing.managers import SyncManager
+
+    from pipeline.lifeline import die_with_parent
+
+    manager = SyncManager(ctx=multiprocessing.get_context("fork"))
+    manager.start(die_with_parent, (os.getpid(),))
+    try:
+        yield SharedFitMemo(manager.dict())
+    finally:
+        manager.shutdown()
+
 
 def fit_structure(
     series: list[Series],
@@ -1147,6 +1243,9 @@ def fit_structure(
                                  signed_damping, False, bound)
         except ModelError as err:
             hit = err
+        except BaseException:
+            memo.release(key)
+            raise
         memo.put(key, hit)
     if isinstance(hit, ModelError):
         raise hit
