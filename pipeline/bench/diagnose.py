@@ -9,7 +9,8 @@ residuals from Python, SciPy's finite-difference Jacobian, no memo) as the same-
 ratio, whether the two verdicts agree and the largest relative difference of the reports' figures
 (another Jacobian reaches the same optimum within the optimiser's tolerance, not the same bits); the
 same case with the nested leave-one-run-out in this process (``nested_workers = 1``) against its
-worker processes; and the virtual KCS's diagnosis (its six default runs, turning circles included,
+worker processes; the same case with a memo of fits per worker round (``shared_memo = False``) against
+the memo the processes share; and the virtual KCS's diagnosis (its six default runs, turning circles included,
 the catalog design, nested leave-one-run-out; target < 60 s), with its main selection alone (nested
 gain off) against plain fits as its same-run ratio.
 """
@@ -89,6 +90,24 @@ def run(quick: bool = False) -> list[dict]:
             "value": sec1 / max(sec, 1e-9),
             "unit": "x",
             "note": "same run; 2 cores",
+        },
+    ]
+    # the same-run baseline of the shared memo: each worker's round with a memo of its own
+    t0, c0 = time.perf_counter(), _cpu()
+    own = diagnose(runs[:2], runs[2:], cfg=DiagnoseConfig(shared_memo=False)).report
+    sec2, cpu2 = time.perf_counter() - t0, _cpu() - c0
+    out += [
+        {
+            "name": "diagnosis, same case, a memo of fits per worker round (not shared)",
+            "value": sec2,
+            "unit": "s",
+            "note": f"CPU {cpu2:.1f} s; report " + ("identical" if _dump(own) == _dump(rep) else "DIFFERENT"),
+        },
+        {
+            "name": "speed-up of the shared memo of fits (CPU)",
+            "value": cpu2 / max(cpu, 1e-9),
+            "unit": "x",
+            "note": f"wall {sec2 / max(sec, 1e-9):.2f} x; same run",
         },
     ]
     return out + virtual_rows()

@@ -438,9 +438,10 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     # in worker processes while this one makes the main selection (same results, any worker count)
     workers = 1 if te or not cfg.nested_gain else _nested_workers(cfg, len(tr) + len(va))
     # one memo of fits for this process and the workers (docs/performance.md)
-    with fit_memo(workers) as memo:
+    shared = workers > 1 and cfg.shared_memo
+    with fit_memo(workers if shared else 1) as memo:
         design = _Design(folds, te, ctx, cfg, noise, memo)
-        with _nested_in_workers(folds, ctx, cfg, noise, workers, memo) as futures:
+        with _nested_in_workers(folds, ctx, cfg, noise, workers, memo if shared else None) as futures:
             return _select_and_report(design, train + validate + test, rates, progress=progress,
                                       futures=futures)
 
