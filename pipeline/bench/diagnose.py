@@ -58,23 +58,9 @@ def run(quick: bool = False) -> list[dict]:
     if quick:
         return out
     # same-run baseline: plain fits (residuals from Python, finite differences, no memo)
-    t0, c0 = time.perf_counter(), _cpu()
-    plain = diagnose(runs[:2], runs[2:], cfg=DiagnoseConfig(plain_fits=True)).report
-    sec0, cpu0 = time.perf_counter() - t0, _cpu() - c0
-    out += [
-        {
-            "name": "diagnosis, same case, plain fits (baseline)",
-            "value": sec0,
-            "unit": "s",
-            "note": f"CPU {cpu0:.1f} s; " + _agreement(plain, rep),
-        },
-        {
-            "name": "speed-up of the diagnosis over plain fits (CPU)",
-            "value": cpu0 / max(cpu, 1e-9),
-            "unit": "x",
-            "note": f"wall {sec0 / max(sec, 1e-9):.2f} x; same run",
-        },
-    ]
+    out += _same_run("diagnosis, same case, plain fits (baseline)",
+                     "speed-up of the diagnosis over plain fits (CPU)", runs, DiagnoseConfig(plain_fits=True),
+                     sec, cpu, lambda r: _agreement(r, rep))
     t0 = time.perf_counter()
     alone = diagnose(runs[:2], runs[2:], cfg=DiagnoseConfig(nested_workers=1)).report
     sec1 = time.perf_counter() - t0
@@ -93,24 +79,25 @@ def run(quick: bool = False) -> list[dict]:
         },
     ]
     # the same-run baseline of the shared memo: each worker's round with a memo of its own
-    t0, c0 = time.perf_counter(), _cpu()
-    own = diagnose(runs[:2], runs[2:], cfg=DiagnoseConfig(shared_memo=False)).report
-    sec2, cpu2 = time.perf_counter() - t0, _cpu() - c0
-    out += [
-        {
-            "name": "diagnosis, same case, a memo of fits per worker round (not shared)",
-            "value": sec2,
-            "unit": "s",
-            "note": f"CPU {cpu2:.1f} s; report " + ("identical" if _dump(own) == _dump(rep) else "DIFFERENT"),
-        },
-        {
-            "name": "speed-up of the shared memo of fits (CPU)",
-            "value": cpu2 / max(cpu, 1e-9),
-            "unit": "x",
-            "note": f"wall {sec2 / max(sec, 1e-9):.2f} x; same run",
-        },
-    ]
+    out += _same_run("diagnosis, same case, a memo of fits per worker round (not shared)",
+                     "speed-up of the shared memo of fits (CPU)", runs, DiagnoseConfig(shared_memo=False),
+                     sec, cpu, lambda r: "report " + ("identical" if _dump(r) == _dump(rep) else "DIFFERENT"))
     return out + virtual_rows()
+
+
+def _same_run(name: str, ratio_name: str, runs, cfg: DiagnoseConfig, sec: float, cpu: float,
+              note) -> list[dict]:
+    """Rows of the bench case diagnosed (training runs[:2], validation runs[2:]) with ``cfg``: its wall
+    time (s) with its CPU time and ``note(report)``, and its CPU time over ``cpu`` (s, the default
+    settings' run of the same bench; ``sec`` its wall time) as the speed-up of the default."""
+    t0, c0 = time.perf_counter(), _cpu()
+    rep = diagnose(runs[:2], runs[2:], cfg=cfg).report
+    sec0, cpu0 = time.perf_counter() - t0, _cpu() - c0
+    return [
+        {"name": name, "value": sec0, "unit": "s", "note": f"CPU {cpu0:.1f} s; " + note(rep)},
+        {"name": ratio_name, "value": cpu0 / max(cpu, 1e-9), "unit": "x",
+         "note": f"wall {sec0 / max(sec, 1e-9):.2f} x; same run"},
+    ]
 
 
 def virtual_runs():
