@@ -630,8 +630,8 @@ class DiagnoseConfig:
     # SharedFitMemo): a fit another process has made or is making is not made again; False gives each
     # worker's round a memo of its own (the same report bytes: a fit is a deterministic function of
     # its inputs).  The worker rounds repeat many of the main selection's fits and of each other's
-    # (the same training runs, structures and starts): off, the bench case takes about 1.7 times the
-    # CPU (docs/performance.md, "Measured"); only for that same-run comparison
+    # (the same training runs, structures and starts): off, the bench case takes 1.85 times the CPU
+    # (docs/performance.md, "Measured with the shared memo"); only for that same-run comparison
     shared_memo: bool = True
 
 
