@@ -635,6 +635,14 @@ class DiagnoseConfig:
     # least-squares tolerance, many times slower: the same-run baseline of ``python -m pipeline bench``
     # (docs/performance.md), never needed for a verdict
     plain_fits: bool = False
+    # speed2
+    # one memo of fits shared by this process and the nested workers (pipeline.diagnose.fit.
+    # SharedFitMemo): a fit another process has made or is making is not made again; False gives each
+    # worker's round a memo of its own (the same report bytes: a fit is a deterministic function of
+    # its inputs).  The worker rounds repeat many of the main selection's fits and of each other's
+    # (the same training runs, structures and starts): off, the bench case takes 1.85 times the CPU
+    # (docs/performance.md, "Measured with the shared memo"); only for that same-run comparison
+    shared_memo: bool = True
 
 
 @dataclass(frozen=True)

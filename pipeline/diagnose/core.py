@@ -50,6 +50,7 @@ from pipeline.diagnose.fit import (
     _derivs,
     _u_ratio,
     evaluate,
+    fit_memo,
     fit_structure,
     is_stable,
     latent_sway_a12,
@@ -436,13 +437,17 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     # the nested leave-one-run-out's selections do not depend on the main one: with workers, they run
     # in worker processes while this one makes the main selection (same results, any worker count)
     workers = 1 if te or not cfg.nested_gain else _nested_workers(cfg, len(tr) + len(va))
-    design = _Design(folds, te, ctx, cfg, noise, FitMemo())
-    with _nested_in_workers(folds, ctx, cfg, noise, workers) as futures:
-        return _select_and_report(design, train + validate + test, rates, progress=progress, futures=futures)
+    # one memo of fits for this process and the workers (docs/performance.md)
+    shared = workers > 1 and cfg.shared_memo
+    with fit_memo(workers if shared else 1) as memo:
+        design = _Design(folds, te, ctx, cfg, noise, memo)
+        with _nested_in_workers(folds, ctx, cfg, noise, workers, memo if shared else None) as futures:
+            return _select_and_report(design, train + validate + test, rates, progress=progress,
+                                      futures=futures)
 
 
 @contextlib.contextmanager
-def _nested_in_workers(folds, ctx, cfg, noise, workers: int):
+def _nested_in_workers(folds, ctx, cfg, noise, workers: int, memo: FitMemo | None = None):
     """Futures of :func:`_nested_task` for every training and validation run, submitted to
     ``workers`` forked processes (shut down on leaving); None with one worker (made in-process)."""
     if workers <= 1:
@@ -452,7 +457,7 @@ def _nested_in_workers(folds, ctx, cfg, noise, workers: int):
     # the workers end with this process on any signal (pipeline.lifeline; docs/operations.md)
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
                              initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
-        futures = [pool.submit(_nested_task, folds, i, ctx, cfg, noise) for i in range(n)]
+        futures = [pool.submit(_nested_task, folds, i, ctx, cfg, noise, memo) for i in range(n)]
         try:
             yield futures
         finally:
@@ -625,12 +630,12 @@ def _nested_reference(refit: Search, held: Series, base_mae: float, noise: float
     return evaluate(fit, [held])[1]
 
 
-def _nested_task(folds, i: int, ctx, cfg, noise):
+def _nested_task(folds, i: int, ctx, cfg, noise, memo: FitMemo | None = None):
     """:func:`_nested_one` of run ``i`` (of training + validation), in a worker process: ``folds``
-    arrive as one pickled graph, so the runs are shared objects there as here; its own fit memo (the
-    same bits as the parent's: a fit is a deterministic function of its inputs)."""
+    arrive as one pickled graph, so the runs are shared objects there as here; ``memo`` the diagnosis's
+    fits shared by every process (:class:`~pipeline.diagnose.fit.SharedFitMemo`; None: its own)."""
     held = (folds[0].train + folds[0].val)[i]
-    return _nested_one(folds, held, ctx, cfg, noise, FitMemo())
+    return _nested_one(folds, held, ctx, cfg, noise, memo if memo is not None else FitMemo())
 
 
 def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:

@@ -658,17 +658,22 @@ def _oe_jac(res, jac, th, coefs, blk, lags, ms, codes, eqs, a_buf, a_off, s_buf,
         s0[:, :] = 0.0
         if ivb >= 0:
             s0[ivb, 0] = -data[3, mo]       # the start is a reading: the ship's v0 = reading - vb q
+        # only the start states asked for (xcols >= 0) get a sensitivity: each column is integrated on
+        # its own, so leaving the others out changes no bit of the rest and saves their arithmetic
+        nc = pm
         for i in range(3):
-            s0[pm + i, i] = 1.0
-            jcol[pm + i] = xcols[k, i]
-            jsc[pm + i] = xscale[k, i]
+            if xcols[k, i] >= 0:
+                s0[nc, i] = 1.0
+                jcol[nc] = xcols[k, i]
+                jsc[nc] = xscale[k, i]
+                nc += 1
         blk[B_LAG] = lags[k]
         w = 1.0 / np.sqrt(n)
         o = runs[k, 2]
         rows[0], rows[1], rows[2] = o, o + n, (o + 2 * n if runs[k, 3] else -1)
         fac[0], fac[1], fac[2] = w / sc[0], w / sc[1], w / sc[2]
-        _run_sens(sim, jac, rows, fac, jcol, jsc, n, x0, a_half[0], s0, a_half, s_half, data[4, mo], ms[k],
-                  th, codes, eqs, coefs, blk, kid)
+        _run_sens(sim, jac, rows, fac, jcol[:nc], jsc[:nc], n, x0, a_half[0], s0[:nc], a_half, s_half,
+                  data[4, mo], ms[k], th, codes, eqs, coefs, blk, kid[:nc])
         _residuals(res, sim, k, runs, data, sc, vb)
         if runs[k, 3] and ivb >= 0:         # the reading's bias: v read = v + vb q
             for i in range(n):
@@ -780,12 +785,14 @@ class OEBatch:
         _oe_batch(res, *packed, X0, self.runs, self.data, self.sc, self.scratch)
         return res
 
-    def jacobian(self, p, ids, cols, width: int, starts=(), x0=None) -> tuple[np.ndarray, np.ndarray]:
+    def jacobian(self, p, ids, cols, width: int, starts=(), x0=None, order: str = "C"
+                 ) -> tuple[np.ndarray, np.ndarray]:
         """(residuals (n_res,), derivatives (n_res, ``width``)) of the parameter vector ``p`` from the
         runs' starts ``x0`` (runs, 3; default their own): the residuals are :meth:`__call__`'s bits;
         column cols[j] holds the derivative along the kernel parameter ids[j] (:func:`kernel_vector`'s
         order), column width - len(starts) + c the derivative along start state i of run k times w
-        for starts[c] = (k, i, w) (:func:`_oe_jac`); other columns are zero."""
+        for starts[c] = (k, i, w) (:func:`_oe_jac`); other columns are zero.  ``order``: the Jacobian's
+        memory layout ("C" or "F"; "F" is what LAPACK's QR reads without a copy, the same numbers)."""
         th, terms = self.unpack(np.asarray(p, dtype=float))[:2]
         x0 = self.x0s if x0 is None else np.ascontiguousarray(x0, dtype=float)
         nk = len(self.t)
@@ -796,7 +803,7 @@ class OEBatch:
             xscale[k, i] = w
         thetas, coefs, blks, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off = self._pack([(th, terms)])
         res = np.empty(self.n_res)
-        jac = np.zeros((self.n_res, width))
+        jac = np.zeros((self.n_res, width), order=order)
         _oe_jac(res, jac, thetas[0], coefs[0], blks[0], lags[0], ms[0], codes, eqs, a_buf, a_off[0], s_buf,
                 s_off[0], x0, self.runs, self.data, self.sc, self.scratch, np.asarray(ids, dtype=np.int64),
                 np.asarray(cols, dtype=np.int64), xcols, xscale)

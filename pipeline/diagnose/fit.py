@@ -38,6 +38,7 @@ diagnosis) is the same-run baseline: residuals from Python, SciPy's forward diff
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 from dataclasses import dataclass, field
@@ -897,7 +898,8 @@ def _kernel_map(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray):
     return ids, dk[ids], fd
 
 
-def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=None, starts=()):
+def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=None, starts=(),
+             order: str = "C"):
     """(residuals, Jacobian) of :class:`OEBatch` ``batch`` at the parameter vector ``p`` (bounds
     ``lo``, ``hi``) from the runs' starts ``x0`` (runs, 3; default their own): the Jacobian's columns
     are d residuals / d p, then, for each (k, i, w) of ``starts``, w d residuals / d (start state i of
@@ -910,7 +912,8 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
     points, i.e. the unpacking is affine, as for every parameter of the catalogue, which enter as
     themselves).  A time input (dead time, servo lag, speed exponent: the rudder's time shift, the
     sub-steps and the speed factor's power have no sensitivity in the kernel) gets SciPy's forward
-    difference through the batch.  docs/performance.md, "Analytic Jacobian"."""
+    difference through the batch.  ``order``: the Jacobian's memory layout ("C" or "F", the same
+    numbers; :func:`_compressed_lsq` asks for "F", LAPACK's).  docs/performance.md, "Analytic Jacobian"."""
     p = np.asarray(p, dtype=float)
     key = (p.size, lo.tobytes(), hi.tobytes())
     cached = batch.__dict__.get("_kernel_map")
@@ -933,10 +936,10 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
                                    and np.all(np.count_nonzero(dk, axis=0) <= 1)))
     if direct:
         cols = np.argmax(dk != 0, axis=1) if dk.shape[0] else np.zeros(0, dtype=np.int64)
-        res, jac = batch.jacobian(p, ids, cols, width, starts, x0)
+        res, jac = batch.jacobian(p, ids, cols, width, starts, x0, order=order)
     else:
         res, jk = batch.jacobian(p, ids, np.arange(ids.size), ids.size + len(starts), starts, x0)
-        jac = np.zeros((res.size, width))
+        jac = np.zeros((res.size, width), order=order)
         jac[:, : p.size] = jk[:, : ids.size] @ dk
         jac[:, p.size:] = jk[:, ids.size:]
     if fd:
@@ -970,7 +973,9 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
         made.clear()
         if not (_representable(f) and _representable(jx, f)):
             return np.full(x.size + 1, np.nan)      # a trial point SciPy rejects (shrinks its region)
-        qtf, r = qr_multiply(jx, f, mode="right")
+        # in LAPACK's (Fortran) layout the QR reads the Jacobian in place instead of copying it (the
+        # same numbers, so the same bits); it is not used again
+        qtf, r = qr_multiply(np.asfortranarray(jx), f, mode="right", overwrite_a=True)
         made[x.tobytes()] = np.vstack([r, np.zeros((1, x.size))])
         return np.append(qtf, np.sqrt(max(float(f @ f) - float(qtf @ qtf), 0.0)))
 
@@ -983,7 +988,8 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
 
     res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
                         tr_solver=_TR, **_TOL)
-    res.fun, res.jac = _finite_jacobian(fj, res.x, lo, hi)
+    res.fun, jx = _finite_jacobian(fj, res.x, lo, hi)
+    res.jac = np.ascontiguousarray(jx)     # the covariance's products in the row layout, as before
     return res
 
 
@@ -1010,7 +1016,7 @@ def _representable(a: np.ndarray, f: np.ndarray | None = None) -> bool:
     with np.errstate(over="ignore", invalid="ignore"):
         # the sum of squares is finite only where every entry is (a NaN or an infinity makes it NaN or
         # infinite), so one dot product says both
-        flat = a.ravel()
+        flat = a.ravel(order="K")      # no copy in either layout; the order of the sum is immaterial
         ok = bool(np.isfinite(flat @ flat))
         if ok and f is not None:
             ok = bool(np.all(np.isfinite(a.T @ f)))
@@ -1052,6 +1058,101 @@ class FitMemo:
     def put(self, key, hit) -> None:
         """Store the fit (or ModelError) ``hit`` under ``key``."""
         self._fits[key] = hit
+
+    def release(self, key) -> None:
+        """Give up making the fit under ``key`` (it failed with an error that is not a ModelError):
+        nothing to do in one process."""
+
+
+#: s: how often a process waiting for a fit that another process is making looks again
+_WAIT_S = 0.002
+
+
+class SharedFitMemo(FitMemo):
+    """:class:`FitMemo` shared by the processes of one diagnosis (the main selection and the nested
+    leave-one-run-out's worker processes, docs/performance.md): ``store`` is a dictionary every process
+    reaches (a ``multiprocessing`` manager's), keyed by the pickled memo key.  The first process that
+    asks for a fit claims it (an atomic ``setdefault`` of a claim naming it) and makes it; another that
+    asks meanwhile waits for it instead of making it twice.  A fit is a deterministic function of its
+    key, so the result is the same bits whoever makes it, and a key pickled differently by two
+    processes only costs a second making of the same fit.  No wait can go round in a circle: a claim is
+    held only while its process makes that one fit, which asks for no other; a claim whose process has
+    died is taken over.  Each process keeps what it has seen in its own dictionary too."""
+
+    def __init__(self, store) -> None:
+        super().__init__()
+        self._store = store
+        self._claims = 0
+
+    def __getstate__(self):
+        return {"store": self._store}            # a process's own fits stay with it
+
+    def __setstate__(self, state) -> None:
+        self.__init__(state["store"])
+
+    @staticmethod
+    def _key(key) -> bytes:
+        import pickle
+
+        return pickle.dumps(key, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def get(self, key):
+        """The fit (or ModelError) under ``key``, made by this or another process (waiting while another
+        makes it); None when this process has claimed it and must make it (then :meth:`put` or
+        :meth:`release`)."""
+        import os
+        import time
+
+        hit = self._fits.get(key)
+        if hit is not None:
+            return hit
+        kb = self._key(key)
+        self._claims += 1
+        mine = ("claim", os.getpid(), self._claims)
+        while True:
+            got = self._store.setdefault(kb, mine)
+            if got == mine:
+                return None
+            if not (isinstance(got, tuple) and len(got) == 3 and got[0] == "claim"):
+                self._fits[key] = got
+                return got
+            try:
+                os.kill(got[1], 0)
+            except ProcessLookupError:      # its maker has died: take it over
+                self._store.pop(kb, None)
+                continue
+            time.sleep(_WAIT_S)
+
+    def put(self, key, hit) -> None:
+        """Store the fit (or ModelError) ``hit`` under ``key``, for every process."""
+        self._fits[key] = hit
+        self._store[self._key(key)] = hit
+
+    def release(self, key) -> None:
+        """Withdraw this process's claim on ``key`` (its fit failed with an unexpected error)."""
+        self._store.pop(self._key(key), None)
+
+
+@contextlib.contextmanager
+def fit_memo(processes: int):
+    """The fit memo of one diagnosis run by ``processes`` processes: a :class:`FitMemo` for one, else a
+    :class:`SharedFitMemo` on a ``multiprocessing`` manager (forked, ended with this process on any
+    signal: pipeline.lifeline) that lives as long as the context."""
+    if processes <= 1:
+        yield FitMemo()
+        return
+    import multiprocessing
+    import os
+    from multiprocessing.managers import SyncManager
+
+    from pipeline.lifeline import die_with_parent
+
+    manager = SyncManager(ctx=multiprocessing.get_context("fork"))
+    manager.start(die_with_parent, (os.getpid(),))
+    try:
+        yield SharedFitMemo(manager.dict())
+    finally:
+        manager.shutdown()
 
 
 def fit_structure(
@@ -1142,6 +1243,9 @@ def fit_structure(
                                  signed_damping, False, bound)
         except ModelError as err:
             hit = err
+        except BaseException:
+            memo.release(key)
+            raise
         memo.put(key, hit)
     if isinstance(hit, ModelError):
         raise hit
@@ -1244,7 +1348,7 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
             def fj(x, q=q, free=free):
                 z = q.copy()
                 z[free] = x
-                f, jz = jacobian(batch, z, lo, hi)
+                f, jz = jacobian(batch, z, lo, hi, order="F")
                 return f, jz[:, free]
 
             top = max(6, max_nfev // 25)
@@ -1275,7 +1379,8 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
             res = least_squares(pen.fun(oe), p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev,
                                 method="trf", tr_solver=_TR, **_TOL)
         else:
-            res = _compressed_lsq(pen.fun_jac(lambda p: jacobian(batch, p, lo, hi)), p0, lo, hi, max_nfev)
+            res = _compressed_lsq(pen.fun_jac(lambda p: jacobian(batch, p, lo, hi, order="F")), p0, lo, hi,
+                                  max_nfev)
         msg.append("output-error polish" + ("" if res.success else f" (stopped: {res.message})"))
     if not (np.all(np.isfinite(res.x)) and np.isfinite(res.cost)):
         raise ModelError("the diagnosis fit produced no finite result")
@@ -1423,7 +1528,7 @@ class _JointStarts:
         the starts' columns are the kernel's sensitivities to each run's start times the half-width of
         its box."""
         x0 = self.starts(pz[self.n_p:])
-        return jacobian(self.batch, pz[: self.n_p], self.lo, self.hi, x0, self.free)
+        return jacobian(self.batch, pz[: self.n_p], self.lo, self.hi, x0, self.free, order="F")
 
 
 def is_stable(theta) -> bool:
