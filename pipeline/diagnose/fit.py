@@ -41,6 +41,9 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import hashlib
+import os
+import pickle
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -1092,17 +1095,12 @@ class SharedFitMemo(FitMemo):
 
     @staticmethod
     def _key(key) -> bytes:
-        import pickle
-
         return pickle.dumps(key, protocol=pickle.HIGHEST_PROTOCOL)
 
     def get(self, key):
         """The fit (or ModelError) under ``key``, made by this or another process (waiting while another
         makes it); None when this process has claimed it and must make it (then :meth:`put` or
         :meth:`release`)."""
-        import os
-        import time
-
         hit = self._fits.get(key)
         if hit is not None:
             return hit
@@ -1142,7 +1140,6 @@ def fit_memo(processes: int):
         yield FitMemo()
         return
     import multiprocessing
-    import os
     from multiprocessing.managers import SyncManager
 
     from pipeline.lifeline import die_with_parent
