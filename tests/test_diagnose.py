@@ -1170,5 +1170,9 @@ def test_a_lone_turn_trains_every_inner_fold_with_jackknife_same_kind():
     same = DiagnoseConfig(jackknife_same_kind=True)
     assert _names(_inner_folds(folds, runs[2], same)) == [
         (["A", "E", "F"], ["B", "D"]), (["A", "B", "D", "F"], ["E"]), (["B", "D", "E", "F"], ["A"])]
+    from pipeline.diagnose.select import lone_turn
+
+    assert lone_turn(runs) is None and lone_turn(runs[:2]) is None
+    assert lone_turn([r for r in runs if r is not runs[2]]) is runs[5]
     default = _inner_folds(folds, runs[0], DiagnoseConfig())
     assert _names(_inner_folds(folds, runs[0], same)) == _names(default)

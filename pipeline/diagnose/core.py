@@ -92,6 +92,7 @@ from pipeline.diagnose.select import (
     _gain,
     heading_noise_deg,
     is_turning,
+    lone_turn,
     reference_structure,
     select,
 )
@@ -533,9 +534,8 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
         # a turn left alone among zigzags trains every inner fold and is validated by none where
         # DiagnoseConfig.jackknife_same_kind: validating it from zigzags alone is the extrapolation
         # that setting refuses in the jackknife (a single manoeuvre kind left to predict another)
-        turns = [s for s in rest if is_turning(s)]
-        lone = turns if cfg.jackknife_same_kind and len(turns) == 1 and len(rest) >= 3 else []
-        dealt = [s for s in rest if all(s is not x for x in lone)]
+        lone = lone_turn(rest) if cfg.jackknife_same_kind and len(rest) >= 3 else None
+        dealt = [s for s in rest if s is not lone]
         k = min(len(dealt), max(2, cfg.inner_folds))
         deal = sorted(dealt, key=_manoeuvre)
         groups = [deal[i::k] for i in range(k)]

@@ -204,6 +204,14 @@ def is_turning(s: Series) -> bool:
     return bool(np.ptp(s.psi) >= TURNING_DEG)
 
 
+def lone_turn(runs: list[Series]) -> Series | None:
+    """The only turning run (:func:`is_turning`) among ``runs``; None where there are none or several.
+    A model that has not seen a turn extrapolates to it, so such a run is not left out to be predicted
+    from the others where ``DiagnoseConfig.jackknife_same_kind`` (the reason is there)."""
+    turns = [s for s in runs if is_turning(s)]
+    return turns[0] if len(turns) == 1 else None
+
+
 def reference_structure(ctx: Context) -> tuple:
     """The reference structure for runs of context ``ctx``: each effect of :data:`~pipeline.diagnose.
     effects.REFERENCE` in its form, where it applies to the runs."""
@@ -557,8 +565,7 @@ class Search:
             for k, f in enumerate(self.folds):
                 if len(f.train) >= self.cfg.jackknife_min_train:
                     for j, run in enumerate(f.train):
-                        if self.cfg.jackknife_same_kind and is_turning(run) and not any(
-                                is_turning(x) for x in f.train if x is not run):
+                        if self.cfg.jackknife_same_kind and run is lone_turn(f.train):
                             continue  # the only turn of the fold: DiagnoseConfig.jackknife_same_kind
                         index[(k, j)] = len(folds)
                         folds.append(Fold([x for x in f.train if x is not run], [run]))
