@@ -541,11 +541,11 @@ class DiagnoseConfig:
     # tests/test_diagnose_tank.py) was lost, and the default KCS was given a heading misalignment
     family_follows_baseline: bool = False
     # where the baseline is inadequate, fit the reference structure (pipeline.diagnose.effects.REFERENCE:
-    # rudder offset, the Abkowitz-type hull terms, speed-dependent coefficients) in every fold and
-    # report its held-out error beside the selection's (diagnosis.json ``reference``): the ceiling of
-    # the catalogue's terms told everything at once, so a verdict of none or a small gain can be read
-    # against what the terms carry (docs/diagnosis.md, "The reference fit").  One fit per fold (and one
-    # on all selection runs with --test runs); not made where the baseline is adequate
+    # rudder offset, the Abkowitz-type hull terms, speed-dependent coefficients, rudder asymmetry) in
+    # every fold and report its held-out error beside the selection's (diagnosis.json ``reference``):
+    # the ceiling of the catalogue's terms told everything at once, so a verdict of none or a small gain
+    # can be read against what the terms carry (docs/diagnosis.md, "The reference fit").  One fit per
+    # fold (and one on all selection runs with --test runs); not made where the baseline is adequate
     reference_fit: bool = True
     # the linear baseline is called inadequate (diagnosis.json baseline_adequate false) when its pooled
     # held-out MAE psi exceeds this many noise floors F = max(2 x heading noise, min_abs_gain_deg).  A
@@ -573,12 +573,16 @@ class DiagnoseConfig:
     # whose extrapolation to the other is no fair test of a nonlinear term (at 2, real effects of the
     # generalisation cases are lost: make generalise).  0 = off
     jackknife_min_train: int = 3
-    # the jackknife leaves out a turning run only where another turning run trains beside it: without
-    # it the rest are zigzags, whose rudder and drift stop short of a turn's (35 deg rudder, a steady
-    # drift and speed loss no zigzag reaches), so the extrapolation to the turn is no fair test, for
-    # the reason above (a single manoeuvre kind left to predict another).  Measured on the virtual KCS
-    # (each design fold trains on one circle): the reference structure fitted on the two zigzags runs
-    # away on the circle (61.8 -> 6843 deg) while with the circle it holds the other side's circle out
+    # the jackknife leaves out a run only where at least jackknife_min_train - 1 runs of its own kind
+    # (turning or not) train without it, the rule above applied within the kind: a turn predicted from
+    # zigzags alone is an extrapolation (35 deg rudder, a steady drift and speed loss no zigzag
+    # reaches), and a zigzag predicted from one zigzag of another amplitude beside a turn is the single
+    # manoeuvre, one amplitude, that rule calls no fair test of a nonlinear term.  Measured on the
+    # virtual KCS (each design fold trains on two zigzags and one circle): the reference structure fitted
+    # on the two zigzags runs away on the circle (61.8 -> 6843 deg) while with the circle it holds the
+    # other side's circle out; fitted on the 20/20 zigzag and the circle it runs away on the 10/10
+    # zigzag (35017 deg; 34.3 deg from its equation-error start) while on the design fold it holds
+    # the other side's runs at 2.5 deg against the best linear model's 6.9
     # (and the nested leave-one-run-out's inner folds do the same: a turning run left alone among zigzags
     # trains every inner fold and is validated by none, pipeline.diagnose.core._inner_folds)
     jackknife_same_kind: bool = False

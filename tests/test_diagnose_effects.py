@@ -229,3 +229,22 @@ def test_every_effect_carries_its_words_and_estimate_key():
         assert e.label and e.label != e.name, e.name
         assert e.signature_axis[0] != "time", e.name
         assert e.estimate_key, e.name
+
+
+def test_rudder_asymmetry_floor_is_the_offset_floor_at_the_largest_rudder_angle():
+    """An asymmetry a moves the effective rudder by a |delta| on each side, so it is held to the rudder
+    offset's floor (0.3 deg) at the runs' largest rudder angle: the virtual KCS's 3.0 % at 35 deg is
+    1.04 deg of rudder (named); the same 3.0 % on 1 deg zigzags is 0.03 deg (refused), and the floor
+    moves with d_max, not with the ship."""
+    from dataclasses import replace
+
+    from pipeline.diagnose.effects.rudder_offset import MIN_OFFSET_DEG
+
+    eff, form = BY_NAME["rudder_asymmetry"], BY_NAME["rudder_asymmetry"].forms[0]
+    at35, at1 = replace(CTX, d_max=35.0), replace(CTX, d_max=1.0)
+    ok, text = eff.material(form, {"asymmetry": -0.0298}, at35, 0.0)
+    assert ok and "1.04 deg of rudder at 35 deg" in text and f"floor {MIN_OFFSET_DEG} deg" in text
+    assert not eff.material(form, {"asymmetry": 0.0298}, at1, 0.0)[0]
+    # exactly at the floor: a d_max = 0.3 deg is named, just under it is not
+    assert eff.material(form, {"asymmetry": MIN_OFFSET_DEG / 20.0}, CTX, 0.0)[0]
+    assert not eff.material(form, {"asymmetry": 0.99 * MIN_OFFSET_DEG / 20.0}, CTX, 0.0)[0]

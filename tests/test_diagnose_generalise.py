@@ -1507,18 +1507,20 @@ def test_crossflow_disturbed_side_swap(fy_root, hull, form, seed, fold):
 
 # ---------------------------------------------------------------------------- the virtual KCS's oracle
 #: The structure an Abkowitz-type model of the virtual KCS writes in the catalogue's terms: a rudder
-#: offset (the propeller's asymmetric inflow), v|v| and r|r| damping and the cross terms v^2 r, v r^2 in
-#: both equations, the coefficients scaled with the measured speed (speed_loss).  Five effects: one more
-#: than the selection may name (max_effects), so it is the ceiling the selection's model family reaches
-#: when told the structure (docs/diagnosis.md, "Measured results").
-KCS_ORACLE = (("rudder_offset", "constant"), ("nonlinear_sway_damping", "abs"),
-              ("nonlinear_yaw_damping", "abs"), ("sway_yaw_coupling", "abkowitz"), ("speed_loss", "power"))
+#: offset, the hull terms v|v|, r|r|, v^2 r, v r^2 in both equations in the non-dimensional speed
+#: scaling (hull_nonlinearity), coefficients that scale with the measured speed (speed_loss), and a
+#: rudder more effective to one side (the tank's flow-straightening coefficient gamma_R differs with
+#: the side of the rudder's drift, its one port/starboard asymmetry: pipeline/tank/kcs.py).  Written
+#: here, not read from the method's configuration, so that the known answer does not move with it.
+KCS_ORACLE = (("rudder_offset", "constant"), ("hull_nonlinearity", "abkowitz"), ("speed_loss", "power"),
+              ("rudder_asymmetry", "two_sided"))
 
 
 def _kcs_oracle_leave_one_out():
     """The virtual tank's six default runs, leave-one-run-out: per held-out run (MAE psi deg) the linear
-    fit with the ship-sign bounds, the one without, and the oracle structure fitted on the other five
-    from the bounded fit."""
+    fit with the ship-sign bounds, the one without, and the oracle structure fitted on the other five,
+    of its fits from the bounded linear fit and from the equation-error start the one of least
+    TRAINING cost (the output-error cost has several optima; the held-out run plays no part)."""
     from pipeline import tank
     from pipeline.config import TankConfig
     from pipeline.diagnose.core import _context
@@ -1542,7 +1544,9 @@ def _kcs_oracle_leave_one_out():
         bounded = fit_structure(tr, (), ctx, **kw)
         bnd.append(evaluate(bounded, [held])[0]["mae_psi_deg"])
         free.append(evaluate(fit_structure(tr, (), ctx, **kw, sign_bounds=False), [held])[0]["mae_psi_deg"])
-        full = fit_structure(tr, structure_of(*KCS_ORACLE), ctx, start=bounded, **kw)
+        oracle = structure_of(*KCS_ORACLE)
+        full = min((fit_structure(tr, oracle, ctx, start=st, **kw) for st in (bounded, None)),
+                   key=lambda f: f.cost)
         ora.append(evaluate(full, [held])[0]["mae_psi_deg"])
     return np.array(bnd), np.array(free), np.array(ora)
 
@@ -1552,35 +1556,31 @@ def kcs_oracle():
     return _kcs_oracle_leave_one_out()
 
 
-@pytest.mark.skipif(not FULL, reason="18 fits of the six 90-150 s tank runs (about 2 min on 2 shared "
+@pytest.mark.skipif(not FULL, reason="24 fits of the six 90-150 s tank runs (about 2 min on 2 shared "
                     "cores): make generalise (TANKTEST_GENERALISE=full)")
 def test_kcs_oracle_is_the_known_answer(kcs_oracle):
     """The virtual tank's six default runs (20/20 and 10/10 zigzags, 35 deg turning circles, both sides),
     leave-one-run-out: the oracle structure fitted on five runs holds the sixth out better than the
-    linear model with the ship-sign bounds on every run, at under half its error on average, and
-    better than the best linear model on average (each run's better of the two linear fits, chosen
-    with hindsight, so a bar no selection's baseline can beat).  The truth is the tank's MMG model, not
-    written in these terms.  Measured (held-out MAE psi deg, bounded / unconstrained linear -> oracle):
-    20/20 S 10.69 / 7.95 -> 2.76, 20/20 P 18.96 / 6.61 -> 7.76, 10/10 S 11.27 / 5.33 -> 0.92,
-    10/10 P 13.08 / 4.93 -> 6.56, circle S 21.43 / 3.81 -> 9.54, circle P 11.45 / 11.01 -> 6.83; mean
-    14.48 (bounded), 6.61 (the better linear fit of each run) -> 5.72 deg: -60 % and -13 %."""
+    linear model with the ship-sign bounds on every run, at under a quarter of its error on average.
+    The truth is the tank's MMG model, not written in these terms.  Measured (held-out MAE psi deg,
+    bounded / unconstrained linear -> oracle): 20/20 S 10.69 / 7.95 -> 1.98, 20/20 P 18.96 / 6.61 ->
+    1.92, 10/10 S 11.27 / 5.33 -> 1.32, 10/10 P 13.08 / 4.93 -> 0.95, circle S 21.43 / 3.81 -> 3.72,
+    circle P 11.45 / 11.01 -> 2.57; mean 14.48 (bounded) -> 2.08 deg (-86 %)."""
     bnd, free, ora = kcs_oracle
     assert np.all(ora < bnd), (bnd, ora)
-    assert ora.mean() < 0.5 * bnd.mean(), (bnd, ora)
-    assert ora.mean() < np.minimum(bnd, free).mean(), (bnd, free, ora)
+    assert ora.mean() < 0.25 * bnd.mean(), (bnd, ora)
 
 
 @pytest.mark.skipif(not FULL, reason="shares the fits of test_kcs_oracle_is_the_known_answer: make "
                     "generalise (TANKTEST_GENERALISE=full)")
-@pytest.mark.xfail(strict=True, reason="measured: against the best linear model (each run's better linear "
-                   "fit) the oracle structure, fitted on five runs, loses three of the six held-out runs "
-                   "(circle S 9.54 against 3.81 deg, 20/20 P 7.76 against 6.61, 10/10 P 6.56 against "
-                   "4.93) and cuts the mean by 13 % (6.61 -> 5.72 deg), not by half: the catalogue's "
-                   "terms do not carry the MMG hull, propeller and rudder inflow of a 35 deg turn at every "
-                   "amplitude (docs/diagnosis.md, Known limits)")
 def test_kcs_oracle_halves_the_best_linear_models_error_on_every_run(kcs_oracle):
     """The bar item 1 of the diagnosis issue was written against (under half the linear model's error,
-    better on every run), held against the best linear model instead of the bounded fit."""
+    better on every run), held against the best linear model instead of the bounded fit: each run's
+    better linear fit, chosen with hindsight, so a bar no selection's baseline can beat.  Measured:
+    6.61 deg (the better linear fit of each run) -> 2.08 deg, -69 %; the closest run is the starboard
+    circle (3.81 -> 3.72 deg).  Without the rudder asymmetry the same fits (same start rule) cut the
+    mean by 18 % only (6.61 -> 5.45 deg) and lose two runs (10/10 P 6.35 against 4.93 deg, circle S
+    9.47 against 3.81)."""
     bnd, free, ora = kcs_oracle
     best = np.minimum(bnd, free)
     assert np.all(ora < best) and ora.mean() < 0.5 * best.mean(), (best, ora)

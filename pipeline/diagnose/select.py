@@ -206,10 +206,16 @@ def is_turning(s: Series) -> bool:
 
 def lone_turn(runs: list[Series]) -> Series | None:
     """The only turning run (:func:`is_turning`) among ``runs``; None where there are none or several.
-    A model that has not seen a turn extrapolates to it, so such a run is not left out to be predicted
-    from the others where ``DiagnoseConfig.jackknife_same_kind`` (the reason is there)."""
+    A model that has not seen a turn extrapolates to it, so such a run trains every nested inner fold
+    where ``DiagnoseConfig.jackknife_same_kind`` (the reason is there)."""
     turns = [s for s in runs if is_turning(s)]
     return turns[0] if len(turns) == 1 else None
+
+
+def same_kind_left(run: Series, runs: list[Series]) -> int:
+    """How many of ``runs`` other than ``run`` are of its kind (turning or not, :func:`is_turning`)."""
+    kind = is_turning(run)
+    return sum(1 for s in runs if s is not run and is_turning(s) == kind)
 
 
 def reference_structure(ctx: Context) -> tuple:
@@ -565,8 +571,9 @@ class Search:
             for k, f in enumerate(self.folds):
                 if len(f.train) >= self.cfg.jackknife_min_train:
                     for j, run in enumerate(f.train):
-                        if self.cfg.jackknife_same_kind and run is lone_turn(f.train):
-                            continue  # the only turn of the fold: DiagnoseConfig.jackknife_same_kind
+                        if self.cfg.jackknife_same_kind and same_kind_left(run, f.train) < \
+                                self.cfg.jackknife_min_train - 1:
+                            continue  # too few of its kind left: DiagnoseConfig.jackknife_same_kind
                         index[(k, j)] = len(folds)
                         folds.append(Fold([x for x in f.train if x is not run], [run]))
             jcfg = replace(self.cfg, cold_start=False)
@@ -987,20 +994,27 @@ def _reference_group(search: Search, ks, noise_deg):
     """The reference structure (:func:`reference_structure`) as one step from the baseline, where no
     single effect or group of the catalogue passes (``DiagnoseConfig.reference_step``): taken when the
     step passes with EACH member's physical floor; the backward pass then drops the members it does
-    not need.  Returns (first member, structure, step) or None (no hull term applies, a fit fails, or
-    a member's step fails)."""
+    not need.  Members whose step fails on their physical floor alone are left out and the rest is
+    judged again, refitted from the richer fit (a member too small to name is no reason to refuse the
+    others).  Returns (first member, structure, step) or None (no hull term applies, a fit fails, or
+    a step fails on another gate)."""
     st = reference_structure(search.ctx)
-    if "hull_nonlinearity" not in dict(st):
-        return None
-    try:
-        for k in ks:
-            search.fit(k, st)
-    except ModelError:
-        return None
-    steps = [search.step(ks, (), st, m, noise_deg) for m, _ in st]
-    if not all(s.passes for s in steps):
-        return None
-    return st[0][0], st, steps[0]
+    prev = None
+    while "hull_nonlinearity" in dict(st):
+        try:
+            for k in ks:
+                search.fit(k, st, start=None if prev is None else search.fit(k, prev))
+        except ModelError:
+            return None
+        steps = [search.step(ks, (), st, m, noise_deg) for m, _ in st]
+        if all(s.passes for s in steps):
+            return st[0][0], st, steps[0]
+        small = {m for (m, _), s in zip(st, steps, strict=True) if not s.passes
+                 and {g.code for g in s.gates if not g.passed} == {"physical_floor"}}
+        if not small or any(not s.passes for (m, _), s in zip(st, steps, strict=True) if m not in small):
+            return None
+        prev, st = st, structure_of(*[x for x in st if x[0] not in small])
+    return None
 
 
 #: re-judgements of one forward round after the current structure found a better optimum (each one

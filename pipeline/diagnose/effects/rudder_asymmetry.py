@@ -5,10 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.diagnose.effects.base import Effect, Form, Injection, Param, Terms
+from pipeline.diagnose.effects.rudder_offset import MIN_OFFSET_DEG
 
-#: floor: the two sides' effectiveness differs by >= 6 % (asymmetry >= 3 %), twice the 3 % a well-
-#: trimmed single-screw model shows between port and starboard zigzag overshoots in repeat tests
-MIN_ASYMMETRY = 0.03
+#: deg: floor of a named asymmetry, as the effective rudder angle it adds at the runs' largest rudder
+#: angle (|a| d_max): an asymmetry a moves the effective rudder by a |delta| on each side, the offset
+#: of that side, so it is held to the offset's floor (three rudder-encoder resolutions, the least
+#: neutral-rudder error worth correcting; rudder_offset.MIN_OFFSET_DEG).  At 35 deg of rudder that is
+#: |a| >= 0.9 %, at 10 deg |a| >= 3 %
+MIN_ASYMMETRY_DEG = MIN_OFFSET_DEG
 
 
 class RudderAsymmetry(Effect):
@@ -22,14 +26,20 @@ class RudderAsymmetry(Effect):
     words = "a rudder more effective to one side"
     term = "rudder force ~ delta_eff (1 + a sign(delta_eff)); a > 0: more effective to starboard"
     signature = "yaw-acceleration error proportional to |delta|: port and starboard responses differ"
-    floor_reason = f"|a| >= {MIN_ASYMMETRY:.0%} (sides differ by {2 * MIN_ASYMMETRY:.0%})"
+    floor_reason = (
+        f"|a| d_max >= {MIN_ASYMMETRY_DEG} deg: the effective rudder it adds at the runs' largest rudder "
+        "angle held to the rudder offset's floor"
+    )
 
     def apply(self, form, values, terms: Terms) -> None:
         terms.asymmetry = float(values["asymmetry"])
 
     def material(self, form, values, ctx, response_change):
         a = abs(values["asymmetry"])
-        return bool(a >= MIN_ASYMMETRY), f"|asymmetry| {a:.1%} (floor {MIN_ASYMMETRY:.0%})"
+        deg = a * ctx.d_max
+        return bool(deg >= MIN_ASYMMETRY_DEG), (
+            f"|asymmetry| {a:.1%}, {deg:.2f} deg of rudder at {ctx.d_max:.0f} deg "
+            f"(floor {MIN_ASYMMETRY_DEG} deg)")
 
     def physical(self, form, values, ctx):
         a = values["asymmetry"]
