@@ -63,3 +63,56 @@ def test_soundness_failures_alone_never_remove_on_worth():
         steps = {"rudder_offset": _step({code}, 0.3), "rudder_lag": _step(set(), 0.3)}
         assert _backward(steps, backward_on_worth=True) == ("rudder_offset", "rudder_lag"), code
         assert _backward(steps) == ("rudder_lag",), code
+
+
+class _RefSearch:
+    """The reference step's stub: ``fail[m]`` the gates member m's step fails, looked up by structure
+    (frozenset of members) so a smaller group can pass where the full one did not."""
+
+    def __init__(self, fail):
+        from pipeline.diagnose.effects import Context
+
+        self.cfg, self.fail, self.fitted = DiagnoseConfig(), fail, []
+        self.ctx = Context(t_ship=5.0, h=0.08, d_max=35.0, r_max=3.0, v_max=0.1, u_ref=2.0, u_min_ratio=0.6)
+
+    def fit(self, k, structure, start=None):
+        self.fitted.append((tuple(e for e, _ in structure), None if start is None else "warm"))
+        return tuple(structure)
+
+    def step(self, ks, before, after, effect, noise_deg):
+        return _step(self.fail.get(frozenset(e for e, _ in after), {}).get(effect, set()), 0.8)
+
+
+def test_the_reference_step_leaves_out_a_member_below_its_floor_and_judges_the_rest():
+    """A member whose step fails on its physical floor alone (an inner fold's 0.24 deg offset) is left
+    out and the rest refitted from the full group's fit and judged; a member failing any other gate
+    refuses the group, as does a hull term below its floor (the step needs hull terms)."""
+    from pipeline.diagnose.select import _reference_group, reference_structure
+
+    full = {e for e, _ in reference_structure(_RefSearch({}).ctx)}
+    assert full == {"rudder_offset", "hull_nonlinearity", "speed_loss", "rudder_asymmetry"}
+    s = _RefSearch({frozenset(full): {"rudder_offset": {"physical_floor"}}})
+    first, st, step = _reference_group(s, [0], 0.1)
+    assert {e for e, _ in st} == full - {"rudder_offset"} and step.passes
+    assert s.fitted[-1] == (tuple(e for e, _ in st), "warm")          # from the full group's fit
+    s = _RefSearch({frozenset(full): {"rudder_offset": {"physical_floor", "no_harm"}}})
+    assert _reference_group(s, [0], 0.1) is None
+    s = _RefSearch({frozenset(full): {"hull_nonlinearity": {"physical_floor"}}})
+    assert _reference_group(s, [0], 0.1) is None
+    assert _reference_group(_RefSearch({}), [0], 0.1)[1] == reference_structure(s.ctx)
+
+
+def test_same_kind_left_counts_the_other_runs_of_a_runs_kind():
+    """The jackknife's rule within a kind (``jackknife_same_kind``): two zigzags and a circle leave one
+    zigzag beside a zigzag and no turn beside the circle."""
+    import numpy as np
+
+    from pipeline.diagnose.select import TURNING_DEG, same_kind_left
+
+    class _Run:
+        def __init__(self, swing):
+            self.psi = np.array([0.0, swing])
+
+    z1, z2, c = _Run(40.0), _Run(30.0), _Run(TURNING_DEG + 200.0)
+    assert [same_kind_left(r, [z1, z2, c]) for r in (z1, z2, c)] == [1, 1, 0]
+    assert same_kind_left(c, [z1, c, _Run(360.0)]) == 1
