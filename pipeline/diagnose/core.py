@@ -51,7 +51,6 @@ from pipeline.diagnose.fit import (
     _u_ratio,
     evaluate,
     fit_memo,
-    fit_structure,
     is_stable,
     latent_sway_a12,
     profile_time_params,
@@ -609,26 +608,10 @@ def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
     return (pb, pe, po, pr), entry
 
 
-def _reference_fitted(train: list[Series], structure, ctx, linear: FitResult, kw: dict) -> FitResult:
-    """The reference structure fitted on ``train`` from the linear fit ``linear`` and from the
-    equation-error start, the one of least TRAINING cost (the held-out runs play no part).  The
-    output-error cost of a rich model has several optima: from the linear fit alone the virtual KCS's
-    fold 0 landed at 5.33 deg held out through the files and at 2.51 deg in-process on the same runs.
-    Raises the last ModelError where neither fits."""
-    fits, err = [], None
-    for start in (linear, None):
-        try:
-            fits.append(fit_structure(train, structure, ctx, start=start, **kw))
-        except ModelError as e:
-            err = e
-    if not fits:
-        raise err
-    return min(fits, key=lambda f: f.cost)
-
-
 def _nested_reference(refit: Search, held: Series, base_mae: float, noise: float):
     """The reference structure fitted as :func:`reference_fit` fits it (in ``refit``'s family,
-    :func:`_reference_fitted`) on ``refit``'s training runs and evaluated on ``held``
+    from its linear fit and the equation-error start, :meth:`~.select.Search.least_cost`) on
+    ``refit``'s training runs and evaluated on ``held``
     (:func:`evaluate`'s per-run list), for the reference's figures under the nested protocol
     (``Reference.nested_*``).  None where
     ``DiagnoseConfig.reference_fit`` is off, no hull term applies, the baseline's MAE psi on ``held``
@@ -641,8 +624,7 @@ def _nested_reference(refit: Search, held: Series, base_mae: float, noise: float
             or not base_mae > _inadequacy_limit(noise, cfg)[1]:
         return None
     try:
-        fit = _reference_fitted(refit.folds[0].train, structure, refit.ctx, refit.fit(0, ()),
-                                refit.fit_options())
+        fit = refit.least_cost(0, structure, (refit.fit(0, ()), None))
     except ModelError:
         return None
     return evaluate(fit, [held])[1]
@@ -804,7 +786,8 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool,
     """diagnosis.json's ``reference``: the reference structure (:data:`~pipeline.diagnose.effects.
     REFERENCE`, each effect where it applies to the runs) fitted in every fold on its training runs in
     the selection's family (:attr:`~pipeline.diagnose.select.Search.family_bounds`), from its linear
-    fit and from the equation-error start (:func:`_reference_fitted`), measured on the fold's
+    fit and from the equation-error start, the least training cost kept (:meth:`~.select.Search.
+    least_cost`; a rich model's output-error cost has several optima), measured on the fold's
     validation runs against the reported baseline; with test
     runs also refitted on every selection run and measured on the test runs against the baseline
     refitted there.  It is not chosen and says what the catalogue's terms carry when told everything at
@@ -830,12 +813,11 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool,
         return not_made("the linear baseline is adequate (within its noise floors)")
     if "hull_nonlinearity" not in effects:
         return not_made("the runs have no sway velocity, so no hull term can be fitted")
-    kw = search.fit_options() | {"memo": design.memo}
     per_fold = []
     test = {}
     try:
         for k in ks:
-            fit = _reference_fitted(folds[k].train, structure, ctx, search.fit(k, ()), kw)
+            fit = search.least_cost(k, structure, (search.fit(k, ()), None))
             m = evaluate(fit, folds[k].val)[0]["mae_psi_deg"]
             per_fold.append(ReferenceFold(fold=folds[k].name, validation_runs=[s.name for s in folds[k].val],
                                           baseline_mae_psi_deg=search.linear_eval(k)[0]["mae_psi_deg"],
@@ -843,7 +825,7 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool,
         if te:
             allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
                             baseline_bounded=search.baseline_bounded, memo=design.memo)
-            fit = _reference_fitted(allrun.folds[0].train, structure, ctx, allrun.fit(0, ()), kw)
+            fit = allrun.least_cost(0, structure, (allrun.fit(0, ()), None))
             g, iv, bm, em = _pair_gain([(te, allrun.linear_eval(0)[1], evaluate(fit, te)[1])], cfg,
                                        cfg.block_T * ctx.t_ship)
             test = {"test_mae_psi_deg": em, "test_baseline_mae_psi_deg": bm,

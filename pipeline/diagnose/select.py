@@ -289,9 +289,9 @@ class Search:
         # with DiagnoseConfig.anchor_rudder_gains the rudder gains b11, b21 are held too: the anchored
         # extension is then the baseline itself at small motion, not only in its hull's linear part
         hold = tuple(float(x) for x in anchor.theta[:6 if self.cfg.anchor_rudder_gains else 4])
-        return self._least_cost(k, structure, (anchor, *starts), hold_linear=hold)
+        return self.least_cost(k, structure, (anchor, *starts), hold_linear=hold)
 
-    def _least_cost(self, k: int, structure, starts, **form) -> FitResult:
+    def least_cost(self, k: int, structure, starts, **form) -> FitResult:
         """Fold ``k``'s fit of ``structure`` in the form ``form`` (keywords of :func:`fit_structure`)
         from each of ``starts``, the one of least TRAINING cost (the first of equal ones).  Raises the
         last ModelError where none fits."""
@@ -383,7 +383,7 @@ class Search:
         held at most at :meth:`growth_allowance` (``fit_structure(growth_bound=...)``); fitted from
         each of ``starts``, the fold's bounded linear fit and its reported baseline, the fit of least
         TRAINING cost kept.  Raises ModelError where none fits."""
-        return self._least_cost(k, structure, (*starts, self.bounded(k), self.linear(k)),
+        return self.least_cost(k, structure, (*starts, self.bounded(k), self.linear(k)),
                                 growth_bound=self.growth_allowance(k))
 
     def _linear(self, k: int, sign_bounds: bool, start: FitResult | None) -> FitResult:
