@@ -116,3 +116,45 @@ def test_same_kind_left_counts_the_other_runs_of_a_runs_kind():
     z1, z2, c = _Run(40.0), _Run(30.0), _Run(TURNING_DEG + 200.0)
     assert [same_kind_left(r, [z1, z2, c]) for r in (z1, z2, c)] == [1, 1, 0]
     assert same_kind_left(c, [z1, c, _Run(360.0)]) == 1
+
+
+def test_the_reference_structure_is_not_split_by_the_backward_pass_where_it_is_a_candidate():
+    """``reference_candidate``: while every member of the reference structure is in the model, the
+    backward pass drops none of them (their drop-one steps on the design's folds cannot tell what each
+    carries); a member of the catalogue outside it is still judged, and without the setting the same
+    failing steps drop the reference's members."""
+    ref = _RefSearch({}).ctx
+    steps = {"rudder_offset": _step({"physical_floor", "block_t"}, 0.14),
+             "hull_nonlinearity": _step(set(), 0.86),
+             "speed_loss": _step({"min_gain", "every_fold"}, 0.09),
+             "rudder_asymmetry": _step(set(), 0.70),
+             "rudder_lag": _step({"min_gain", "block_t"}, 0.01)}
+
+    class _Ctx(_Search):
+        ctx = ref
+
+    def run(**over):
+        cur = tuple((e, "form") for e in steps)
+        cfg = dc.replace(DiagnoseConfig(), max_effects=len(cur), **over)
+        out = _forward_backward(_Ctx(cfg, steps), [0], cur, None, 0.1, [(cur, None)], {}, {}, {})
+        return {e for e, _ in out[0]}
+
+    reference = {"rudder_offset", "hull_nonlinearity", "speed_loss", "rudder_asymmetry"}
+    assert run(reference_candidate=True) == reference
+    assert run(backward_on_worth=True) == {"hull_nonlinearity", "rudder_asymmetry"}
+
+
+def test_with_the_reference_as_a_candidate_a_member_below_its_floor_stays_in_the_group():
+    """``reference_candidate``: a member failing its physical floor alone stays in the group (not
+    named, but the model judged is the whole structure), the group's step is the hull terms' (a
+    passing one, so the one-standard-error rule can rank it); another failed gate still refuses it."""
+    from pipeline.diagnose.select import _reference_group
+
+    full = frozenset({"rudder_offset", "hull_nonlinearity", "speed_loss", "rudder_asymmetry"})
+    s = _RefSearch({full: {"rudder_offset": {"physical_floor"}}})
+    s.cfg = dc.replace(s.cfg, reference_candidate=True)
+    first, st, step = _reference_group(s, [0], 0.1)
+    assert first == "hull_nonlinearity" and {e for e, _ in st} == full and step.passes
+    s = _RefSearch({full: {"rudder_offset": {"physical_floor", "no_harm"}}})
+    s.cfg = dc.replace(s.cfg, reference_candidate=True)
+    assert _reference_group(s, [0], 0.1) is None

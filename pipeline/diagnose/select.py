@@ -996,9 +996,12 @@ def _reference_group(search: Search, ks, noise_deg):
     step passes with EACH member's physical floor; the backward pass then drops the members it does
     not need.  Members whose step fails on their physical floor alone are left out and the rest is
     judged again, refitted from the richer fit (a member too small to name is no reason to refuse the
-    others).  Returns (first member, structure, step) or None (no hull term applies, a fit fails, or
-    a step fails on another gate)."""
+    others); with ``DiagnoseConfig.reference_candidate`` they are kept instead (below their floor they
+    are not named, but the group is judged as the model it is).  Returns ("hull_nonlinearity",
+    structure, the hull terms' step) or None (no hull term applies, a fit fails, or a step fails on
+    another gate)."""
     st = reference_structure(search.ctx)
+    keep_small = search.cfg.reference_candidate
     prev = None
     while "hull_nonlinearity" in dict(st):
         try:
@@ -1007,14 +1010,22 @@ def _reference_group(search: Search, ks, noise_deg):
         except ModelError:
             return None
         steps = [search.step(ks, (), st, m, noise_deg) for m, _ in st]
-        if all(s.passes for s in steps):
-            return st[0][0], st, steps[0]
-        small = {m for (m, _), s in zip(st, steps, strict=True) if not s.passes
-                 and {g.code for g in s.gates if not g.passed} == {"physical_floor"}}
+        by = dict(zip([m for m, _ in st], steps, strict=True))
+        if all(s.passes or (keep_small and m != "hull_nonlinearity" and _fails_only_floor(s))
+               for m, s in by.items()):
+            # every member's step is the same step (baseline -> group) judged with its own floor: the
+            # hull terms', which must pass, stands for the group
+            return "hull_nonlinearity", st, by["hull_nonlinearity"]
+        small = {m for m, s in by.items() if _fails_only_floor(s)}
         if not small or any(not s.passes for (m, _), s in zip(st, steps, strict=True) if m not in small):
             return None
         prev, st = st, structure_of(*[x for x in st if x[0] not in small])
     return None
+
+
+def _fails_only_floor(s) -> bool:
+    """Whether step ``s`` fails on its physical floor alone."""
+    return not s.passes and {g.code for g in s.gates if not g.passed} == {"physical_floor"}
 
 
 #: re-judgements of one forward round after the current structure found a better optimum (each one
@@ -1068,6 +1079,10 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
             alone = {e: s for e, (_, s) in cands.items()}
         last = {e: s for e, (_, s) in cands.items()}
         ranked = sorted(cands.items(), key=lambda kv: -kv[1][1].gain)
+        if not cur and cfg.reference_candidate:
+            ref = _reference_group(search, ks, noise_deg)
+            if ref is not None:
+                ranked = sorted([*ranked, (ref[0], (ref[1], ref[2]))], key=lambda kv: -kv[1][1].gain)
         pick = _one_se(ranked)
         if pick is None and len(cur) + 2 <= cfg.max_effects:
             pool = _pair_pool(search, ks, cur, ranked, cfg.pair_top)
@@ -1091,10 +1106,14 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
         rejudged = 0
         cur = st
         ladder.append((cur, s))
-    # backward elimination
+    # backward elimination (the reference structure, while whole, is not split: reference_candidate)
+    whole = set(dict(reference_structure(search.ctx))) if cfg.reference_candidate else set()
     while len(cur) >= 2:
         worst = None
+        kept = whole if whole <= set(dict(cur)) else set()
         for e, _ in cur:
+            if e in kept:
+                continue
             without = tuple(x for x in cur if x[0] != e)
             _nested_fit(search, ks, without, cur)
             s = search.step(ks, without, cur, e, noise_deg)
