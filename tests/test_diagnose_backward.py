@@ -119,7 +119,7 @@ def test_same_kind_left_counts_the_other_runs_of_a_runs_kind():
 
 
 def test_the_reference_structure_is_not_split_by_the_backward_pass_where_it_is_a_candidate():
-    """``reference_candidate``: while every member of the reference structure is in the model, the
+    """``reference_whole``: while every member of the reference structure is in the model, the
     backward pass drops none of them (their drop-one steps on the design's folds cannot tell what each
     carries); a member of the catalogue outside it is still judged, and without the setting the same
     failing steps drop the reference's members."""
@@ -140,21 +140,45 @@ def test_the_reference_structure_is_not_split_by_the_backward_pass_where_it_is_a
         return {e for e, _ in out[0]}
 
     reference = {"rudder_offset", "hull_nonlinearity", "speed_loss", "rudder_asymmetry"}
-    assert run(reference_candidate=True) == reference
+    assert run(reference_whole=True) == reference
     assert run(backward_on_worth=True) == {"hull_nonlinearity", "rudder_asymmetry"}
 
 
 def test_with_the_reference_as_a_candidate_a_member_below_its_floor_stays_in_the_group():
-    """``reference_candidate``: a member failing its physical floor alone stays in the group (not
+    """``reference_whole``: a member failing its physical floor alone stays in the group (not
     named, but the model judged is the whole structure), the group's step is the hull terms' (a
     passing one, so the one-standard-error rule can rank it); another failed gate still refuses it."""
     from pipeline.diagnose.select import _reference_group
 
     full = frozenset({"rudder_offset", "hull_nonlinearity", "speed_loss", "rudder_asymmetry"})
     s = _RefSearch({full: {"rudder_offset": {"physical_floor"}}})
-    s.cfg = dc.replace(s.cfg, reference_candidate=True)
+    s.cfg = dc.replace(s.cfg, reference_whole=True)
     first, st, step = _reference_group(s, [0], 0.1)
     assert first == "hull_nonlinearity" and {e for e, _ in st} == full and step.passes
     s = _RefSearch({full: {"rudder_offset": {"physical_floor", "no_harm"}}})
-    s.cfg = dc.replace(s.cfg, reference_candidate=True)
+    s.cfg = dc.replace(s.cfg, reference_whole=True)
     assert _reference_group(s, [0], 0.1) is None
+
+
+def test_a_replacement_does_not_take_out_the_whole_reference():
+    """``_best_swap`` tries swapping out every member but the fixed ones (the reference structure
+    while whole, ``reference_whole``): with all fixed there is no swap, and ``_unsplit`` names the
+    reference's members only while every one of them is in the model and the setting is on."""
+    from pipeline.diagnose.select import _best_swap, _unsplit
+
+    cur = tuple((e, "f") for e in ("rudder_offset", "hull_nonlinearity", "speed_loss", "rudder_asymmetry"))
+    asked = []
+
+    def round_(rest, against):
+        asked.append({e for e, _ in rest})
+        return {"nonlinear_yaw_damping": ((*rest, ("nonlinear_yaw_damping", "abs")), _step(set(), 0.5))}
+
+    swap = _best_swap(cur, round_, fixed={"hull_nonlinearity", "speed_loss", "rudder_asymmetry"})
+    assert asked == [{"hull_nonlinearity", "speed_loss", "rudder_asymmetry"}]     # the offset alone out
+    assert swap[0] == "nonlinear_yaw_damping"
+    assert _best_swap(cur, round_, fixed={e for e, _ in cur}) is None and len(asked) == 1
+    on = _RefSearch({})
+    on.cfg = dc.replace(on.cfg, reference_whole=True)
+    assert _unsplit(on, cur) == {e for e, _ in cur}
+    assert _unsplit(on, cur[1:]) == set()
+    assert _unsplit(_RefSearch({}), cur) == set()

@@ -996,12 +996,12 @@ def _reference_group(search: Search, ks, noise_deg):
     step passes with EACH member's physical floor; the backward pass then drops the members it does
     not need.  Members whose step fails on their physical floor alone are left out and the rest is
     judged again, refitted from the richer fit (a member too small to name is no reason to refuse the
-    others); with ``DiagnoseConfig.reference_candidate`` they are kept instead (below their floor they
+    others); with ``DiagnoseConfig.reference_whole`` they are kept instead (below their floor they
     are not named, but the group is judged as the model it is).  Returns ("hull_nonlinearity",
     structure, the hull terms' step) or None (no hull term applies, a fit fails, or a step fails on
     another gate)."""
     st = reference_structure(search.ctx)
-    keep_small = search.cfg.reference_candidate
+    keep_small = search.cfg.reference_whole
     prev = None
     while "hull_nonlinearity" in dict(st):
         try:
@@ -1048,13 +1048,26 @@ def _nested_fit(search: Search, ks, smaller, richer) -> None:
 _MAX_CYCLES = 4
 
 
-def _best_swap(cur, round_):
-    """Sequential replacement on ``cur``: every member swapped for every effect not in ``cur``, each
+def _unsplit(search: Search, cur) -> set:
+    """The members of ``cur`` that neither the backward pass nor a replacement may take out: the
+    reference structure's, while it is whole in ``cur`` and ``DiagnoseConfig.reference_whole``
+    (its members act together; the reason is at the setting).  Empty otherwise."""
+    if not search.cfg.reference_whole:
+        return set()
+    whole = set(dict(reference_structure(search.ctx)))
+    return whole if whole <= set(dict(cur)) else set()
+
+
+def _best_swap(cur, round_, fixed=frozenset()):
+    """Sequential replacement on ``cur``: every member (but those in ``fixed``) swapped for every
+    effect not in ``cur``, each
     fitted warm from the rest's fit (made by the backward pass) and the step cur -> swapped judged with
     the incoming effect's floor (``round_(rest, against=cur)``).  Returns (incoming effect, structure,
     step) of the best passing swap (one-standard-error rule), or None."""
     ranked = []
     for m, _ in cur:
+        if m in fixed:
+            continue
         rest = tuple(x for x in cur if x[0] != m)
         ranked += list(round_(rest, against=cur).items())
     ranked.sort(key=lambda kv: -kv[1][1].gain)
@@ -1079,10 +1092,6 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
             alone = {e: s for e, (_, s) in cands.items()}
         last = {e: s for e, (_, s) in cands.items()}
         ranked = sorted(cands.items(), key=lambda kv: -kv[1][1].gain)
-        if not cur and cfg.reference_candidate:
-            ref = _reference_group(search, ks, noise_deg)
-            if ref is not None:
-                ranked = sorted([*ranked, (ref[0], (ref[1], ref[2]))], key=lambda kv: -kv[1][1].gain)
         pick = _one_se(ranked)
         if pick is None and len(cur) + 2 <= cfg.max_effects:
             pool = _pair_pool(search, ks, cur, ranked, cfg.pair_top)
@@ -1106,11 +1115,10 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
         rejudged = 0
         cur = st
         ladder.append((cur, s))
-    # backward elimination (the reference structure, while whole, is not split: reference_candidate)
-    whole = set(dict(reference_structure(search.ctx))) if cfg.reference_candidate else set()
+    # backward elimination (the reference structure, while whole, is not split: reference_whole)
     while len(cur) >= 2:
         worst = None
-        kept = whole if whole <= set(dict(cur)) else set()
+        kept = _unsplit(search, cur)
         for e, _ in cur:
             if e in kept:
                 continue
@@ -1176,7 +1184,7 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
         seen.add(key)
         if removed:
             continue
-        swap = _best_swap(cur, round_) if len(cur) >= cfg.max_effects else None
+        swap = _best_swap(cur, round_, _unsplit(search, cur)) if len(cur) >= cfg.max_effects else None
         if swap is None:
             break
         cur = swap[1]
