@@ -1017,7 +1017,7 @@ def _reference_group(search: Search, ks, noise_deg):
             # hull terms', which must pass, stands for the group
             return "hull_nonlinearity", st, by["hull_nonlinearity"]
         small = {m for m, s in by.items() if _fails_only_floor(s)}
-        if not small or any(not s.passes for (m, _), s in zip(st, steps, strict=True) if m not in small):
+        if not small or any(not s.passes for m, s in by.items() if m not in small):
             return None
         prev, st = st, structure_of(*[x for x in st if x[0] not in small])
     return None
@@ -1060,9 +1060,8 @@ def _unsplit(search: Search, cur) -> set:
 
 def _best_swap(cur, round_, fixed=frozenset()):
     """Sequential replacement on ``cur``: every member (but those in ``fixed``) swapped for every
-    effect not in ``cur``, each
-    fitted warm from the rest's fit (made by the backward pass) and the step cur -> swapped judged with
-    the incoming effect's floor (``round_(rest, against=cur)``).  Returns (incoming effect, structure,
+    effect not in ``cur``, each fitted warm from the rest's fit (made by the backward pass) and the
+    step cur -> swapped judged with the incoming effect's floor (``round_(rest, against=cur)``).  Returns (incoming effect, structure,
     step) of the best passing swap (one-standard-error rule), or None."""
     ranked = []
     for m, _ in cur:
