@@ -1061,8 +1061,9 @@ def _unsplit(search: Search, cur) -> set:
 def _best_swap(cur, round_, fixed=frozenset()):
     """Sequential replacement on ``cur``: every member (but those in ``fixed``) swapped for every
     effect not in ``cur``, each fitted warm from the rest's fit (made by the backward pass) and the
-    step cur -> swapped judged with the incoming effect's floor (``round_(rest, against=cur)``).  Returns (incoming effect, structure,
-    step) of the best passing swap (one-standard-error rule), or None."""
+    step cur -> swapped judged with the incoming effect's floor (``round_(rest, against=cur)``).
+    Returns (incoming effect, structure, step) of the best passing swap (one-standard-error rule), or
+    None."""
     ranked = []
     for m, _ in cur:
         if m in fixed:
