@@ -36,7 +36,8 @@ class _Search:
 
 def _backward(steps: dict, **over) -> tuple:
     cur = tuple((e, "form") for e in steps)
-    cfg = dc.replace(DiagnoseConfig(), max_effects=len(cur), **over)
+    # the backward rule alone: reference_whole (which keeps the reference's members) off
+    cfg = dc.replace(DiagnoseConfig(), max_effects=len(cur), **{"reference_whole": False, **over})
     out = _forward_backward(_Search(cfg, steps), [0], cur, None, 0.1, [(cur, None)], {}, {}, {})
     return tuple(e for e, _ in out[0])
 
@@ -54,7 +55,7 @@ def test_a_member_that_harms_one_run_but_carries_the_rest_stays_only_on_worth():
     steps = {"rudder_offset": _step({"no_harm"}, 0.40),
              "hull_nonlinearity": _step(set(), 0.55),
              "speed_loss": _step({"block_t", "min_gain"}, 0.02)}
-    assert _backward(steps) == ("hull_nonlinearity",)
+    assert _backward(steps, backward_on_worth=False) == ("hull_nonlinearity",)
     assert _backward(steps, backward_on_worth=True) == ("rudder_offset", "hull_nonlinearity")
 
 
@@ -62,7 +63,7 @@ def test_soundness_failures_alone_never_remove_on_worth():
     for code in set(CODES) - set(WORTH):
         steps = {"rudder_offset": _step({code}, 0.3), "rudder_lag": _step(set(), 0.3)}
         assert _backward(steps, backward_on_worth=True) == ("rudder_offset", "rudder_lag"), code
-        assert _backward(steps) == ("rudder_lag",), code
+        assert _backward(steps, backward_on_worth=False) == ("rudder_lag",), code
 
 
 class _RefSearch:
@@ -72,7 +73,8 @@ class _RefSearch:
     def __init__(self, fail):
         from pipeline.diagnose.effects import Context
 
-        self.cfg, self.fail, self.fitted = DiagnoseConfig(), fail, []
+        # reference_whole off unless a test turns it on
+        self.cfg, self.fail, self.fitted = dc.replace(DiagnoseConfig(), reference_whole=False), fail, []
         self.ctx = Context(t_ship=5.0, h=0.08, d_max=35.0, r_max=3.0, v_max=0.1, u_ref=2.0, u_min_ratio=0.6)
 
     def fit(self, k, structure, start=None):
@@ -141,7 +143,7 @@ def test_the_reference_structure_is_not_split_by_the_backward_pass_where_it_is_a
 
     reference = {"rudder_offset", "hull_nonlinearity", "speed_loss", "rudder_asymmetry"}
     assert run(reference_whole=True) == reference
-    assert run(backward_on_worth=True) == {"hull_nonlinearity", "rudder_asymmetry"}
+    assert run(backward_on_worth=True, reference_whole=False) == {"hull_nonlinearity", "rudder_asymmetry"}
 
 
 def test_with_the_reference_as_a_candidate_a_member_below_its_floor_stays_in_the_group():
@@ -182,3 +184,31 @@ def test_a_replacement_does_not_take_out_the_whole_reference():
     assert _unsplit(on, cur) == {e for e, _ in cur}
     assert _unsplit(on, cur[1:]) == set()
     assert _unsplit(_RefSearch({}), cur) == set()
+
+
+def test_the_reference_step_keeps_to_max_effects():
+    """The reference structure (four members here) is not tried where the model may hold fewer."""
+    from pipeline.diagnose.select import _reference_group
+
+    s = _RefSearch({})
+    assert _reference_group(s, [0], 0.1) is not None
+    s = _RefSearch({})
+    s.cfg = dc.replace(s.cfg, max_effects=3)
+    assert _reference_group(s, [0], 0.1) is None and s.fitted == []
+
+
+def test_the_bounded_form_comes_first_for_the_reference_structures_only():
+    """``bound_reference`` (on): an unsound fit of a structure with the reference's hull terms is
+    refitted in its bounded form first, one of a catalogue term in its anchored form; with
+    ``bound_small_motion`` every structure in its bounded form; with neither, none."""
+    from pipeline.diagnose.select import Search
+
+    ref = (("rudder_offset", "constant"), ("hull_nonlinearity", "abkowitz"))
+    one = (("nonlinear_sway_damping", "abs"),)
+    s = object.__new__(Search)
+    s.cfg = DiagnoseConfig()
+    assert s.bounded_first(ref) and not s.bounded_first(one)
+    s.cfg = dc.replace(DiagnoseConfig(), bound_small_motion=True)
+    assert s.bounded_first(ref) and s.bounded_first(one)
+    s.cfg = dc.replace(DiagnoseConfig(), bound_reference=False)
+    assert not s.bounded_first(ref) and not s.bounded_first(one)

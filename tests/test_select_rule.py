@@ -18,6 +18,7 @@ from pipeline.config import DiagnoseConfig
 from pipeline.diagnose import select as sel
 from pipeline.diagnose.effects import Context
 from pipeline.diagnose.fit import structure_of
+from pipeline.diagnose.gates import GateResult
 
 A, C, D, O = "rudder_saturation", "nonlinear_sway_damping", "speed_loss", "rudder_offset"
 #: held-out MAE psi (deg) of each structure; any other effect of the catalogue changes nothing
@@ -72,9 +73,10 @@ class FakeSearch:
         gain = (b - a) / b
         why = [] if gain >= MIN_GAIN else [f"held-out gain {gain:.0%} below {MIN_GAIN:.0%}"]
         self.steps.append((tuple(e for e, _ in before), tuple(e for e, _ in after)))
+        gates = (GateResult("min_gain", not why, gain, MIN_GAIN, "; ".join(why)),)
         return sel.Step(passes=not why, gain=gain, gains=[gain], abs_gain_deg=b - a, t=10.0, t_crit=1.7,
                         blocks=20, material=True, floor="", why=why, structure=structure_of(*after),
-                        mean_diff=b - a, se=0.0)
+                        mean_diff=b - a, se=0.0, gates=gates)
 
 
 def _names(structure) -> set:
@@ -257,6 +259,7 @@ class RunAwaySearch(FakeSearch):
         st = super().step(ks, before, after, effect, noise_deg)
         if _error(before) > 100.0 >= _error(after):
             st.passes, st.why = False, ["block t = 1.02 below t(0.95, 7) = 1.89"]
+            st.gates = (*st.gates, GateResult("block_t", False, 1.02, 1.89, st.why[0]))
             st.removal_runs_away = [f"run 1 {_error(after):.2f} -> {_error(before):.2f} deg"]
         return st
 

@@ -357,7 +357,8 @@ class Search:
         the extension buys its large manoeuvres with a small-motion model propped up by the new terms,
         and it runs away on the small ones.  It is then refitted with the linear part held at the
         fold's reported baseline (:meth:`linear`) and its damping terms signed (negative), from the
-        baseline and from the free fit, the one of least TRAINING cost kept.  Off with
+        baseline and from the free fit, the one of least TRAINING cost kept; where
+        :meth:`bounded_first`, first in its bounded form (:meth:`_bounded_form`).  Off with
         ``DiagnoseConfig.anchor_small_motion`` False; a refit that fails keeps the free fit (the
         held-out gates judge it)."""
         if not self.cfg.anchor_small_motion or not self._hull(structure) or fit.hold_linear is not None \
@@ -367,7 +368,7 @@ class Search:
         # the allowance is at least 1/D (neutral): below it no linear fit need be looked at
         if rate <= self._neutral(k) or rate <= self.growth_allowance(k):
             return fit
-        if self.cfg.bound_small_motion:
+        if self.bounded_first(structure):
             try:
                 return self._bounded_form(k, structure, [fit])
             except ModelError:
@@ -377,12 +378,20 @@ class Search:
         except ModelError:
             return fit
 
+    def bounded_first(self, structure) -> bool:
+        """Whether an unsound fit of ``structure`` is refitted in its bounded form before the anchored
+        one (:meth:`sound`): every structure with ``DiagnoseConfig.bound_small_motion``, those with the
+        reference's complete hull terms (``hull_nonlinearity``) with ``DiagnoseConfig.bound_reference``
+        (the reasons are at the settings)."""
+        reference = "hull_nonlinearity" in dict(structure)
+        return self.cfg.bound_small_motion or (self.cfg.bound_reference and reference)
+
     def _bounded_form(self, k: int, structure, starts) -> FitResult:
-        """The bounded form of ``structure`` in fold ``k`` (:meth:`sound`,
-        ``DiagnoseConfig.bound_small_motion``): every parameter fitted, the linear part's growth rate
-        held at most at :meth:`growth_allowance` (``fit_structure(growth_bound=...)``); fitted from
-        each of ``starts``, the fold's bounded linear fit and its reported baseline, the fit of least
-        TRAINING cost kept.  Raises ModelError where none fits."""
+        """The bounded form of ``structure`` in fold ``k`` (:meth:`sound`, :meth:`bounded_first`): every
+        parameter fitted, the linear part's growth rate held at most at :meth:`growth_allowance`
+        (``fit_structure(growth_bound=...)``); fitted from each of ``starts``, the fold's bounded linear
+        fit and its reported baseline, the fit of least TRAINING cost kept.  Raises ModelError where
+        none fits."""
         return self.least_cost(k, structure, (*starts, self.bounded(k), self.linear(k)),
                                 growth_bound=self.growth_allowance(k))
 
@@ -998,9 +1007,11 @@ def _reference_group(search: Search, ks, noise_deg):
     judged again, refitted from the richer fit (a member too small to name is no reason to refuse the
     others); with ``DiagnoseConfig.reference_whole`` they are kept instead (below their floor they
     are not named, but the group is judged as the model it is).  Returns ("hull_nonlinearity",
-    structure, the hull terms' step) or None (no hull term applies, a fit fails, or a step fails on
-    another gate)."""
+    structure, the hull terms' step) or None (no hull term applies, the structure has more members than
+    ``DiagnoseConfig.max_effects``, a fit fails, or a step fails on another gate)."""
     st = reference_structure(search.ctx)
+    if len(st) > search.cfg.max_effects:
+        return None
     keep_small = search.cfg.reference_whole
     prev = None
     while "hull_nonlinearity" in dict(st):
