@@ -542,7 +542,8 @@ class DiagnoseConfig:
     # (the best linear model 6.61), while on the two design folds the offset's and the speed loss's
     # drop-one steps show +14 % and +9 % and the backward pass drops them.  With the settings before
     # it, the virtual KCS's honest gain (nested leave-one-run-out) is 58 % [48 %, 67 %] (6.61 -> 2.75
-    # deg), -3 % without this one (docs/diagnosis.md, "The reference step")
+    # deg, in-process; 54 % through make pipeline's files), -3 % without this one (docs/diagnosis.md,
+    # "The bounded form and the reference step")
     reference_whole: bool = True
     # the damping terms of every effect's form (Param.damping: y_vv, n_rrr, n_rr and the cross terms
     # that are a damping growing with the other motion) held <= 0 in the free form too, not only in the

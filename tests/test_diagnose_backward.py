@@ -212,3 +212,17 @@ def test_the_bounded_form_comes_first_for_the_reference_structures_only():
     assert s.bounded_first(ref) and s.bounded_first(one)
     s.cfg = dc.replace(DiagnoseConfig(), bound_reference=False)
     assert not s.bounded_first(ref) and not s.bounded_first(one)
+
+
+def test_a_group_steps_ladder_name_follows_the_structure():
+    """The ladder names a group step's effects in the structure's order, not a set's (which the
+    string hash seed of each process orders: two runs of the virtual KCS wrote the reference step as
+    "+hull_nonlinearity+speed_loss+..." and "+rudder_asymmetry+speed_loss+...")."""
+    from pipeline.diagnose.core import rung_name
+
+    ref = (("rudder_offset", "constant"), ("hull_nonlinearity", "abkowitz"), ("speed_loss", "power"),
+           ("rudder_asymmetry", "two_sided"))
+    assert rung_name((), ()) == "baseline"
+    assert rung_name((), ref) == "+rudder_offset+hull_nonlinearity+speed_loss+rudder_asymmetry"
+    assert rung_name(ref, ref[1:3] + (("rudder_lag", "first_order"),)) == \
+        "+rudder_lag-rudder_offset-rudder_asymmetry"

@@ -1014,6 +1014,17 @@ def _adequacy(base_mae: float, noise: float, cfg: DiagnoseConfig, residuals: dic
                     signatures=[Signature(effect=e, correlation=c) for e, c in sig])
 
 
+def rung_name(before, after) -> str:
+    """The ladder's name of the step ``before`` -> ``after`` (structures of (effect, form) pairs):
+    "baseline" for the empty structure, else "+e" for each effect added and "-e" for each removed, in
+    the order the structures list them (so the same selection names its steps the same in every
+    process)."""
+    if not after:
+        return "baseline"
+    was, now = {e for e, _ in before}, {e for e, _ in after}
+    return "".join([f"+{e}" for e, _ in after if e not in was] + [f"-{e}" for e, _ in before if e not in now])
+
+
 def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
     """(diagnosis.json as a :class:`~pipeline.diagnose.result.DiagnosisReport`, baseline fit, extended
     fit, series table) of ``outcome`` on ``design``."""
@@ -1065,11 +1076,7 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
     ladder = []
     for i, (s_, _step) in enumerate(sel.ladder):
         key = structure_of(*s_)
-        prev = {e for e, _ in sel.ladder[i - 1][0]} if i else set()
-        now = {e for e, _ in s_}
-        name = "baseline" if not s_ else "".join(
-            [f"+{e}" for e in now - prev] + [f"-{e}" for e in prev - now]
-        )
+        name = rung_name(sel.ladder[i - 1][0] if i else (), s_)
         tl = outcome.test_ladder.get(key)
         ladder.append(
             LadderRung(
