@@ -1,9 +1,10 @@
 # %% [markdown]
 # # Diagnosis: what the linear model gets wrong
 # The linear sway-yaw model (docs/contract.md#the-identification-model), fitted on training runs, is simulated
-# free-run on runs it has not seen. Effects of the catalogue (docs/diagnosis.md) are added one at a time, each
-# kept only when it cuts the held-out heading error materially, significantly and in every fold. The effects
-# are chosen on the validation runs; the gain is reported on runs no choice has seen.
+# free-run on runs it has not seen. Effects of the catalogue (docs/diagnosis.md) are added one at a time (two
+# or three together, or the reference structure as one model, where none passes alone), each kept only when
+# it cuts the held-out heading error materially, significantly and in every fold. The effects are chosen on
+# the validation runs; the gain is reported on runs no choice has seen.
 
 # %% tags=["parameters"]
 # Parameters (papermill injects the real values after this cell). In JupyterLab: `make lab D=NAME`,
@@ -15,6 +16,8 @@ max_runs_plotted = 6          # validation runs drawn
 
 
 # %%
+import textwrap
+
 import numpy as np
 import pandas as pd
 import matplotlib.pyplot as plt
@@ -157,7 +160,8 @@ if len(lrows) > 1:
         ax.plot([np.nan if v is None else v for v in tv], y, "s", color="tab:red",
                 label="test runs (no choice saw them)")
     ax.set_yticks(y)
-    ax.set_yticklabels([f"{r['step']}: {r['model']}" for r in lrows])
+    # long labels (a group step names several effects) wrapped, so the axes keep their width
+    ax.set_yticklabels([textwrap.fill(f"{r['step']}: {r['model']}", 48) for r in lrows], fontsize=8)
     ax.set_xlabel("free-run MAE of psi (deg)")
     ax.set_xlim(left=0)
     ax.set_ylim(-0.6, len(lrows) - 0.4)

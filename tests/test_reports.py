@@ -433,7 +433,10 @@ def test_diagnosis_words_and_verdicts():
     assert dt.plain("k n_rrr_s_per_deg2 = 1", ["n_rrr_s_per_deg2"]) == "k n_rrr (s/deg^2) = 1"
     rows = dt.ladder_rows({"ladder": [{"model": "baseline", "effects": []},
                                       {"model": "+rudder_offset-speed_loss", "effects": ["rudder_offset"]}]})
-    assert rows[1]["model"] == "adds rudder offset drops speed loss in turns"
+    assert rows[1]["model"] == "adds rudder offset; drops speed loss in turns"
+    assert dt.move_words("+rudder_offset+speed_loss+nonlinear_yaw_damping-rudder_lag") == (
+        "adds rudder offset, speed loss in turns and " + dt.effect_label("nonlinear_yaw_damping")
+        + "; drops " + dt.effect_label("rudder_lag"))
     assert rows[1]["test gain over baseline"] == "n/a"
     cx, my = dt.binned(np.linspace(-1, 1, 200), 2 * np.linspace(-1, 1, 200))
     assert np.allclose(my, 2 * cx, atol=0.02)

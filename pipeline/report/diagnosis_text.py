@@ -355,8 +355,7 @@ def ladder_rows(dg: dict) -> list[dict]:
         if i == 0 or not effs:
             words = "linear baseline"
         elif name.startswith(("+", "-")):
-            words = " ".join(("adds " if tok[0] == "+" else "drops ") + effect_label(tok[1:])
-                             for tok in _split_moves(name))
+            words = move_words(name)
         else:
             words = name
         tm = rung.get("test_mae_psi_deg")
@@ -368,6 +367,19 @@ def ladder_rows(dg: dict) -> list[dict]:
                      "test gain 95 % interval": (interval(rung.get("test_interval_95")) or "n/a")
                      if i else ""})
     return rows
+
+
+def move_words(name: str) -> str:
+    """A ladder rung's moves in words: '+rudder_offset+speed_loss-rudder_lag' -> 'adds rudder offset and
+    speed loss in turns; drops steering-gear lag' (the effects' labels, in the rung's order)."""
+    moves = _split_moves(name)
+    parts = []
+    for sign, verb in (("+", "adds"), ("-", "drops")):
+        labels = [effect_label(m[1:]) for m in moves if m[0] == sign]
+        if labels:
+            parts.append(f"{verb} " + (labels[0] if len(labels) == 1
+                                       else ", ".join(labels[:-1]) + " and " + labels[-1]))
+    return "; ".join(parts)
 
 
 def _split_moves(name: str) -> list[str]:
