@@ -24,7 +24,8 @@ def plot_series(diag: Diagnosis, out_dir: Path) -> list[Path]:
     )
     for run_id, g in diag.series.groupby("run_id", sort=False):
         t = g["time"].to_numpy()
-        fig, ax = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
+        # the layout engine set here, not by the caller's rcParams (a notebook may have set another)
+        fig, ax = plt.subplots(3, 1, figsize=(9, 8), sharex=True, layout="tight")
         ax[0].plot(t, g["psi"], "k", lw=1.2, label="measured")
         ax[0].plot(t, g["psi_baseline"], "C0--", lw=1, label="baseline linear")
         ax[0].plot(t, g["psi_extended"], "C3", lw=1, label=label_ext)
@@ -40,13 +41,12 @@ def plot_series(diag: Diagnosis, out_dir: Path) -> list[Path]:
         # parse_math and usetex off: a run called "$x$ zz" is a name, not TeX to typeset (or refuse)
         fig.suptitle(f"{run_id}: free-run on held-out data  {banner}", fontsize=10, parse_math=False,
                      usetex=False)
-        fig.tight_layout()
         p = out_dir / f"freerun_{_safe(run_id)}.png"
         fig.savefig(p, dpi=90)
         plt.close(fig)
         paths.append(p)
 
-        fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
+        fig, ax = plt.subplots(1, 2, figsize=(10, 3.8), layout="tight")
         ax[0].plot(t, g["psi_baseline"] - g["psi"], "C0", lw=1, label="baseline")
         ax[0].plot(t, g["psi_extended"] - g["psi"], "C3", lw=1, label="extended")
         ax[0].axhline(0, color="k", lw=0.5)
@@ -59,7 +59,6 @@ def plot_series(diag: Diagnosis, out_dir: Path) -> list[Path]:
         ax[1].set_xlabel("measured r (deg/s)")
         ax[1].set_ylabel("r error (deg/s)")
         fig.suptitle(f"{run_id}: residuals", fontsize=10, parse_math=False, usetex=False)
-        fig.tight_layout()
         p = out_dir / f"residuals_{_safe(run_id)}.png"
         fig.savefig(p, dpi=90)
         plt.close(fig)
