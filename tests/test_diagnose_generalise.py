@@ -1195,10 +1195,8 @@ def test_tanker_with_turning_circles(tk_root, form, seed):
     (select.carried_by_one_run), 42 % [13 %, 61 %] (the starboard circle 12.82 -> 5.37 deg).  With
     side-swap folds (all starboard runs training) the
     published model gives offset + cross terms, 74 % / 70 % (seed 1300).  The same six runs of the
-    virtual KCS tank give no honest gain (README).  With the reference step and its companions on
-    (DiagnoseConfig.reference_step and the three beside it, off for this case), measured 2026-11-28:
-    the whole reference named, 8 % [-7 %, 22 %] (seed 1300) and 10 % [-2 %, 22 %] (seed 2000).  make
-    test runs the linear form's seed 1300 only (CI time)."""
+    virtual KCS tank give no honest gain (README).  make test runs the linear form's seed 1300 only
+    (CI time)."""
     from pipeline.diagnose.design import pick_catalog_runs
 
     files = write_tanker_circles(tk_root / f"circles_{form}{seed}", form, seed)
