@@ -248,3 +248,28 @@ def test_rudder_asymmetry_floor_is_the_offset_floor_at_the_largest_rudder_angle(
     # exactly at the floor: a d_max = 0.3 deg is named, just under it is not
     assert eff.material(form, {"asymmetry": MIN_OFFSET_DEG / 20.0}, CTX, 0.0)[0]
     assert not eff.material(form, {"asymmetry": 0.99 * MIN_OFFSET_DEG / 20.0}, CTX, 0.0)[0]
+
+
+def test_hull_nonlinearity_mixed_form_is_the_abkowitz_set_and_the_modulus_cross_terms():
+    """The mixed form (the reference structure's) is the Abkowitz set's eight terms and the modulus cross
+    terms |v| r, v |r| in both equations, each with the bounds and sign of the same term's single effect;
+    simulated, it is the sum of the two sets' terms (the same run as the abkowitz form with the
+    sway-yaw coupling's modulus form beside it), and its reading counts the |v| r moment (known answer:
+    n_avr = -2 1/m at v 0.1 m/s, r 2 deg/s adds -0.4 deg/s^2)."""
+    hull, coup = BY_NAME["hull_nonlinearity"], BY_NAME["sway_yaw_coupling"]
+    mixed, abk, mod = hull.form("mixed"), hull.form("abkowitz"), coup.form("modulus")
+    assert mixed.params == abk.params + mod.params
+    vals = {p.name: 0.0 for p in mixed.params} | {"n_rr_per_deg": -0.05, "n_avr_per_m": -5.0,
+                                                  "y_var_per_deg": -0.5}
+    one, two = Terms(), Terms()
+    hull.apply(mixed, vals, one)
+    hull.apply(abk, {p.name: vals[p.name] for p in abk.params}, two)
+    coup.apply(mod, {p.name: vals[p.name] for p in mod.params}, two)
+    assert sorted(zip(one.feat_code, one.feat_eq, one.feat_coef, strict=True)) == \
+        sorted(zip(two.feat_code, two.feat_eq, two.feat_coef, strict=True))
+    np.testing.assert_allclose(simulate_terms(THETA, one, (0, 0, 0), T, DELTA),
+                               simulate_terms(THETA, two, (0, 0, 0), T, DELTA), rtol=1e-12, atol=1e-12)
+    ctx = Context(t_ship=10.0, h=0.08, d_max=20.0, r_max=2.0, v_max=0.1)
+    zero = {p.name: 0.0 for p in mixed.params}
+    assert "-0.4 from both together" in hull.physical(mixed, zero | {"n_avr_per_m": -2.0}, ctx)
+    assert "+0 from both together" in hull.physical(abk, {p.name: 0.0 for p in abk.params}, ctx)

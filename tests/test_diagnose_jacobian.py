@@ -14,7 +14,7 @@ import pytest
 
 from pipeline.diagnose import TruthConfig, zigzag_truth
 from pipeline.diagnose.core import _context
-from pipeline.diagnose.effects import CATALOGUE
+from pipeline.diagnose.effects import CATALOGUE, REFERENCE, TRIAL
 from pipeline.diagnose.fit import (
     Layout,
     _JointStarts,
@@ -127,8 +127,10 @@ def _central_fine(f, p, lo, hi):
         REL_STEP = saved
 
 
-STRUCTURES = [structure_of((e.name, f.name)) for e in CATALOGUE for f in e.forms] + [
-    structure_of(*[(e.name, e.forms[-1].name) for e in CATALOGUE])
+#: every form of every effect (the trial ones too), all the catalogue's effects together, and the
+#: reference structure (the mixed hull terms with the rudder and speed effects)
+STRUCTURES = [structure_of((e.name, f.name)) for e in CATALOGUE + TRIAL for f in e.forms] + [
+    structure_of(*[(e.name, e.forms[-1].name) for e in CATALOGUE]), structure_of(*REFERENCE)
 ]
 
 

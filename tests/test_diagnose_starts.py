@@ -118,3 +118,38 @@ def test_time_parameter_profile_holds_the_truth(tmp_path, cid, effect, key, iden
     assert (hi < 1.5 * max(lo, 1e-9)) == identified, pr["within_95"]
     # the interval is where the likelihood ratio is small: the ends of the grid outside it
     assert max(pr["cost_ratio"]) > 1.0
+
+
+def test_a_measured_fit_is_chosen_on_training_cost_never_on_the_runs_it_is_measured_on(folds, monkeypatch):
+    """The fit a reported gain is measured with (the nested round's refit, the test runs' refit:
+    Search.measured_fit) is fitted from the given start and cold, and the one of least TRAINING cost is
+    kept without evaluating the fold's validation runs, which there are the held-out runs.  Without the
+    coupling bounds the warm start sits in the poor optimum (training cost far above the cold fit's,
+    the module docstring): the measured fit is the cold one and recovers the asymmetry.  Before, the
+    refit chose between the two on the held-out run itself (Search._best_start's selection rule)."""
+    import pipeline.diagnose.select as select_mod
+    from pipeline.diagnose.fit import fit_structure
+
+    _without_coupling_bounds(monkeypatch)
+    fl, ctx = folds
+    cfg = DiagnoseConfig()
+    st = structure_of("rudder_asymmetry")
+    costs = []
+    for k in (0, 1):
+        search = Search([fl[k]], ctx, cfg)
+        base = search.fit(0, ())
+
+        def no_peeking(*a, **kw):
+            raise AssertionError("a measured fit evaluated the runs it is measured on")
+
+        with monkeypatch.context() as m:
+            m.setattr(select_mod, "evaluate", no_peeking)
+            got = search.measured_fit(0, st, base)
+        assert search.fit(0, st) is got                        # cached as the fold's fit
+        opts = search.fit_options()
+        warm, cold = (fit_structure(fl[k].train, st, ctx, start=s, **opts) for s in (base, None))
+        assert got.cost == pytest.approx(min(warm.cost, cold.cost), rel=1e-12)
+        costs.append((warm.cost, cold.cost))
+        assert got.values["rudder_asymmetry"]["asymmetry"] == pytest.approx(CASE.effects["asym"], rel=0.25)
+    # the case the rule matters for: in some fold the warm fit's training cost is far above the cold one's
+    assert any(w > 2.0 * c for w, c in costs), costs

@@ -583,7 +583,9 @@ def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
         b0 = refit.fit(0, (), start=isearch.fit(0, ()))
         st = isel.structure
         if st:
-            refit.fit(0, st, start=b0)
+            # from the baseline and the equation-error start, the least training cost: never chosen
+            # on the held-out run (Search.measured_fit)
+            refit.measured_fit(0, st, b0)
             refit.refine(0, (), st)
     except ModelError:
         return None
@@ -679,7 +681,8 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
                 continue
             start = search.fit(0, key) if (0, key) in search._fits else None
             try:
-                fits[key] = allrun.fit(0, key, start=start)
+                # never chosen on the test runs (Search.measured_fit)
+                fits[key] = allrun.measured_fit(0, key, start)
             except ModelError:
                 fits[key] = None
         final = structure_of(*sel.structure)

@@ -537,6 +537,29 @@ class Search:
         self._evals[(k, structure_of(*structure))] = ev[id(best)]
         return best
 
+    def measured_fit(self, k: int, structure, start: FitResult | None) -> FitResult:
+        """Fold ``k``'s fit of ``structure`` for a MEASUREMENT on its validation runs (the nested
+        round's held-out run, the test runs): from ``start`` and from the equation-error start, each
+        made sound (:meth:`sound`), the one of least TRAINING cost kept (cached as the fold's fit; the
+        linear model as :meth:`fit` makes it).  Never the one that predicts the validation runs
+        better (:meth:`_best_start`'s rule for the selection's own folds): here they are the runs the
+        reported gain is measured on (DiagnoseConfig.cold_start).  Raises the last ModelError where no
+        start fits."""
+        key = (k, structure_of(*structure))
+        if key in self._fits or not key[1]:
+            return self.fit(k, key[1], start=start)
+        fits, err = [], None
+        for st in ((start, None) if start is not None else (None,)):
+            try:
+                fit = fit_structure(self.folds[k].train, key[1], self.ctx, start=st, **self.fit_options())
+                fits.append(self.sound(k, key[1], fit))
+            except ModelError as e:
+                err = e
+        if not fits:
+            raise err
+        self._fits[key] = min(fits, key=lambda f: f.cost)
+        return self._fits[key]
+
     def refine(self, k: int, structure, richer) -> bool:
         """Refit ``structure`` in fold ``k`` warm-started from the fit of the ``richer`` structure that
         contains it (its extra effects at their null values, i.e. left out); keep the result when its
