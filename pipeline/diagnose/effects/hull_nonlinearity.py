@@ -45,7 +45,7 @@ _MODULUS_CROSS = (
 
 class HullNonlinearity(Effect):
     name = "hull_nonlinearity"
-    label = "hull nonlinearity (Abkowitz-type terms)"
+    label = "hull nonlinearity (nonlinear hull terms in v and r)"
     signature_axis = ("r", "measured yaw rate r (deg/s)")
     estimate_key = "n_rr_per_deg"
     magnitude_unit = "yaw damping n_rr (1/deg) of the set"
