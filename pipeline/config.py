@@ -513,9 +513,16 @@ class DiagnoseConfig:
     # reference's complete hull terms (hull_nonlinearity: v|v|, r|r|, v^2 r, v r^2 in both
     # equations, speed-scaled), whose linear part need not stand in for a missing nonlinearity, so
     # that the tangent at zero motion is what the data give it; on, it changes nothing where no
-    # reference step is taken
+    # reference step is taken.  Off since 2026-11-28 (the reference's hull terms in their mixed form):
+    # the bounded form allows the linear fits' own growth rate, and on a course-unstable hull the
+    # reference fitted on large manoeuvres alone then runs away on the smaller ones: the tanker with
+    # its turning circles (tests/test_diagnose_generalise.py, seed 1300), an inner fold training on the
+    # 20/20 pair and a circle, refitted without its 10/10 zigzag, went 10.73 -> 65.09 deg on it (the
+    # hinge gate) in the bounded form and passes every gate in the anchored one; the honest gain 6 %
+    # [-1 %, 15 %] on, 21 % [7 %, 35 %] off.  The virtual KCS's is the same either way (68 % [59 %,
+    # 75 %]): with the mixed form its anchored reference no longer fails the short-horizon gate
     bound_small_motion: bool = False
-    bound_reference: bool = True
+    bound_reference: bool = False
     # where no effect, pair or triple of the catalogue passes from the baseline, the reference structure
     # (rudder offset, Abkowitz-type hull terms, speed-scaled coefficients, rudder asymmetry) is tried as
     # one step, taken when it passes with each member's floor, and the backward pass drops what it does

@@ -198,19 +198,20 @@ def test_the_reference_step_keeps_to_max_effects():
 
 
 def test_the_bounded_form_comes_first_for_the_reference_structures_only():
-    """``bound_reference`` (on): an unsound fit of a structure with the reference's hull terms is
-    refitted in its bounded form first, one of a catalogue term in its anchored form; with
-    ``bound_small_motion`` every structure in its bounded form; with neither, none."""
+    """``bound_reference`` (off by default, the reason at the setting): on, an unsound fit of a structure
+    with the reference's hull terms is refitted in its bounded form first, one of a catalogue term in its
+    anchored form; with ``bound_small_motion`` every structure in its bounded form; with neither (the
+    defaults), none."""
     from pipeline.diagnose.select import Search
 
-    ref = (("rudder_offset", "constant"), ("hull_nonlinearity", "abkowitz"))
+    ref = (("rudder_offset", "constant"), ("hull_nonlinearity", "mixed"))
     one = (("nonlinear_sway_damping", "abs"),)
     s = object.__new__(Search)
-    s.cfg = DiagnoseConfig()
+    s.cfg = dc.replace(DiagnoseConfig(), bound_reference=True)
     assert s.bounded_first(ref) and not s.bounded_first(one)
     s.cfg = dc.replace(DiagnoseConfig(), bound_small_motion=True)
     assert s.bounded_first(ref) and s.bounded_first(one)
-    s.cfg = dc.replace(DiagnoseConfig(), bound_reference=False)
+    s.cfg = DiagnoseConfig()
     assert not s.bounded_first(ref) and not s.bounded_first(one)
 
 
