@@ -20,6 +20,7 @@ is, where sway damping, yaw damping and the cross terms judged one at a time eac
 
 from __future__ import annotations
 
+from pipeline.diagnose.effects import sway_yaw_coupling
 from pipeline.diagnose.effects.base import R_EQ, RESPONSE_FLOOR, V_EQ, Effect, Form, Injection, Param
 
 #: v|v|, r|r|, v^2 r / s, v r^2 / s in both equations (bounds as the single effects' of the same terms:
@@ -34,14 +35,8 @@ _ABKOWITZ = (
     Param("n_vvr_s_per_m2", 0.0, -1e5, 1e5, 0.0, "s/m^2", feature=(8, R_EQ), damping=True),
     Param("n_vrr_s_per_m_deg", 0.0, -1e3, 1e3, 0.0, "s/(m deg)", feature=(9, R_EQ)),
 )
-#: |v| r and v |r| in both equations (sway_yaw_coupling's modulus form: its bounds and signs)
-_MODULUS_CROSS = (
-    Param("y_avr_per_deg", 0.0, -10.0, 10.0, 0.0, "1/deg", feature=(6, V_EQ)),
-    Param("y_var_per_deg", 0.0, -10.0, 10.0, 0.0, "1/deg", feature=(5, V_EQ), damping=True),
-    Param("n_avr_per_m", 0.0, -1e3, 1e3, 0.0, "1/m", feature=(6, R_EQ), damping=True),
-    Param("n_var_per_m", 0.0, -1e3, 1e3, 0.0, "1/m", feature=(5, R_EQ)),
-)
-
+#: |v| r and v |r| in both equations: sway_yaw_coupling's modulus form, its bounds and signs
+_MODULUS_CROSS = sway_yaw_coupling.EFFECT.form("modulus").params
 
 class HullNonlinearity(Effect):
     name = "hull_nonlinearity"
