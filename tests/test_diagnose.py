@@ -955,13 +955,63 @@ def test_inner_folds_validate_every_remaining_run_once_under_a_two_fold_design()
     # trained, D 20/20 P, E 10/10 S, F turning 35 P validated.  Holding out A, five remain, sorted by
     # manoeuvre (B E, D, C F) and dealt into three groups: each run validated exactly once, and never
     # with its twin (the two turning circles, the two 10 deg zigzags) in its own group
+    # (twin_left_trains off: the next test has the rule that keeps A's twin D out of the deal)
     runs = _runs("A", "B", "C", "D", "E", "F", rudder={"A": 20, "C": 35, "D": 20, "F": 35}, turning="CF")
     folds = [Fold(runs[:3], runs[3:]), Fold(runs[3:], runs[:3])]
-    inner = _inner_folds(folds, runs[0], DiagnoseConfig())
+    dealt = DiagnoseConfig(twin_left_trains=False)
+    inner = _inner_folds(folds, runs[0], dealt)
     assert _names(inner) == [(["D", "E", "F"], ["B", "C"]), (["B", "C", "D"], ["E", "F"]),
                              (["B", "C", "E", "F"], ["D"])]
     # a setting below 2 cannot leave a fold without training runs
-    assert len(_inner_folds(folds, runs[0], DiagnoseConfig(inner_folds=1))) == 2
+    assert len(_inner_folds(folds, runs[0], dc.replace(dealt, inner_folds=1))) == 2
+
+
+def test_the_held_out_runs_lone_twin_trains_every_inner_fold():
+    """The six-run design (A 20/20 S, B 10/10 P, C turning 35 S | D 20/20 P, E 10/10 S, F turning 35 P)
+    with A held out leaves D the only 20 deg zigzag: with ``twin_left_trains`` (the default) it trains
+    every inner fold and is validated by none, B E C F dealt into three groups, so that no inner fold
+    asks a manoeuvre of a model that has not trained on it (the outer test never does).  Holding out a
+    10 deg zigzag keeps its twin the same way; with a twin left beside another of its manoeuvre
+    (four 10 deg zigzags) nothing changes; of four zigzags at two amplitudes the twin trains both folds
+    of the other two."""
+    from pipeline.diagnose.core import _inner_folds, _lone_twin
+    from pipeline.diagnose.effects import Context
+    from pipeline.diagnose.select import Fold, Search
+
+    runs = _runs("A", "B", "C", "D", "E", "F", rudder={"A": 20, "C": 35, "D": 20, "F": 35}, turning="CF")
+    folds = [Fold(runs[:3], runs[3:]), Fold(runs[3:], runs[:3])]
+    assert _names(_inner_folds(folds, runs[0], DiagnoseConfig())) == [
+        (["C", "D", "E"], ["B", "F"]), (["B", "C", "D", "F"], ["E"]), (["B", "D", "E", "F"], ["C"])]
+    assert _names(_inner_folds(folds, runs[1], DiagnoseConfig())) == [
+        (["C", "D", "E"], ["A", "F"]), (["A", "C", "E", "F"], ["D"]), (["A", "D", "E", "F"], ["C"])]
+    # the hinge check of an inner fold never leaves out a training run that is the only one of its
+    # manoeuvre there (Fold.kept): refitted without it, the model would be asked that manoeuvre from
+    # none of its kind, which the outer test never asks.  The twin D is such a run in every fold; the
+    # 10 deg zigzag B or E and the circle C or F where its twin is validated
+    inner = _inner_folds(folds, runs[0], DiagnoseConfig())
+    assert [[s.name for s in f.kept] for f in inner] == [["C", "D", "E"], ["B", "D"], ["D", "F"]]
+    ctx = Context(t_ship=10.0, h=0.02, d_max=35.0, r_max=2.0, v_max=0.2, u_ref=1.0, u_min_ratio=0.8)
+    jack = Search(inner, ctx, DiagnoseConfig()).jackknife()
+    assert jack and all(all(inner[k].train[j] is not x for x in inner[k].kept) for k, j in jack)
+    assert all(f.kept == () for f in _inner_folds(folds, runs[0], DiagnoseConfig(twin_left_trains=False)))
+    # the same folds not keeping it: the fold training on B D E F leaves D out (two zigzags remain)
+    bare = [Fold(f.train, f.val) for f in inner]
+    assert [(k, j) for k, j in Search(bare, ctx, DiagnoseConfig()).jackknife()
+            if bare[k].train[j] is runs[3]] == [(2, 1)]
+    rest = [r for r in runs if r is not runs[0]]
+    assert _lone_twin(runs[0], rest, 0.15) is runs[3]
+    # within the twin tolerance only: a 20 deg run is no twin of a 10 or 35 deg one
+    assert _lone_twin(runs[0], [runs[1], runs[2], runs[4], runs[5]], 0.15) is None
+    a, b, c, d = _runs("A", "B", "C", "D")
+    four = [Fold([a, b], [c, d]), Fold([c, d], [a, b])]
+    assert _lone_twin(a, [b, c, d], 0.15) is None
+    assert _names(_inner_folds(four, a, DiagnoseConfig())) == [
+        (["C", "D"], ["B"]), (["B", "D"], ["C"]), (["B", "C"], ["D"])]
+    a, b, c, d = _runs("A", "B", "C", "D", rudder={"A": 20, "C": 20})
+    two = [Fold([a, b], [c, d]), Fold([c, d], [a, b])]
+    assert _names(_inner_folds(two, a, DiagnoseConfig())) == [(["C", "D"], ["B"]), (["B", "C"], ["D"])]
+    assert _names(_inner_folds(two, a, DiagnoseConfig(twin_left_trains=False))) == [
+        (["C", "D"], ["B"]), (["B", "C"], ["D"]), (["B", "D"], ["C"])]
 
 
 def test_inner_folds_keep_the_users_one_fold_design():
@@ -1165,14 +1215,15 @@ def test_a_lone_turn_trains_every_inner_fold_with_jackknife_same_kind():
 
     runs = _runs("A", "B", "C", "D", "E", "F", rudder={"A": 20, "C": 35, "D": 20, "F": 35}, turning="CF")
     folds = [Fold(runs[:3], runs[3:]), Fold(runs[3:], runs[:3])]
-    assert _names(_inner_folds(folds, runs[2], DiagnoseConfig(jackknife_same_kind=False))) == [
+    assert _names(_inner_folds(folds, runs[2], DiagnoseConfig(jackknife_same_kind=False,
+                                                              twin_left_trains=False))) == [
         (["A", "E", "F"], ["B", "D"]), (["A", "B", "D"], ["E", "F"]), (["B", "D", "E", "F"], ["A"])]
-    same = DiagnoseConfig(jackknife_same_kind=True)
+    same = DiagnoseConfig(jackknife_same_kind=True, twin_left_trains=False)
     assert _names(_inner_folds(folds, runs[2], same)) == [
         (["A", "E", "F"], ["B", "D"]), (["A", "B", "D", "F"], ["E"]), (["B", "D", "E", "F"], ["A"])]
     from pipeline.diagnose.select import lone_turn
 
     assert lone_turn(runs) is None and lone_turn(runs[:2]) is None
     assert lone_turn([r for r in runs if r is not runs[2]]) is runs[5]
-    default = _inner_folds(folds, runs[0], DiagnoseConfig(jackknife_same_kind=False))
+    default = _inner_folds(folds, runs[0], DiagnoseConfig(jackknife_same_kind=False, twin_left_trains=False))
     assert _names(_inner_folds(folds, runs[0], same)) == _names(default)

@@ -1169,19 +1169,20 @@ def write_tanker_circles(folder: Path, form: str, seed: int = TK_SEED) -> dict:
 
 #: (form, seed) of the tanker with turning circles whose honest gain's interval does not exclude 0
 TK_CIRCLE_WRONG: dict = {
-    ("full", TK_SEED): "2026-11-28, the mixed hull form, bound_reference off: the whole reference "
-                       "structure named (design folds 5.48 -> 4.08 deg; rudder_asymmetry among its "
-                       "effects, which the truth lacks), honest gain 21 % [7 %, 35 %], one round of six "
-                       "takes it, where the reference refitted in the same rounds cuts 68 % [55 %, 78 %]: "
-                       "an inner fold training on the 20/20 pair and a circle without a 10/10 zigzag fits "
-                       "a reference that runs away on the 10/10 (16.95 against the linear 5.43 deg). With "
-                       "bound_reference on 6 % [-1 %, 15 %]; in the Abkowitz form 8 %; with the reference "
-                       "step off, none and 6 % (the 40-58 % of 2026-11-25 were against the bounded fit)",
-    ("full", 2000): "2026-11-28, the mixed hull form, bound_reference off: none in the design folds, "
-                    "honest gain 12 % [-0.2 %, 25 %] (one round takes the reference, 6.18 -> 1.56 deg), "
-                    "the reference refitted in the same rounds 67 % [54 %, 78 %] (the reason at seed "
-                    "1300). With bound_reference on the whole reference named, the same 12 %; in the "
-                    "Abkowitz form 10 % [-2 %, 22 %]; with the reference step off, none and 0 %",
+    ("full", TK_SEED): "2026-11-28 (evening), twin_left_trains and anchor_either_linear on: cause speed_loss, "
+                       "the whole reference structure named (design folds 5.48 -> 4.08 deg) with "
+                       "rudder_asymmetry among its effects, which the truth lacks; honest gain 49.7 % "
+                       "[34 %, 64 %] (6.71 -> 3.38 deg; the issue's bar is 50 %), four rounds of six take "
+                       "the reference, the reference refitted in the same rounds 71 % [61 %, 79 %].  The "
+                       "round holding out the 20/20 S zigzag: the reference trained on the port zigzags "
+                       "and both circles predicts the 10/10 S at 17.42 deg (every_fold); the port circle's "
+                       "round: refitted without the 20/20 P zigzag it runs away on it (10735.63 deg, "
+                       "hinge).  Before the two settings 21 % [7 %, 35 %]",
+    ("full", 2000): "2026-11-28 (evening), twin_left_trains and anchor_either_linear on: none in the design "
+                    "folds (the reference fitted on three runs runs away on the other side's, -337 %), "
+                    "honest gain 47 % [30 %, 62 %] (6.65 -> 3.55 deg), four rounds of six take the "
+                    "reference, the reference refitted in the same rounds 67 % [54 %, 78 %].  Before "
+                    "the two settings 12 % [-0.2 %, 25 %]",
 }
 
 
@@ -1210,7 +1211,8 @@ def test_tanker_with_turning_circles(tk_root, form, seed):
     side-swap folds (all starboard runs training) the
     published model gives offset + cross terms, 74 % / 70 % (seed 1300).  The same six runs of the
     virtual KCS tank give no honest gain (README).  Against the best linear model (2026-11-28) the
-    published model's gain is lost at both seeds (TK_CIRCLE_WRONG).  make test runs the linear form's
+    published model's gain is lost at both seeds (TK_CIRCLE_WRONG); since twin_left_trains and
+    anchor_either_linear, 49.7 % / 47 %, short of the half asked.  make test runs the linear form's
     seed 1300 only (CI time)."""
     from pipeline.diagnose.design import pick_catalog_runs
 
@@ -1230,6 +1232,9 @@ def test_tanker_with_turning_circles(tk_root, form, seed):
     g = rep["gain"]
     assert sorted(g["measured_on"]) == sorted(runs) and g["flag"] is None, g
     assert g["mae_psi_relative_reduction"] > 0 and g["interval_95"][0] > 0, g
+    # the bar of another ship's turning circles (docs/diagnosis.md, Known limits): half the best linear
+    # model's error
+    assert g["mae_psi_relative_reduction"] >= 0.5, g
     held = [n for n in g["nested"] if n["measured_on"][0] in circles]
     assert len(held) == 2 and sum(n["extended_mae_psi_deg"] for n in held) < sum(
         n["baseline_mae_psi_deg"] for n in held), held

@@ -523,7 +523,11 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
       stated: one inner fold may train on the small zigzags alone (the reason of the rule before), so
       the held-out 20/20 P of the bench case gets yaw damping alone, gain 0; the three folds judged
       together still chose better than one validation run.  With ``cfg.jackknife_same_kind``, a
-      turning run left alone among zigzags trains every inner fold and is validated by none.
+      turning run left alone among zigzags trains every inner fold and is validated by none.  With
+      ``cfg.twin_left_trains`` the held-out run's twin, where it is the only one left, does the same
+      (so the stated price above is not paid where the design has twins), and each inner fold keeps
+      (:attr:`~pipeline.diagnose.select.Fold.kept`) the training runs that are the only one of their
+      manoeuvre in it, which its hinge check never leaves out.
     - One outer fold (sides not exchangeable, or the reverse fold switched off): the user's design
       is kept.  Every outer fold whose training runs do not include ``held`` is kept with ``held``
       removed from its validation runs (when some remain); only when none exists is ``held`` removed
@@ -534,11 +538,26 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
         # DiagnoseConfig.jackknife_same_kind: validating it from zigzags alone is the extrapolation
         # that setting refuses in the jackknife (a single manoeuvre kind left to predict another)
         lone = lone_turn(rest) if cfg.jackknife_same_kind and len(rest) >= 3 else None
-        dealt = [s for s in rest if s is not lone]
+        # the held-out run's twin, left the only run of its manoeuvre, trains every inner fold and is
+        # validated by none where DiagnoseConfig.twin_left_trains (the reason is there)
+        alone = [lone] if lone is not None else []
+        twin = _lone_twin(held, rest, cfg.twin_tolerance) if cfg.twin_left_trains else None
+        if twin is not None and all(twin is not s for s in alone) and len(rest) - len(alone) >= 3:
+            alone.append(twin)
+        dealt = [s for s in rest if all(s is not a for a in alone)]
         k = min(len(dealt), max(2, cfg.inner_folds))
         deal = sorted(dealt, key=_manoeuvre)
         groups = [deal[i::k] for i in range(k)]
-        return [Fold([s for s in rest if all(s is not g for g in grp)], grp) for grp in groups]
+        folds = []
+        for grp in groups:
+            train = [s for s in rest if all(s is not g for g in grp)]
+            # the hinge check leaves no training run out that is the only one of its manoeuvre there
+            # (DiagnoseConfig.twin_left_trains: the reason is there)
+            kept = tuple(s for s in train if not _same_manoeuvre(s, [t for t in train if t is not s],
+                                                                  cfg.twin_tolerance)) \
+                if cfg.twin_left_trains else ()
+            folds.append(Fold(train, grp, kept))
+        return folds
     keep = [
         Fold(f.train, [s for s in f.val if s is not held])
         for f in folds
@@ -552,6 +571,21 @@ def _inner_folds(folds: list[Fold], held: Series, cfg: DiagnoseConfig) -> list[F
     if cfg.two_fold and len(tr_i) >= 2 and len(va_i) >= 2 and _exchangeable(tr_i, va_i, cfg.twin_tolerance):
         inner.append(Fold(va_i, tr_i))
     return inner
+
+
+def _same_manoeuvre(run: Series, others: list[Series], tol: float) -> list[Series]:
+    """The runs of ``others`` that are the same manoeuvre as ``run``: turning or not alike, rudder
+    amplitudes within ``tol`` (relative, ``DiagnoseConfig.twin_tolerance``)."""
+    kind, amp = _manoeuvre(run)
+    return [s for s in others if _manoeuvre(s)[0] == kind
+            and abs(_rudder_amplitude(s) - amp) <= tol * max(_rudder_amplitude(s), amp, 1e-9)]
+
+
+def _lone_twin(held: Series, rest: list[Series], tol: float) -> Series | None:
+    """The run of ``rest`` that is the same manoeuvre as ``held`` (:func:`_same_manoeuvre`) when it is
+    the only one; None where there is none or several."""
+    same = _same_manoeuvre(held, rest, tol)
+    return same[0] if len(same) == 1 else None
 
 
 def _manoeuvre(s: Series) -> tuple[bool, float]:

@@ -118,8 +118,13 @@ from pipeline.errors import ModelError
 
 @dataclass
 class Fold:
+    """Training and validation runs of one fold.  ``kept``: training runs the hinge check
+    (:meth:`Search.hinges`) never leaves out, the nested round's stand-in for the held-out run's
+    manoeuvre (``DiagnoseConfig.twin_left_trains``, :func:`pipeline.diagnose.core._inner_folds`)."""
+
     train: list[Series]
     val: list[Series]
+    kept: tuple = ()
 
     @property
     def name(self) -> str:
@@ -282,14 +287,30 @@ class Search:
         return any(p.hull_term for e, f in structure for p in BY_NAME[e].form(f).params)
 
     def _anchored(self, k: int, structure, starts) -> FitResult:
-        """The anchored form of ``structure`` in fold ``k`` (:meth:`sound`): the linear part held at the
-        reported baseline's (a11 ... a22), the damping terms signed; fitted from the baseline and from
-        each of ``starts``, the fit of least TRAINING cost kept.  Raises ModelError where none fits."""
-        anchor = self.linear(k)
-        # with DiagnoseConfig.anchor_rudder_gains the rudder gains b11, b21 are held too: the anchored
-        # extension is then the baseline itself at small motion, not only in its hull's linear part
-        hold = tuple(float(x) for x in anchor.theta[:6 if self.cfg.anchor_rudder_gains else 4])
-        return self.least_cost(k, structure, (anchor, *starts), hold_linear=hold)
+        """The anchored form of ``structure`` in fold ``k`` (:meth:`sound`): the linear part held at a
+        linear fit's (a11 ... a22), the damping terms signed; fitted from that linear fit and from each
+        of ``starts``, the fit of least TRAINING cost kept.  The linear fit held is the reported
+        baseline, and with ``DiagnoseConfig.anchor_either_linear`` also the fold's other linear fit
+        (with or without the ship-sign bounds), the anchored fit of least TRAINING cost kept.  Raises
+        ModelError where none fits."""
+        anchors = [self.linear(k)]
+        if self.cfg.anchor_either_linear:
+            other = self.other_linear(k)
+            if other is not None:
+                anchors.append(other)
+        fits, err = [], None
+        for anchor in anchors:
+            # with DiagnoseConfig.anchor_rudder_gains the rudder gains b11, b21 are held too: the
+            # anchored extension is then that linear fit itself at small motion, not only in its hull's
+            # linear part
+            hold = tuple(float(x) for x in anchor.theta[:6 if self.cfg.anchor_rudder_gains else 4])
+            try:
+                fits.append(self.least_cost(k, structure, (anchor, *starts), hold_linear=hold))
+            except ModelError as e:
+                err = e
+        if not fits:
+            raise err
+        return min(fits, key=lambda f: f.cost)
 
     def least_cost(self, k: int, structure, starts, **form) -> FitResult:
         """Fold ``k``'s fit of ``structure`` in the form ``form`` (keywords of :func:`fit_structure`)
@@ -587,6 +608,26 @@ class Search:
             return True
         return False
 
+    def jackknife(self) -> list[tuple[int, int]]:
+        """(fold, index of a training run) of every refit the hinge check (:meth:`hinges`) makes: in
+        folds of at least ``cfg.jackknife_min_train`` training runs, each training run but those too
+        few of whose kind would be left (``cfg.jackknife_same_kind``) and those the fold keeps
+        (:attr:`Fold.kept`, ``cfg.twin_left_trains``)."""
+        out = []
+        if self.cfg.jackknife_min_train <= 0:
+            return out
+        for k, f in enumerate(self.folds):
+            if len(f.train) < self.cfg.jackknife_min_train:
+                continue
+            for j, run in enumerate(f.train):
+                if self.cfg.jackknife_same_kind and same_kind_left(run, f.train) < \
+                        self.cfg.jackknife_min_train - 1:
+                    continue  # too few of its kind left: DiagnoseConfig.jackknife_same_kind
+                if any(run is x for x in f.kept):
+                    continue  # the held-out run's lone twin: DiagnoseConfig.twin_left_trains
+                out.append((k, j))
+        return out
+
     def hinges(self, ks, before, after) -> list[str]:
         """Training runs of folds ``ks`` that the step ``before`` -> ``after`` hinges on: refitted
         without that run (both structures, chained from the baseline as the selection fits them, no
@@ -600,14 +641,10 @@ class Search:
             return []
         if self._jack is None:
             folds, index = [], {}
-            for k, f in enumerate(self.folds):
-                if len(f.train) >= self.cfg.jackknife_min_train:
-                    for j, run in enumerate(f.train):
-                        if self.cfg.jackknife_same_kind and same_kind_left(run, f.train) < \
-                                self.cfg.jackknife_min_train - 1:
-                            continue  # too few of its kind left: DiagnoseConfig.jackknife_same_kind
-                        index[(k, j)] = len(folds)
-                        folds.append(Fold([x for x in f.train if x is not run], [run]))
+            for k, j in self.jackknife():
+                f = self.folds[k]
+                index[(k, j)] = len(folds)
+                folds.append(Fold([x for x in f.train if x is not f.train[j]], [f.train[j]]))
             jcfg = replace(self.cfg, cold_start=False)
             jack = Search(folds, self.ctx, jcfg, baseline_bounded=self.baseline_bounded, memo=self.memo)
             self._jack = (jack, index)
