@@ -119,8 +119,9 @@ from pipeline.errors import ModelError
 @dataclass
 class Fold:
     """Training and validation runs of one fold.  ``kept``: training runs the hinge check
-    (:meth:`Search.hinges`) never leaves out, the nested round's stand-in for the held-out run's
-    manoeuvre (``DiagnoseConfig.twin_left_trains``, :func:`pipeline.diagnose.core._inner_folds`)."""
+    (:meth:`Search.hinges`) never leaves out: in a nested round's inner fold, those that are the only
+    one of their manoeuvre in its training (``DiagnoseConfig.twin_left_trains``,
+    :func:`pipeline.diagnose.core._inner_folds`)."""
 
     train: list[Series]
     val: list[Series]
