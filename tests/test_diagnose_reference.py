@@ -115,6 +115,14 @@ def test_reference_fit_on_a_linear_ship_is_not_material_and_the_report_says_so()
           "gain": {"mae_psi_relative_reduction": 0.0, "interval_95": [-0.02, 0.03], "measured_on": ["t1"],
                    "baseline_mae_psi_deg": 2.905, "extended_mae_psi_deg": 2.905}}
     text = dt.reference_text(dg)
+    assert text.startswith("Reference fit (not chosen:")
+    # the selection that took the reference's structure (its step) is said to have chosen it; the
+    # same effects in another form are not that structure
+    took = {"effects": list(ref["effects"]), "forms": dict(ref["forms"])}
+    assert dt.reference_text(dg | {"extended": took}).startswith(
+        "Reference fit (the structure the selection chose:")
+    other = {"effects": list(ref["effects"]), "forms": {e: "other" for e in ref["forms"]}}
+    assert dt.reference_text(dg | {"extended": other}).startswith("Reference fit (not chosen:")
     reading = dt.reference_reading(dg)
     assert reading and reading in text
     assert "not carried by the catalogue" in reading and "short of the 10 % cut" in reading

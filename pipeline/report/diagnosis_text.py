@@ -494,7 +494,8 @@ def adequacy_text(dg: dict) -> str:
 
 def reference_text(dg: dict) -> str:
     """The reference fit beside the selection (diagnosis.json ``reference``: the catalogue's terms told
-    everything at once, not chosen): its held-out MAE psi (deg) on the validation runs, the mean over
+    everything at once; said to be the selection's structure where ``extended`` has the same effects in
+    the same forms, "not chosen" otherwise): its held-out MAE psi (deg) on the validation runs, the mean over
     the folds as the ladder's, against the baseline's and the selection's; with test runs its figure
     there too, and in the nested mode its figure under that protocol beside the honest gain's.  "" when
     the stage made none."""
@@ -504,7 +505,12 @@ def reference_text(dg: dict) -> str:
     lad = dg.get("ladder") or []
     chosen = lad[-1].get("validation_mae_psi_deg") if lad else None
     terms = ", ".join(effect_label(e) for e in ref.get("effects") or [])
-    text = (f"Reference fit (not chosen: the catalogue's terms told everything at once, {terms}): held-out "
+    ext = dg.get("extended") or {}
+    # the selection took the reference's structure (the reference step) or not: said as it is
+    same = bool(ref.get("effects")) and set(ext.get("effects") or []) == set(ref["effects"]) and all(
+        (ext.get("forms") or {}).get(e) == f for e, f in (ref.get("forms") or {}).items())
+    status = "the structure the selection chose" if same else "not chosen"
+    text = (f"Reference fit ({status}: the catalogue's terms told everything at once, {terms}): held-out "
             f"MAE psi {num(ref.get('validation_mae_psi_deg'), 3, 'deg')} on the validation runs (mean over "
             f"the folds, each fold's fit on its training runs), "
             f"{pct(ref.get('validation_mae_psi_relative_reduction'), signed=True)} against the baseline's "
