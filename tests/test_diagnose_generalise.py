@@ -1169,8 +1169,8 @@ def write_tanker_circles(folder: Path, form: str, seed: int = TK_SEED) -> dict:
 
 #: (form, seed) of the tanker with turning circles whose honest gain's interval does not exclude 0
 TK_CIRCLE_WRONG: dict = {
-    ("full", TK_SEED): "2026-11-28 (evening), twin_left_trains and anchor_either_linear on: cause speed_loss, "
-                       "the whole reference structure named (design folds 5.48 -> 4.08 deg) with "
+    ("full", TK_SEED): "2026-11-28 (evening), twin_left_trains and anchor_either_linear on: cause "
+                       "speed_loss, the whole reference structure named (design folds 5.48 -> 4.08 deg) with "
                        "rudder_asymmetry among its effects, which the truth lacks; honest gain 49.7 % "
                        "[34 %, 64 %] (6.71 -> 3.38 deg; the issue's bar is 50 %), four rounds of six take "
                        "the reference, the reference refitted in the same rounds 71 % [61 %, 79 %].  The "
