@@ -54,9 +54,10 @@ scale_words = ("model scale" if applied in (None, 1, 1.0)
 has_gain = isinstance(gain, (int, float))
 mode = dt.gain_mode(dg)            # "test runs", "nested leave-one-run-out" or None (no honest gain)
 if cause != "none":
+    carried = dt.carried_text(dg.get("extended") or {})
     head = (f"Cause: <b>{nb.esc(dt.effect_label(cause))}</b>"
-            + (f" (extended model: {nb.esc(' + '.join(map(dt.effect_label, named)))})"
-               if len(named) > 1 else ""))
+            + (f" (extended model: {nb.esc(' + '.join(map(dt.effect_label, named)) + carried)})"
+               if len(named) > 1 or carried else ""))
 else:
     head = "Cause: <b>none</b>: no effect of the catalogue brings a real, material held-out gain"
 if has_gain and (named or cause != "none"):
@@ -248,8 +249,8 @@ if per_run:
 nested = gain_block.get("nested") or []
 if nested:
     nr = pd.DataFrame([{"held-out run": (n.get("measured_on") or ["?"])[0],
-                        "effects chosen without it": " + ".join(map(dt.effect_label, n.get("effects") or []))
-                        or "none",
+                        "effects chosen without it": (" + ".join(map(dt.effect_label, n.get("effects") or []))
+                                                      or "none") + dt.carried_text(n),
                         "gain on it": dt.gain_text(n.get("gain"))}
                        for n in nested])
     nr["_o"] = [data.sort_key(r) for r in nr["held-out run"]]

@@ -227,3 +227,64 @@ def test_a_group_steps_ladder_name_follows_the_structure():
     assert rung_name((), ref) == "+rudder_offset+hull_nonlinearity+speed_loss+rudder_asymmetry"
     assert rung_name(ref, ref[1:3] + (("rudder_lag", "first_order"),)) == \
         "+rudder_lag-rudder_offset-rudder_asymmetry"
+
+
+def test_a_member_of_the_whole_reference_below_its_floor_is_carried_not_named():
+    """``reference_names_material_only``: the whole reference's member whose drop-one step fails its
+    physical floor (an asymmetry the data do not size) stays in the model but is carried, not named,
+    and is never the cause; a member failing other gates only is named; a member outside the reference
+    is never carried (the backward pass judges it), and neither is anything once the reference is not
+    whole.  Off, every member is named."""
+    from pipeline.diagnose.select import carried_members
+
+    ref = _RefSearch({}).ctx
+    steps = {"rudder_offset": _step({"no_harm"}, 0.40),
+             "hull_nonlinearity": _step(set(), 0.86),
+             "speed_loss": _step({"min_gain", "every_fold"}, 0.09),
+             "rudder_asymmetry": _step({"physical_floor", "no_harm"}, 0.59)}
+
+    class _Ctx(_Search):
+        ctx = ref
+
+    def carried(steps, **over):
+        cur = tuple((e, "form") for e in steps)
+        return carried_members(_Ctx(dc.replace(DiagnoseConfig(), **over), steps), cur, steps)
+
+    assert carried(steps) == ("rudder_asymmetry",)
+    assert carried(steps, reference_names_material_only=False) == ()
+    assert carried(steps, reference_whole=False) == ()
+    partial = {e: s for e, s in steps.items() if e != "speed_loss"}
+    assert carried(partial) == ()
+    outside = {**steps, "rudder_lag": _step({"physical_floor"}, 0.01)}
+    assert carried(outside) == ("rudder_asymmetry",)
+
+
+def test_the_selection_names_all_but_the_carried_members_and_never_takes_the_cause_from_them(monkeypatch):
+    """``Selection.named`` is the structure without ``carried``, in its order; ``select``'s cause is the
+    named member of largest drop-one worth (here the asymmetry, carried, has the larger worth)."""
+    from pipeline.diagnose import select as sl
+
+    cur = tuple((e, "form") for e in ("rudder_offset", "rudder_asymmetry", "hull_nonlinearity"))
+    sel = sl.Selection(structure=cur, ladder=[], alone={}, last={}, worth={}, cause="hull_nonlinearity",
+                       untried={}, carried=("rudder_asymmetry",))
+    assert sel.named == ["rudder_offset", "hull_nonlinearity"]
+
+    ref = _RefSearch({}).ctx
+    steps = {"rudder_offset": _step(set(), 0.30), "hull_nonlinearity": _step(set(), 0.50),
+             "speed_loss": _step(set(), 0.20), "rudder_asymmetry": _step({"physical_floor"}, 0.90)}
+
+    class _Whole(_Search):
+        ctx = ref
+
+        def choose_baseline(self, ks):
+            pass
+
+    full = tuple((e, "form") for e in steps)
+    cfg = dc.replace(DiagnoseConfig(), max_effects=len(full))
+    search = _Whole(cfg, steps)
+    # the passes themselves stubbed: they end on the whole reference
+    monkeypatch.setattr(sl, "_forward_backward",
+                        lambda s, ks, cur, *a: (full, full, {}, {}, [((), None), (full, None)], False))
+    out = sl.select(search, [0], 0.1)
+    assert out.carried == ("rudder_asymmetry",) and out.cause == "hull_nonlinearity", (out.carried, out.cause)
+    assert out.named == ["rudder_offset", "hull_nonlinearity", "speed_loss"]

@@ -470,10 +470,28 @@ def test_kvlcc2_marin_side_swap(kv_files, fold, honest):
 KV_DIST_SEEDS = (SEED * 100, *((700, 2000, 3000) if FULL else ()))
 #: (seed, fold) below the 50 % bar with the disturbance (strict xfails): none since the coupling sign
 #: bound (fit.Layout.bounds); before it (3000, 1) cut 49 % (offset + cross terms, 10.94 -> 5.57 deg)
+#: Since the best linear model is the reported baseline (00d5cdf, 2026-11-27; make generalise bisected
+#: on seed 700 fold 1) the bar is judged against the unconstrained fit, which holds these folds'
+#: held-out side at 2.6-3.1 deg where the bounded fit, on its bound a21 = 0, held them at 7.5-14 deg.
+#: Measured 2026-11-29 beside each: the reference structure (TK_ORACLE's) fitted on the same two runs
+#: (_side_swap_oracle; test_kvlcc2_disturbed_side_swap_oracle): in three of the five folds it does not
+#: halve the best linear model's error either.
 KV_DIST_KNOWN_WRONG: dict[tuple[int, int], str] = {
     (SEED * 100, 1): "2026-11-27, failing on main since before the gate beats_best_linear (at 2a39f04 "
                      "too; cause not found): offset + sway damping named, held-out 2.62 -> 3.01 deg (worse "
                      "than the baseline), bar 50 %",
+    (SEED * 100, 2): "2026-11-29: offset + sway damping named, held-out 3.07 -> 2.51 deg (18 %) against "
+                     "the best linear model; the reference structure 1.87 (39 %), without its asymmetry "
+                     "1.31 (57 %): within the catalogue's reach, missed",
+    (700, 1): "2026-11-29: sway damping + rudder asymmetry named, held-out 2.61 -> 3.18 deg, worse than "
+              "the best linear model; the reference structure 2.61 deg, no better: half the best linear "
+              "model's error is beyond the catalogue on this fold",
+    (700, 2): "2026-11-29: sway damping + rudder asymmetry named, held-out 3.12 -> 2.55 deg (18 %); the "
+              "reference structure 2.12 (32 %), without its asymmetry 2.03 (35 %): the bar is beyond it too",
+    (2000, 2): "2026-11-29: offset + cross terms named, held-out 2.93 -> 1.73 deg (41 %); the reference "
+               "structure 1.43 (51 %), without its asymmetry 1.52 (48 %)",
+    (3000, 1): "2026-11-29: sway damping + cross terms + rudder asymmetry named, held-out 2.76 -> 3.12 deg "
+               "(-13 %); the reference structure 4.96 deg, worse than the best linear model",
 }
 
 
@@ -510,8 +528,31 @@ KV_SENSOR_FAULTS = {"misalignment_deg": 1.0, "rate_bias_deg_s": 0.1}
 KV_FAULT_RUNS = ((SEED * 100, False), *(((700, True), (2000, True), (3000, True)) if FULL else ()))
 
 
-@pytest.mark.parametrize("seed,disturbed,fold", [(s, d, k) for s, d in KV_FAULT_RUNS for k in (1, 2)
-                                                 if FULL or k == 1])
+#: (noise seed, disturbed, fold) below the side-swap bar (strict xfails), measured 2026-11-29 against the
+#: best linear model (the reported baseline since 00d5cdf; KV_DIST_KNOWN_WRONG); the same seeds'
+#: disturbed files without the sensor faults are within the catalogue's reach on none of seed 700's
+#: folds and seed 3000's fold 1 (the reference structure fitted on the same runs: 0 %, 35 %, -78 %)
+KV_FAULT_KNOWN_WRONG: dict[tuple[int, bool, int], str] = {
+    (700, True, 1): "2026-11-29: cross terms named, held-out 6.17 -> 3.32 deg (46 %) against the best "
+                    "linear model (the unconstrained fit; the bounded one presses on a21 = 0)",
+    (700, True, 2): "2026-11-29: cross terms named, held-out 6.96 -> 4.51 deg (35 %) against the best "
+                    "linear model",
+    (2000, True, 1): "2026-11-29: cross terms named, held-out 5.40 -> 2.97 deg (45 %) against the best "
+                     "linear model",
+    (3000, True, 1): "2026-11-29: sway damping named, held-out 5.45 -> 3.45 deg (37 %) against the best "
+                     "linear model",
+    (3000, True, 2): "2026-11-29: sway damping named, held-out 5.46 -> 3.37 deg (38 %) against the best "
+                     "linear model",
+}
+
+
+def _kv_fault_param(seed, disturbed, fold):
+    return known_wrong((seed, disturbed, fold), KV_FAULT_KNOWN_WRONG, (seed, disturbed, fold),
+                       f"{seed}-{disturbed}-{fold}")
+
+
+@pytest.mark.parametrize("seed,disturbed,fold", [_kv_fault_param(s, d, k) for s, d in KV_FAULT_RUNS
+                                                 for k in (1, 2) if FULL or k == 1])
 def test_kvlcc2_rate_gyro_bias_beside_a_misalignment(tmp_path, seed, disturbed, fold):
     """The side-swap bar with two sensor faults a new tank's files may carry together
     (KV_SENSOR_FAULTS): the rate bias is read against the heading without a model and corrected
@@ -780,19 +821,24 @@ MR_DISTURBANCE_DEG = 0.5
 #: Seed 3000 (sway_yaw_coupling + nonlinear_sway_damping, both folds) is right since the short-horizon
 #: judge (pipeline.diagnose.select, "no harm from the measured state", 2026-11-24); seed 700 then named
 #: the coupling instead of the sway damping, which predicts the pieces worse (0.83 -> 0.96 deg).
+#: Seed 700's linear form, a strict xfail until 2026-11-29 (the cross terms named in both folds, +17 %
+#: held out against a baseline at a21 = 0), gives none in both folds against the best linear model (the
+#: unconstrained fit, 2.36 / 1.73 deg held out).  Against it the offset form's seeds 3000 and 6000 give
+#: none: the unconstrained fit's course-unstable drift stands in for the offset.
 MR_DIST_KNOWN_WRONG = {
-    ("linear", 700): "sway_yaw_coupling named on the disturbed linear Mariner in both folds, held-out +17 % "
-                     "(per fold +30 % / +4 %, block t 2.1 against 1.71), baseline at a21 = 0 (both poles "
-                     "stable where the truth is course-unstable; so too with each training run's start "
-                     "fitted, which mended the tanker's and the fresh draw's biased baselines); the cross "
-                     "terms also predict one ship time scale ahead better (0.83 -> 0.72, 0.92 -> 0.73 deg, "
-                     "measured before the fitted starts), so the short-horizon judge does not refuse them: "
-                     "the biased baseline, not the effect, is what they correct",
+    ("offset", 3000): "2026-11-29: none named in both folds; the best linear model (the unconstrained fit) "
+                      "holds the held-out side at 4.10 / 2.71 deg (the bounded fit 18.91 / 15.27); the "
+                      "truth's own structure (the linear model + the offset) fitted on the same runs: fold "
+                      "1 6.97 deg, worse than the best linear model (nothing to name on held-out evidence), "
+                      "fold 2 1.53 deg (-44 %), missed",
+    ("offset", 6000): "2026-11-29: none named in both folds; best linear model 3.64 / 4.15 deg held out "
+                      "(the bounded fit 16.55 / 16.30); the truth's own structure: fold 1 6.23 deg, worse, "
+                      "fold 2 1.62 deg (-61 %), missed",
 }
 
 
 def _dist_param(form, seed):
-    return known_wrong((form, seed), MR_DIST_KNOWN_WRONG, (form, seed), f"{form}-seed{seed}", "2026-11-24")
+    return known_wrong((form, seed), MR_DIST_KNOWN_WRONG, (form, seed), f"{form}-seed{seed}")
 
 
 @pytest.mark.parametrize("form,seed", [_dist_param(f, s) for f in ("linear", "offset")
@@ -874,10 +920,10 @@ TK_SEEDS = (700, 2000, 3000)
 TK_WRONG = ("rudder_delay", "rudder_lag", "rudder_asymmetry", "heading_misalignment")
 #: (form, seed) named wrongly (strict xfails, both folds)
 TK_KNOWN_WRONG: dict = {
-    ("full", SEED * 100): "2026-11-27, failing on main since before the gate beats_best_linear (at 2a39f04 "
-                          "too; cause not found): cubic yaw damping + rudder asymmetry named in both folds "
-                          "(the asymmetry is not in the truth); fold 2's honest gain 3.34 -> 2.32 deg (31 %, "
-                          "bar 50 %)",
+    ("full", SEED * 100): "2026-11-29 (failing since before the gate beats_best_linear, 2026-11-27): cubic "
+                          "yaw damping + a rudder asymmetry of -0.059 +- 0.006 / -0.046 +- 0.006 named in "
+                          "the two folds (the asymmetry is not in the truth), no offset; held-out 11.85 -> "
+                          "2.60 / 3.34 -> 2.32 deg (78 % / 31 %) against the best linear model",
 }
 
 
@@ -1025,22 +1071,35 @@ def test_tanker_linear_baseline_recovers_the_course_unstable_truth(tk_root):
     assert not is_stable(fit.theta) and not is_stable(truth)
 
 
-#: (form, seed, fold) of the disturbed tanker below named wrongly (strict xfails, measured 2026-11-25)
+#: (form, seed, fold) of the disturbed tanker below named wrongly (strict xfails, each with its date)
 TK_DIST_KNOWN_WRONG = {
-    ("full", 700, 2): "offset + cross terms named (the right kinds), but the held-out cut is 24 % (6.41 -> "
-                      "4.88 deg), under the 50 % bar; fold 1 of the same seed 82 %",
-    ("full", 3000, 1): "yaw damping + speed loss + cross terms named, 80 % held-out, without the offset that "
-                       "the propeller's constants make (named in the undisturbed runs of this seed)",
-    ("full", 3000, 2): "yaw damping + speed loss + cross terms named, 60 % held-out, without the offset",
-    ("full", 700, 1): "measured 2026-11-26, since the pair pool ranks by the mean training cut "
-                      "(select._pair_pool; right before): yaw damping + saturation + rudder asymmetry "
-                      "named, the asymmetry a kind the tanker does not have",
+    ("full", 700, 1): "2026-11-29: offset + hull terms + a rudder asymmetry of -0.023 +- 0.014 named (the "
+                      "reference structure, its speed loss carried below its floor), the asymmetry a kind "
+                      "the tanker does not have; held-out 11.12 -> 2.61 deg (77 %)",
+    ("full", 700, 2): "2026-11-29: offset + hull terms + a rudder asymmetry of +0.022 +- 0.030 named, the "
+                      "speed loss carried; held-out 6.49 -> 2.93 deg (55 %)",
+    ("full", 3000, 1): "2026-11-29: yaw damping + cross terms named, without the offset that the "
+                       "propeller's constants make (named in the undisturbed runs of this seed); held-out "
+                       "7.63 -> 2.37 deg (69 %)",
+    ("full", 3000, 2): "2026-11-29: yaw damping + cross terms named, without the offset; held-out 6.20 -> "
+                       "3.97 deg (36 %)",
+    ("full", SEED * 100, 1): "2026-11-29: offset + hull terms + a rudder asymmetry of -0.027 +- 0.016 named "
+                             "(the reference structure, its speed loss carried below its floor), the "
+                             "asymmetry a kind the tanker does not have; held-out 6.32 -> 1.85 deg (71 %) "
+                             "against the best linear model",
+    ("full", SEED * 100, 2): "2026-11-29: the same structure, the asymmetry -0.019 +- 0.015; held-out "
+                             "3.29 -> 1.89 deg (43 %)",
+    ("full", 2000, 1): "2026-11-29: cross terms + a heading misalignment of -1.42 deg named (the files have "
+                       "none), held-out 12.64 -> 1.89 deg (85 %) against the best linear model, here the "
+                       "bounded fit; no offset",
+    ("full", 2000, 2): "2026-11-29: cross terms + a heading misalignment of -0.94 deg named (the files have "
+                       "none), held-out 6.46 -> 2.47 deg (62 %); no offset",
 }
 
 
 def _tk_dist_param(form, seed, fold):
     return known_wrong((form, seed, fold), TK_DIST_KNOWN_WRONG, (form, seed, fold),
-                       f"{form}-seed{seed}-fold{fold}", "2026-11-25")
+                       f"{form}-seed{seed}-fold{fold}")
 
 
 @pytest.mark.parametrize("form,seed,fold", [_tk_dist_param(f, s, k) for f in ("linear", "offset", "full")
@@ -1071,12 +1130,22 @@ TK_MISALIGN_DEG = (0.3, 1.0)
 #: the mean training cut (select._pair_pool, 2026-11-26) both 1 deg full folds were (measured
 #: 2026-11-25: yaw + sway damping named without the offset or the misalignment, 12.11 -> 2.98 and
 #: 6.00 -> 2.45 deg held-out); since then both are right (make generalise, 2026-11-26)
-TK_MISALIGN_KNOWN_WRONG: dict = {}
+TK_MISALIGN_KNOWN_WRONG: dict = {
+    ("full", 0.3, 1): "2026-11-29: the reference structure named (offset, speed loss, hull terms, a rudder "
+                      "asymmetry of -0.022 +- 0.008, above its floor), not the misalignment; held-out 8.44 "
+                      "-> 1.72 deg (80 %) against the best linear model",
+    ("full", 0.3, 2): "2026-11-29: the reference structure named with an asymmetry of +0.064 +- 0.034, not "
+                      "the misalignment; held-out 5.34 -> 5.12 deg (4 %)",
+    ("full", 1.0, 1): "2026-11-29: cross terms + saturation + a rudder asymmetry named, not the "
+                      "misalignment; held-out 8.74 -> 1.61 deg (82 %) against the best linear model",
+    ("full", 1.0, 2): "2026-11-29: cross terms + saturation + a rudder asymmetry named, not the "
+                      "misalignment; held-out 5.91 -> 1.52 deg (74 %)",
+}
 
 
 def _tk_mis_param(form, eps, fold):
     return known_wrong((form, eps, fold), TK_MISALIGN_KNOWN_WRONG, (form, eps, fold),
-                       f"{form}-{eps:g}deg-fold{fold}", "2026-11-25")
+                       f"{form}-{eps:g}deg-fold{fold}")
 
 
 @pytest.mark.parametrize("form,eps,fold", [_tk_mis_param(f, e, k) for f in ("linear", "offset", "full")
@@ -1125,8 +1194,22 @@ def test_tanker_heading_misalignment(tk_root, form, eps, fold):
 TK_RATE_BIAS_DEG_S = 0.1
 
 
-@pytest.mark.parametrize("form,fold", [(f, k) for f in ("linear", "offset", "full") for k in (1, 2)
-                                       if FULL or (f, k) == ("linear", 1)])
+#: (form, fold) named wrongly (strict xfails)
+TK_RATE_KNOWN_WRONG = {
+    ("full", 1): "2026-11-29: cubic yaw damping + a rudder asymmetry of -0.059 +- 0.006 named (a kind the "
+                 "tanker does not have), no offset; held-out 11.85 -> 2.60 deg (78 %) against the best "
+                 "linear model",
+    ("full", 2): "2026-11-29: cubic yaw damping + a rudder asymmetry of -0.046 +- 0.006 named, no offset; "
+                 "held-out 3.34 -> 2.32 deg (31 %)",
+}
+
+
+def _tk_rate_param(form, fold):
+    return known_wrong((form, fold), TK_RATE_KNOWN_WRONG, (form, fold), f"{form}-{fold}")
+
+
+@pytest.mark.parametrize("form,fold", [_tk_rate_param(f, k) for f in ("linear", "offset", "full")
+                                       for k in (1, 2) if FULL or (f, k) == ("linear", 1)])
 def test_tanker_rate_gyro_bias(tk_root, form, fold):
     """Another sensor artefact: the MARIN files' yaw rate read with a constant bias (the heading is
     right), so r and the heading's derivative disagree in every sample.  The same judgement as
@@ -1170,8 +1253,10 @@ def write_tanker_circles(folder: Path, form: str, seed: int = TK_SEED) -> dict:
 #: (form, seed) of the tanker with turning circles whose honest gain's interval does not exclude 0
 TK_CIRCLE_WRONG: dict = {
     ("full", TK_SEED): "2026-11-28 (evening), twin_left_trains and anchor_either_linear on: cause "
-                       "speed_loss, the whole reference structure named (design folds 5.48 -> 4.08 deg) with "
-                       "rudder_asymmetry among its effects, which the truth lacks; honest gain 49.7 % "
+                       "speed_loss, the whole reference structure in the design folds (on 2026-11-29, with "
+                       "reference_names_material_only, the offset carried below its floor, the speed "
+                       "loss, hull terms and rudder_asymmetry named: the truth lacks the asymmetry); "
+                       "honest gain 49.7 % "
                        "[34 %, 64 %] (6.71 -> 3.38 deg; the issue's bar is 50 %), four rounds of six take "
                        "the reference, the reference refitted in the same rounds 71 % [61 %, 79 %].  The "
                        "round holding out the 20/20 S zigzag: the reference trained on the port zigzags "
@@ -1248,6 +1333,63 @@ def test_tanker_with_turning_circles(tk_root, form, seed):
 #: answer does not move with it.
 TK_ORACLE = (("rudder_offset", "constant"), ("hull_nonlinearity", "mixed"), ("speed_loss", "power"),
              ("rudder_asymmetry", "two_sided"))
+
+
+def _side_swap_oracle(files: dict, fold: int, scale: float, structures) -> tuple[float, float]:
+    """(best linear model, best of ``structures``): held-out MAE psi (deg) pooled over side-swap fold
+    ``fold``'s validation side (:func:`side_swap_fold`).  The linear fits with and without the
+    ship-sign bounds, the better one on the validation side (chosen with hindsight); each structure
+    fitted on the training side in either family, of its fits from that family's linear fit and
+    from the equation-error start the one of least TRAINING cost, then the best structure on the
+    validation side: what the catalogue can reach on the fold, not the diagnosis's choice."""
+    from pipeline.diagnose.core import _context
+    from pipeline.diagnose.fit import (
+        evaluate,
+        fit_structure,
+        series_from_run,
+        structure_of,
+        with_initial_states,
+    )
+
+    sides = ("starboard", "port") if fold == 1 else ("port", "starboard")
+    series = [series_from_run(load(files[(a, side)], scale=scale)) for side in sides for a in (20, 10)]
+    cfg, ctx = DiagnoseConfig(), _context(series)
+    runs = with_initial_states(series, cfg.x0_window_T * ctx.t_ship, cfg.x0_model_window_T * ctx.t_ship,
+                               cfg.x0_box_sigma)
+    train, held = runs[:2], runs[2:]
+    kw = {"max_nfev": cfg.max_nfev, "block_T": cfg.block_T}
+
+    def mae(fit) -> float:
+        return float(evaluate(fit, held)[0]["mae_psi_deg"])
+
+    linear = {b: fit_structure(train, (), ctx, **kw, sign_bounds=b) for b in (True, False)}
+    best = []
+    for st in structures:
+        for b, lin in linear.items():
+            fits = [fit_structure(train, structure_of(*st), ctx, start=s0, **kw, sign_bounds=b)
+                    for s0 in (lin, None)]
+            best.append(mae(min(fits, key=lambda f: f.cost)))
+    return min(mae(f) for f in linear.values()), min(best)
+
+
+#: the reference structure without its rudder asymmetry, a kind the KVLCC2 stand-in's truth has but
+#: that the side-swap folds' training side (one side's zigzags) can hardly size
+TK_ORACLE_SYMMETRIC = tuple(x for x in TK_ORACLE if x[0] != "rudder_asymmetry")
+
+
+@pytest.mark.skipif(not FULL, reason="8 fits of two 20/20 and 10/10 zigzags per case (about 2 min on 2 "
+                    "cores): make generalise (TANKTEST_GENERALISE=full)")
+@pytest.mark.parametrize("seed,fold,reachable", [(SEED * 100, 2, True), (700, 1, False)])
+def test_kvlcc2_disturbed_side_swap_oracle(tmp_path, seed, fold, reachable):
+    """What the catalogue can reach on the disturbed KVLCC2 stand-in's side-swap folds
+    (KV_DIST_KNOWN_WRONG's reasons), a known answer of the files: the reference structure, with or
+    without its asymmetry, fitted on one side's zigzags halves the best linear model's held-out error
+    on the other side at seed 1300 fold 2 (3.07 -> 1.31 deg, measured 2026-11-29), where the diagnosis
+    cuts it by 18 %; at seed 700 fold 1 it cuts nothing (2.61 -> 2.61 deg), so no choice from the
+    catalogue can pass the side-swap bar there."""
+    files = write_kvlcc2(tmp_path, seed=seed, disturbance_deg=MR_DISTURBANCE_DEG)
+    best, ora = _side_swap_oracle(files, fold, SCALE, (TK_ORACLE, TK_ORACLE_SYMMETRIC))
+    assert (ora <= (1.0 - KV_MIN_GAIN) * best) is reachable, (best, ora)
 
 
 @pytest.mark.skipif(not FULL, reason="18 fits of the six 600-900 s tanker runs per seed (about 3 min on 2 "
@@ -1334,14 +1476,20 @@ CT_DURATION = 600.0       # s full scale (101 s at 1:35): 3-4 periods of the 20/
 CT_WRONG = ("rudder_offset", "rudder_asymmetry", "rudder_delay", "rudder_lag", "heading_misalignment")
 #: (form, seed, disturbance deg, fold) named wrongly (strict xfails, measured 2026-11-25)
 CT_KNOWN_WRONG = {
-    ("full", 1300, MR_DISTURBANCE_DEG, 2): "yaw damping named (a kind the truth has), but the held-out cut "
-    "is 36 % (5.19 -> 3.29 deg), under the 50 % bar; fold 1 of the same seed 72 %",
+    ("full", 1300, MR_DISTURBANCE_DEG, 2): "2026-11-29: yaw damping named (a kind the truth has), held-out "
+    "2.88 -> 3.29 deg (-14 %) against the best linear model (the unconstrained fit; 5.19 -> 3.29, 36 %, "
+    "against the bounded one on 2026-11-25)",
+    ("full", 700, MR_DISTURBANCE_DEG, 1): "2026-11-29: sway damping named, held-out 3.33 -> 1.67 deg "
+    "(49.9 %) against the best linear model (the unconstrained fit); the hull terms with the speed loss "
+    "fitted on the same runs 2.09 deg (37 %): the bar is beyond the catalogue on this fold",
+    ("full", 700, MR_DISTURBANCE_DEG, 2): "2026-11-29: sway damping named, held-out 2.88 -> 2.05 deg (29 %) "
+    "against the best linear model; the hull terms with the speed loss 1.54 deg (47 %)",
 }
 
 
 def _ct_param(form, seed, dist, fold):
     return known_wrong((form, seed, dist, fold), CT_KNOWN_WRONG, (form, seed, dist, fold),
-                       f"{form}-seed{seed}-dist{dist:g}-fold{fold}", "2026-11-25")
+                       f"{form}-seed{seed}-dist{dist:g}-fold{fold}")
 
 
 _CT: dict = {}

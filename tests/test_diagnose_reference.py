@@ -123,6 +123,14 @@ def test_reference_fit_on_a_linear_ship_is_not_material_and_the_report_says_so()
         "Reference fit (the structure the selection chose:")
     other = {"effects": list(ref["effects"]), "forms": {e: "other" for e in ref["forms"]}}
     assert dt.reference_text(dg | {"extended": other}).startswith("Reference fit (not chosen:")
+    # a member the model carries without naming it (extended.carried) is still in the structure
+    last = ref["effects"][-1]
+    carrying = took | {"effects": list(ref["effects"][:-1]), "carried": [last]}
+    assert dt.reference_text(dg | {"extended": carrying}).startswith(
+        "Reference fit (the structure the selection chose:")
+    assert dt.carried_text(carrying) == ("; also carried, not named (below its physical floor): "
+                                         + dt.effect_label(last))
+    assert dt.carried_text(took) == "" and dt.carried_text({"carried": []}) == ""
     reading = dt.reference_reading(dg)
     assert reading and reading in text
     assert "not carried by the catalogue" in reading and "short of the 10 % cut" in reading

@@ -48,7 +48,7 @@ BASELINE_KEYS = [
 ]
 EXTENDED_KEYS = [
     "effects", "forms", "parameters", "uncertainty", "effect_estimates", "course_stable", "at_sign_bound",
-    "validation", "per_run", "residuals",
+    "validation", "per_run", "residuals", "carried",
 ]
 SETTINGS_KEYS = [
     "min_gain", "min_abs_gain_deg", "alpha", "block_T", "block_s", "time_scale_s", "heading_noise_deg",
@@ -66,7 +66,7 @@ GAIN_NOT_MEASURED_KEYS = [k for k in GAIN_KEYS if k not in ("baseline_mae_psi_de
                                                             "per_run")]
 NESTED_KEYS = [
     "fold", "effects", "cause", "chosen_on", "measured_on", "baseline_mae_psi_deg", "extended_mae_psi_deg",
-    "gain", "baseline_sign_bounds", "other_linear_mae_psi_deg", "reference_mae_psi_deg",
+    "gain", "baseline_sign_bounds", "other_linear_mae_psi_deg", "reference_mae_psi_deg", "carried",
 ]
 OTHER_LINEAR_KEYS = ["mae_psi_relative_reduction", "interval_95", "other_linear_mae_psi_deg",
                      "extended_mae_psi_deg", "validation_mae_psi_relative_reduction"]

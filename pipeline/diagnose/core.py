@@ -630,7 +630,8 @@ def _nested_one(folds, held, ctx, cfg, noise, memo: FitMemo):
     pr = _nested_reference(refit, held, pb[0]["mae_psi_deg"], noise)
     entry = HeldOutSelection(
         fold=f"hold out {held.name}",
-        effects=[e for e, _ in st],
+        effects=isel.named,
+        carried=list(isel.carried),
         cause=isel.cause,
         chosen_on=[s.name for s in tr_i + va_i],
         measured_on=[held.name],
@@ -959,7 +960,13 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
         if chosen
         else ("added to the final model" if ext_struct else "added to the linear baseline")
     )
-    if chosen:
+    if chosen and effect in sel.carried:
+        evidence = (
+            f"Carried, not named: in the final model with the reference structure's other members, but "
+            f"below its physical floor ({step.floor}), so not a finding (held-out heading error "
+            f"{step.gain:+.0%} when removed, {ctxt}); fitted: {physical}."
+        )
+    elif chosen:
         evidence = (
             f"Held-out heading error {step.gain:+.0%} when removed from the final model ({ctxt}; per fold "
             f"{', '.join(f'{g:+.0%}' for g in step.gains)}; cut {step.abs_gain_deg:.2f} deg; "
@@ -985,7 +992,7 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
     return Finding(
         effect=effect,
         form=form.name,
-        significant=bool(chosen),
+        significant=bool(chosen) and effect not in sel.carried,
         material=bool(step.material),
         floor=step.floor + f" [{eff.floor_reason}]",
         physical=physical,
@@ -1077,10 +1084,11 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         ext_val, ext_per = search.eval(0, st)
     else:
         ext, ext_val, ext_per = base, base_val, base_per
-    chosen = [e for e, _ in st]
+    in_model = [e for e, _ in st]
+    chosen = sel.named      # the model's effects but those it carries without naming (Selection.carried)
     # every effect tried: the catalogue's, and one the reference step brought in from outside it
-    tried = [e.name for e in CATALOGUE] + [e for e in chosen if e not in {x.name for x in CATALOGUE}]
-    rows = [_finding(e, sel, search, ctx, cfg, e in chosen, st) for e in tried]
+    tried = [e.name for e in CATALOGUE] + [e for e in in_model if e not in {x.name for x in CATALOGUE}]
+    rows = [_finding(e, sel, search, ctx, cfg, e in in_model, st) for e in tried]
     rows.sort(
         key=lambda r: (
             not r.significant,
@@ -1088,7 +1096,7 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         )
     )
     structure = residual_structure(base, folds[0].val, base_per, ctx)
-    after = residual_structure(ext, folds[0].val, ext_per, ctx) if chosen else structure
+    after = residual_structure(ext, folds[0].val, ext_per, ctx) if in_model else structure
     cause = sel.cause
     for i, r in enumerate(rows):
         if r.effect == cause and after["explained_fraction"] >= cfg.structured_r2:
@@ -1098,7 +1106,7 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
                 f"{after['explained_fraction']:.0%} of the yaw-acceleration error (strongest: {top})."
             ))
     joint = {}
-    for e in chosen:
+    for e in in_model:
         form = ext.form(e)
         est = dict(ext.values[e]) | BY_NAME[e].extra_estimate(form, ext.values[e], ctx)
         unc = {n: ext.std.get(n) for n in ext.values[e]}
@@ -1128,7 +1136,7 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         FoldCause(
             fold=folds[k].name if len(folds) > 1 else folds[0].name,
             cause=p.cause,
-            effects=[e for e, _ in p.structure],
+            effects=p.named,
         )
         for k, p in zip(ks, per_fold, strict=False)
     ]
@@ -1249,6 +1257,7 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         ),
         extended=Extended(
             effects=chosen,
+            carried=list(sel.carried),
             forms={e: f for e, f in st},
             parameters=ext.params(),
             uncertainty={n: ext.std[n] for n in PARAM_NAMES},

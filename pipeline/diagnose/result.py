@@ -134,9 +134,11 @@ class Baseline(Result):
 
 @dataclass(frozen=True)
 class Extended(Result):
-    """``extended``: the model kept (the baseline when no effect is named): its ``effects`` and their
-    ``forms``, parameters, standard deviations, ``effect_estimates`` (estimate, uncertainty, form per
-    effect), held-out figures (deg) and ``residuals``."""
+    """``extended``: the model kept (the baseline when no effect is named): its named ``effects``, the
+    effects it ``carried`` without naming them (below their physical floor,
+    ``DiagnoseConfig.reference_names_material_only``), the ``forms`` of both, parameters, standard
+    deviations, ``effect_estimates`` (estimate, uncertainty, form per effect of the model), held-out
+    figures (deg) and ``residuals``."""
 
     effects: list[str]
     forms: dict[str, str]
@@ -148,6 +150,7 @@ class Extended(Result):
     validation: dict[str, Any]
     per_run: list[dict[str, Any]]
     residuals: dict[str, Any]
+    carried: list[str] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -172,6 +175,8 @@ class HeldOutSelection(Result):
     #: the held-out run (deg); None where not made: the baseline within its noise floors there,
     #: DiagnoseConfig.reference_fit off, no hull term applicable, or its fit failed
     reference_mae_psi_deg: float | None = None
+    #: the effects that round's model carried without naming them (``extended.carried``)
+    carried: list[str] = field(default_factory=list)
 
 
 @dataclass(frozen=True)

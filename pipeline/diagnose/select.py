@@ -970,6 +970,14 @@ class Selection:
     #: that forward round within one standard error of the best (:func:`_ties`), none of them in the
     #: final structure; only effects that have rivals
     rivals: dict = field(default_factory=dict)
+    #: members of ``structure`` carried, not named (:func:`carried_members`): in the model, below their
+    #: physical floor; never the cause
+    carried: tuple = ()
+
+    @property
+    def named(self) -> list[str]:
+        """The effects of ``structure`` the selection names: all but the :attr:`carried` ones."""
+        return [e for e, _ in self.structure if e not in self.carried]
 
 
 def _n_params(effect: str, structure) -> int:
@@ -1130,6 +1138,21 @@ def _unsplit(search: Search, cur) -> set:
     return whole if whole <= set(dict(cur)) else set()
 
 
+def carried_members(search: Search, cur, worth: dict) -> tuple:
+    """The members of the whole reference structure in ``cur`` (:func:`_unsplit`) that the model carries
+    but the diagnosis does not name: those whose drop-one step (``worth``: effect -> Step) fails its
+    physical floor (:class:`~.gates.PhysicalFloor`: the member's estimate below the effect's floor in a
+    fold), with ``DiagnoseConfig.reference_names_material_only``; in ``cur``'s order.  The reference
+    step keeps such a member so that the group is judged as the model it is, and the model keeps it
+    because refitted without it the others land elsewhere; but a finding is named only where it is
+    material (the reason is at the setting)."""
+    if not search.cfg.reference_names_material_only:
+        return ()
+    kept = _unsplit(search, cur)
+    return tuple(e for e, _ in cur if e in kept and e in worth
+                 and any(g.code == "physical_floor" and not g.passed for g in worth[e].gates))
+
+
 def _best_swap(cur, round_, fixed=frozenset()):
     """Sequential replacement on ``cur``: every member (but those in ``fixed``) swapped for every
     effect not in ``cur``, each fitted warm from the rest's fit (made by the backward pass) and the
@@ -1271,11 +1294,13 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
         last = {e: s for e, (_, s) in round_(cur).items()}
     last = {e: s for e, s in last.items() if e not in dict(cur)}
     last.update(worth)
-    cause = max(worth, key=lambda e: worth[e].gain) if worth else "none"
+    carried = carried_members(search, cur, worth)
+    named = {e: s for e, s in worth.items() if e not in carried}
+    cause = max(named, key=lambda e: named[e].gain) if named else "none"
     chosen = dict(cur)
     kept = {e: (own, [(x, xs) for x, xs in r if x not in chosen])
             for e, (own, r) in rivals.items() if e in chosen}
     return Selection(
         structure=cur, ladder=ladder, alone=alone, last=last, worth=worth, cause=cause, untried=untried,
-        rivals={e: v for e, v in kept.items() if v[1]},
+        rivals={e: v for e, v in kept.items() if v[1]}, carried=carried,
     )

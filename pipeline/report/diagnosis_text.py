@@ -59,6 +59,13 @@ def effect_label(name: Any) -> str:
     return e.reader_label() if e is not None else str(name).replace("_", " ")
 
 
+def carried_text(entry: dict) -> str:
+    """The words for what a model (diagnosis.json ``extended`` or a ``gain.nested[]`` round) carries
+    without naming it (``carried``: in the model, below its physical floor); "" where nothing."""
+    carried = [effect_label(e) for e in entry.get("carried") or []]
+    return f"; also carried, not named (below its physical floor): {', '.join(carried)}" if carried else ""
+
+
 def num(x: Any, digits: int = 3, unit: str = "") -> str:
     """A number for a sentence ('n/a' when absent or not finite), with its unit."""
     if x is None or isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)):
@@ -507,7 +514,8 @@ def reference_text(dg: dict) -> str:
     terms = ", ".join(effect_label(e) for e in ref.get("effects") or [])
     ext = dg.get("extended") or {}
     # the selection took the reference's structure (the reference step) or not: said as it is
-    same = bool(ref.get("effects")) and set(ext.get("effects") or []) == set(ref["effects"]) and all(
+    in_model = set(ext.get("effects") or []) | set(ext.get("carried") or [])
+    same = bool(ref.get("effects")) and in_model == set(ref["effects"]) and all(
         (ext.get("forms") or {}).get(e) == f for e, f in (ref.get("forms") or {}).items())
     status = "the structure the selection chose" if same else "not chosen"
     text = (f"Reference fit ({status}: the catalogue's terms told everything at once, {terms}): held-out "
