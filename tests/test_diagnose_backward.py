@@ -257,6 +257,10 @@ def test_a_member_of_the_whole_reference_below_its_floor_is_carried_not_named():
     assert carried(partial) == ()
     outside = {**steps, "rudder_lag": _step({"physical_floor"}, 0.01)}
     assert carried(outside) == ("rudder_asymmetry",)
+    # the hull terms stand for the group (the reference step): below their floor too they are named,
+    # so a model with extensions is never reported as naming none
+    small = {**steps, "hull_nonlinearity": _step({"physical_floor"}, 0.02)}
+    assert carried(small) == ("rudder_asymmetry",)
 
 
 def test_the_selection_names_all_but_the_carried_members_and_never_takes_the_cause_from_them(monkeypatch):

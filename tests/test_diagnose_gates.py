@@ -104,6 +104,11 @@ def test_adequacy_is_a_multiple_of_the_noise_floor():
     dg = {"cause": "none", "baseline_adequate": False, "baseline_adequacy": bad}
     text = dt.adequacy_text(dg)
     assert "inadequate" in text and "nonlinear sway damping (-0.54)" in text and "'None' here" in text
+    assert "held-out selection found" not in text
+    # with a cause found, the baseline's signatures are said to be pointers, and the cause is named
+    found = dt.adequacy_text({**dg, "cause": "hull_nonlinearity"})
+    assert "'None' here" not in found and "nonlinear sway damping (-0.54)" in found
+    assert found.endswith(f"the held-out selection found: {dt.effect_label('hull_nonlinearity')}.")
     # the floor is the repeatability where the noise is smaller than half of it
     assert _adequacy(0.5, 0.01, cfg, {}).threshold_deg == pytest.approx(10 * cfg.min_abs_gain_deg)
 

@@ -1068,6 +1068,10 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
     return best
 
 
+#: the reference structure's member that stands for the group in its step (:func:`_reference_group`)
+_REFERENCE_HEAD = "hull_nonlinearity"
+
+
 def _reference_group(search: Search, ks, noise_deg):
     """The reference structure (:func:`reference_structure`) as one step from the baseline, where no
     single effect or group of the catalogue passes (``DiagnoseConfig.reference_step``): taken when the
@@ -1083,7 +1087,7 @@ def _reference_group(search: Search, ks, noise_deg):
         return None
     keep_small = search.cfg.reference_whole
     prev = None
-    while "hull_nonlinearity" in dict(st):
+    while _REFERENCE_HEAD in dict(st):
         try:
             for k in ks:
                 search.fit(k, st, start=None if prev is None else search.fit(k, prev))
@@ -1091,11 +1095,11 @@ def _reference_group(search: Search, ks, noise_deg):
             return None
         steps = [search.step(ks, (), st, m, noise_deg) for m, _ in st]
         by = dict(zip([m for m, _ in st], steps, strict=True))
-        if all(s.passes or (keep_small and m != "hull_nonlinearity" and _fails_only_floor(s))
+        if all(s.passes or (keep_small and m != _REFERENCE_HEAD and _fails_only_floor(s))
                for m, s in by.items()):
             # every member's step is the same step (baseline -> group) judged with its own floor: the
             # hull terms', which must pass, stands for the group
-            return "hull_nonlinearity", st, by["hull_nonlinearity"]
+            return _REFERENCE_HEAD, st, by[_REFERENCE_HEAD]
         small = {m for m, s in by.items() if _fails_only_floor(s)}
         if not small or any(not s.passes for m, s in by.items() if m not in small):
             return None
@@ -1145,11 +1149,13 @@ def carried_members(search: Search, cur, worth: dict) -> tuple:
     fold), with ``DiagnoseConfig.reference_names_material_only``; in ``cur``'s order.  The reference
     step keeps such a member so that the group is judged as the model it is, and the model keeps it
     because refitted without it the others land elsewhere; but a finding is named only where it is
-    material (the reason is at the setting)."""
+    material (the reason is at the setting).  The hull terms are never carried: they stand for the group
+    in the reference step (:func:`_reference_group`, where they must pass with their own floor), and a
+    model whose every member were carried would be reported as no effect at all."""
     if not search.cfg.reference_names_material_only:
         return ()
     kept = _unsplit(search, cur)
-    return tuple(e for e, _ in cur if e in kept and e in worth
+    return tuple(e for e, _ in cur if e in kept and e in worth and e != _REFERENCE_HEAD
                  and any(g.code == "physical_floor" and not g.passed for g in worth[e].gates))
 
 

@@ -496,6 +496,11 @@ def adequacy_text(dg: dict) -> str:
     if sig:
         text += (f" Its residual follows the signatures of {sig} (correlation with the yaw-acceleration "
                  "error).")
+        if dg.get("cause") not in (None, "none"):
+            # the correlations are of the linear model's residual, one effect at a time; the cause is
+            # what the held-out selection found, and a reader must not take the two for one verdict
+            text += (" These correlations point from the linear model's residual, one effect at a time; "
+                     f"the cause is what the held-out selection found: {effect_label(dg['cause'])}.")
     return text
 
 
