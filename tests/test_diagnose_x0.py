@@ -191,3 +191,36 @@ def test_boxed_start_stays_in_its_box():
     assert x[2] == s.x0[2]
     assert np.all(np.abs(x - s.x0) <= hw + 1e-12)
     assert np.array_equal(boxed_initial_state(fit, s, np.zeros(3)), s.x0)
+
+
+def test_a_held_out_start_of_a_runaway_model_is_silent_and_keeps_the_estimate(monkeypatch):
+    """Judging a model that runs away on a held-out run (a trial the gates refuse) overflows inside
+    SciPy's trust-region step of the held-out start (pipeline.diagnose.fit.boxed_initial_state; seen in
+    the tanker's nested rounds: overflow, then a division by zero and a NaN cast in its step-size root
+    finder).  That arithmetic raises no warning on the user's terminal, and a start whose residuals are
+    not finite is not taken: the start is the approach's estimate."""
+    import warnings
+    from types import SimpleNamespace
+
+    from pipeline.diagnose import fit as fit_mod
+    from pipeline.diagnose.core import _context
+    from pipeline.diagnose.fit import boxed_initial_state, fit_structure
+
+    truth = sy.Truth(ship=sy.SLOW, sensors=sy.Sensors(noise_psi=0.1, noise_r=0.1, noise_v=0.01, ar1_phi=0.95))
+    train = [_series(sy.simulate(truth, sy.Zigzag(20, 20, "starboard", duration=90.0), seed=7), "tr0")]
+    ctx = _context(train)
+    fit = fit_structure(train, (), ctx)
+    [s] = with_initial_states(train, 0.25 * ctx.t_ship)
+
+    def overflowing(fun, x0, **kw):
+        big = np.float64(1e300)
+        step = big * big                                  # overflow, as in the root finder
+        ratio = np.float64(1.0) / np.float64(0.0)        # division by zero
+        bad = np.array([ratio * 0.0]).astype(int)         # the NaN step cast
+        return SimpleNamespace(x=x0 + 0.5 * kw["x_scale"], fun=np.full(3, step * bad[0] * np.nan))
+
+    monkeypatch.setattr(fit_mod, "least_squares", overflowing)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        x = boxed_initial_state(fit, s, np.array([0.004, 0.05, 0.0]))
+    assert np.array_equal(x, s.x0)
