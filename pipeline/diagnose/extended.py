@@ -45,7 +45,7 @@ _CLIP_D = 1000.0  # deg, lag state
 #: kernels as ONE float64 vector read by these indices (:func:`rudder_block` fills it from
 #: :class:`~pipeline.diagnose.effects.base.Terms`; docs/performance.md, "The kernels' parameters").
 #: A new rudder effect is an index here, its line in :func:`rudder_block` and its use in
-#: :func:`_deriv` (and in :func:`_sens_stage`'s partial derivatives), never a new kernel argument.
+#: :func:`_deriv_at` (with its partial derivatives there), never a new kernel argument.
 #: B_OFFSET deg, B_ASYM dimensionless, B_CUBIC 1/deg^2, B_LAG s (the lag as integrated: 0 below h/20,
 #: :func:`_lag_and_substeps`), B_VBIAS m/s (the sway reading's bias at U_ref).
 B_OFFSET, B_ASYM, B_CUBIC, B_LAG, B_VBIAS = 0, 1, 2, 3, 4
@@ -78,23 +78,63 @@ def _feature(code, v, r, s=1.0):  # pragma: no cover - compiled; held to effects
 
 
 @njit(cache=True, inline="always")
-def _deriv(v, r, e, a_in, s, th, codes, eqs, coefs, blk):  # pragma: no cover
+def _deriv_at(v, r, e, a_in, s, th, codes, eqs, coefs, blk, tab, amat, i, sens):  # pragma: no cover
     """(dv/dt, dr/dt, dpsi/dt, de/dt) of the extended model (module docstring); ``blk``: the rudder
-    block (B_* indices)."""
+    block (B_* indices).  With ``sens``, also its partial derivatives at this state, as stage ``i``
+    of an RK4 step: amat[i] = (d(dv/dt)/dv, d(dv/dt)/dr, d(dr/dt)/dv, d(dr/dt)/dr), tab[i] (2, slots)
+    the direct partial derivatives of (dv/dt, dr/dt) along each kernel parameter (theta, feature
+    coefficients, then :data:`S_OFFSET`... from 6 + nf; the last slot stays zero: a start's, the sway
+    bias's), from the same feature values; a column's stage derivative is then dk = A S + B
+    (:func:`_run_sens`).  Without ``sens`` tab and amat are not touched."""
     lag = blk[B_LAG]
     ang = (e if lag > 0.0 else a_in) + blk[B_OFFSET]
     sg = 1.0 if ang > 0.0 else (-1.0 if ang < 0.0 else 0.0)
     g = ang * (1.0 + blk[B_ASYM] * sg) + blk[B_CUBIC] * ang * ang * ang
     dv = s * (th[0] * v + th[1] * r) + s * s * th[4] * g
     dr = s * (th[2] * v + th[3] * r) + s * s * th[5] * g
+    avv, avr, arv, arr = 0.0, 0.0, 0.0, 0.0
+    if sens:
+        avv, avr = s * th[0], s * th[1]
+        arv, arr = s * th[2], s * th[3]
     for j in range(codes.shape[0]):
-        f = coefs[j] * _feature(codes[j], v, r, s)
+        fe = _feature(codes[j], v, r, s)
+        f = coefs[j] * fe
         if eqs[j] == 0:
             dv += f
         else:
             dr += f
+        if sens:
+            fv, fr = _feature_grad(codes[j], v, r, s)
+            if eqs[j] == 0:
+                avv += coefs[j] * fv
+                avr += coefs[j] * fr
+                tab[i, 0, 6 + j] = fe
+            else:
+                arv += coefs[j] * fv
+                arr += coefs[j] * fr
+                tab[i, 1, 6 + j] = fe
+    if sens:
+        asym, cubic = blk[B_ASYM], blk[B_CUBIC]
+        a3 = ang * ang * ang
+        gs = ang * (1.0 + asym * sg) + cubic * a3
+        tab[i, 0, 0], tab[i, 0, 1], tab[i, 1, 2], tab[i, 1, 3] = s * v, s * r, s * v, s * r
+        tab[i, 0, 4], tab[i, 1, 5] = s * s * gs, s * s * gs
+        o = 6 + codes.shape[0]
+        gv, gr = s * s * th[4], s * s * th[5]
+        dg = 1.0 + asym * sg + 3.0 * cubic * ang * ang
+        tab[i, 0, o + S_OFFSET], tab[i, 1, o + S_OFFSET] = gv * dg, gr * dg
+        tab[i, 0, o + S_ASYM], tab[i, 1, o + S_ASYM] = gv * ang * sg, gr * ang * sg
+        tab[i, 0, o + S_CUBIC], tab[i, 1, o + S_CUBIC] = gv * a3, gr * a3
+        amat[i, 0], amat[i, 1], amat[i, 2], amat[i, 3] = avv, avr, arv, arr
     de = (a_in - e) / lag if lag > 0.0 else 0.0
     return dv, dr, r, de
+
+
+@njit(cache=True)
+def _deriv(v, r, e, a_in, s, th, codes, eqs, coefs, blk):  # pragma: no cover
+    """(dv/dt, dr/dt, dpsi/dt, de/dt) of the extended model: :func:`_deriv_at` without sensitivities."""
+    return _deriv_at(v, r, e, a_in, s, th, codes, eqs, coefs, blk, np.empty((1, 2, 1)), np.empty((1, 4)), 0,
+                     False)
 
 
 @njit(cache=True, inline="always")
@@ -108,19 +148,21 @@ def _stage_inputs(x_half, i0, j, m):  # pragma: no cover
 
 
 @njit(cache=True, inline="always")
-def _rk4_step(v, r, psi, e, a0, a1, a2, q0, q1, q2, hs, th, codes, eqs, coefs, blk):  # pragma: no cover
+def _rk4_step(v, r, psi, e, a0, a1, a2, q0, q1, q2, hs, th, codes, eqs, coefs, blk, tab, amat,
+              sens):  # pragma: no cover
     """One classical RK4 step of ``hs`` s of the state (v, r, psi, lag state e), the rudder ``a`` and
     speed factor ``q`` at the step's start, middle and end: (v, r, psi, e after it; the stage
     derivatives k1, k2, k3 of v, r, e that made it; whether the heading increment was clipped).  A
     diverging trial model: the RK4 stages themselves can explode (r^3 of a clipped r), so the heading
-    increment and the lag state are clipped as well as v and r (residuals stay finite and large)."""
-    k1v, k1r, k1p, k1e = _deriv(v, r, e, a0, q0, th, codes, eqs, coefs, blk)
-    k2v, k2r, k2p, k2e = _deriv(v + 0.5 * hs * k1v, r + 0.5 * hs * k1r, e + 0.5 * hs * k1e,
-                                a1, q1, th, codes, eqs, coefs, blk)
-    k3v, k3r, k3p, k3e = _deriv(v + 0.5 * hs * k2v, r + 0.5 * hs * k2r, e + 0.5 * hs * k2e,
-                                a1, q1, th, codes, eqs, coefs, blk)
-    k4v, k4r, k4p, k4e = _deriv(v + hs * k3v, r + hs * k3r, e + hs * k3e,
-                                a2, q2, th, codes, eqs, coefs, blk)
+    increment and the lag state are clipped as well as v and r (residuals stay finite and large).
+    With ``sens``, the four stages' partial derivatives go to tab[0..3], amat[0..3] (:func:`_deriv_at`)."""
+    k1v, k1r, k1p, k1e = _deriv_at(v, r, e, a0, q0, th, codes, eqs, coefs, blk, tab, amat, 0, sens)
+    k2v, k2r, k2p, k2e = _deriv_at(v + 0.5 * hs * k1v, r + 0.5 * hs * k1r, e + 0.5 * hs * k1e,
+                                   a1, q1, th, codes, eqs, coefs, blk, tab, amat, 1, sens)
+    k3v, k3r, k3p, k3e = _deriv_at(v + 0.5 * hs * k2v, r + 0.5 * hs * k2r, e + 0.5 * hs * k2e,
+                                   a1, q1, th, codes, eqs, coefs, blk, tab, amat, 2, sens)
+    k4v, k4r, k4p, k4e = _deriv_at(v + hs * k3v, r + hs * k3r, e + hs * k3e,
+                                   a2, q2, th, codes, eqs, coefs, blk, tab, amat, 3, sens)
     v = v + hs / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
     r = r + hs / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
     dpsi = hs / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
@@ -145,6 +187,7 @@ def _run(out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, blk):
     ``a_half``/``s_half``: rudder (pre-lag) and speed factor on the half-step grid (index 2k = t_k)."""
     v, r, psi, e = x0[0], x0[1], x0[2], e0
     hs = h / m
+    tab, amat = np.empty((1, 2, 1)), np.empty((1, 4))      # untouched: no sensitivities here
     for k in range(k0, k1):
         out[k - k0, 0] = v
         out[k - k0, 1] = r
@@ -154,7 +197,8 @@ def _run(out, k0, k1, x0, e0, a_half, s_half, h, m, th, codes, eqs, coefs, blk):
         for j in range(m):
             a0, a1, a2 = _stage_inputs(a_half, 2 * k, j, m)
             s0, s1, s2 = _stage_inputs(s_half, 2 * k, j, m)
-            step = _rk4_step(v, r, psi, e, a0, a1, a2, s0, s1, s2, hs, th, codes, eqs, coefs, blk)
+            step = _rk4_step(v, r, psi, e, a0, a1, a2, s0, s1, s2, hs, th, codes, eqs, coefs, blk, tab, amat,
+                             False)
             v, r, psi, e = step[0], step[1], step[2], step[3]
 
 
@@ -510,72 +554,29 @@ def _feature_grad(code, v, r, s):  # pragma: no cover - compiled; held to finite
 S_OFFSET, S_ASYM, S_CUBIC, S_VBIAS = 0, 1, 2, 3
 
 
-@njit(cache=True, inline="always")
-def _sens_stage(v, r, e, a_in, s, th, codes, eqs, coefs, blk, kid, tab, sv, sr, dkv, dkr):  # pragma: no cover
-    """Derivatives of one RK4 stage's (dv/dt, dr/dt) (:func:`_deriv`) along every column j: dk = A S + B,
-    A = d(dv/dt, dr/dt)/d(v, r) at the stage's state, S = (sv, sr) the stage state's sensitivities,
-    B the direct partial derivative of kernel parameter kid[j] (theta, feature coefficients, then
-    :data:`S_OFFSET`... from 6 + nf; a start has none: kid = the zero slot of ``tab``, (2, slots)).
-    The lag state and the inputs depend on no column, so they carry no sensitivity."""
-    lag = blk[B_LAG]
-    asym, cubic = blk[B_ASYM], blk[B_CUBIC]
-    ang = (e if lag > 0.0 else a_in) + blk[B_OFFSET]
-    sg = 1.0 if ang > 0.0 else (-1.0 if ang < 0.0 else 0.0)
-    a3 = ang * ang * ang
-    g = ang * (1.0 + asym * sg) + cubic * a3
-    avv, avr = s * th[0], s * th[1]
-    arv, arr = s * th[2], s * th[3]
-    tab[0, 0], tab[0, 1], tab[1, 2], tab[1, 3] = s * v, s * r, s * v, s * r
-    tab[0, 4], tab[1, 5] = s * s * g, s * s * g
-    nf = codes.shape[0]
-    for j in range(nf):
-        fv, fr = _feature_grad(codes[j], v, r, s)
-        f = _feature(codes[j], v, r, s)
-        if eqs[j] == 0:
-            avv += coefs[j] * fv
-            avr += coefs[j] * fr
-            tab[0, 6 + j] = f
-        else:
-            arv += coefs[j] * fv
-            arr += coefs[j] * fr
-            tab[1, 6 + j] = f
-    o = 6 + nf
-    gv, gr = s * s * th[4], s * s * th[5]
-    dg = 1.0 + asym * sg + 3.0 * cubic * ang * ang
-    tab[0, o + S_OFFSET], tab[1, o + S_OFFSET] = gv * dg, gr * dg
-    tab[0, o + S_ASYM], tab[1, o + S_ASYM] = gv * ang * sg, gr * ang * sg
-    tab[0, o + S_CUBIC], tab[1, o + S_CUBIC] = gv * a3, gr * a3
-    for j in range(kid.shape[0]):
-        dkv[j] = avv * sv[j] + avr * sr[j] + tab[0, kid[j]]
-        dkr[j] = arv * sv[j] + arr * sr[j] + tab[1, kid[j]]
-
-
-@njit(cache=True, inline="always")
-def _stage_sens(tv, tr, sv, sr, c, dv, dr):  # pragma: no cover - compiled
-    """A stage state's sensitivities: (sv, sr) + c (dv, dr) into (tv, tr)."""
-    for j in range(sv.shape[0]):
-        tv[j] = sv[j] + c * dv[j]
-        tr[j] = sr[j] + c * dr[j]
-
-
 @njit(cache=True)
 def _run_sens(out, jac, rows, fac, jcol, jsc, n, x0, e0, s0, a_half, s_half, h, m, th, codes, eqs, coefs, blk,
               kid):  # pragma: no cover
     """:func:`_run` from sample 0 to n - 1 (the same operations on the state, so the same bits in
     ``out``) and, alongside, the exact derivatives of the discrete RK4 solution along the kernel
-    parameters kid[j] (:func:`_sens_stage`), from ``s0`` (columns, 3) at the start: d(psi, r, v)_k /
+    parameters kid[j] (:func:`_deriv_at`), from ``s0`` (columns, 3) at the start: d(psi, r, v)_k /
     d(column j) times fac[0..2] jsc[j] is written to jac[rows[0..2] + k, jcol[j]] (rows[2] < 0: no v
     rows; jcol[j] < 0: not written).
-    A clipped state (a diverging trial model) has derivative 0."""
+    A clipped state (a diverging trial model) has derivative 0.
+
+    The four stages' partial derivatives are made once per step, beside the stages themselves from the
+    same feature values (:func:`_deriv_at`); each column's
+    RK4 sensitivity step then runs on its own in registers (a column depends on no other), the same
+    operations in the same order as the stage-by-stage form, so the same bits."""
     nc = s0.shape[0]
-    tab = np.zeros((2, 6 + codes.shape[0] + S_VBIAS + 2))       # the last slot: zero (a start, the bias)
+    tab = np.zeros((4, 2, 6 + codes.shape[0] + S_VBIAS + 2))    # the last slot: zero (a start, the bias)
+    amat = np.empty((4, 4))
     v, r, psi, e = x0[0], x0[1], x0[2], e0
     sv, sr, sp = s0[:, 0].copy(), s0[:, 1].copy(), s0[:, 2].copy()
-    d1v, d1r, d2v, d2r = np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc)
-    d3v, d3r, d4v, d4r = np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc)
-    t2v, t2r, t3v, t3r = np.empty(nc), np.empty(nc), np.empty(nc), np.empty(nc)
-    t4v, t4r = np.empty(nc), np.empty(nc)
     hs = h / m
+    half = 0.5 * hs
+    c6 = hs / 6.0
+    with_v = rows[2] >= 0
     for k in range(n):
         out[k, 0] = v
         out[k, 1] = r
@@ -585,7 +586,7 @@ def _run_sens(out, jac, rows, fac, jcol, jsc, n, x0, e0, s0, a_half, s_half, h, 
             if c >= 0:
                 jac[rows[0] + k, c] = fac[0] * jsc[j] * sp[j]
                 jac[rows[1] + k, c] = fac[1] * jsc[j] * sr[j]
-                if rows[2] >= 0:
+                if with_v:
                     jac[rows[2] + k, c] = fac[2] * jsc[j] * sv[j]
         if k == n - 1:
             break
@@ -593,28 +594,29 @@ def _run_sens(out, jac, rows, fac, jcol, jsc, n, x0, e0, s0, a_half, s_half, h, 
             a0, a1, a2 = _stage_inputs(a_half, 2 * k, jj, m)
             q0, q1, q2 = _stage_inputs(s_half, 2 * k, jj, m)
             (vn, rn, psi, en, k1v, k1r, k1e, k2v, k2r, k2e, k3v, k3r, k3e,
-             clip_psi) = _rk4_step(v, r, psi, e, a0, a1, a2, q0, q1, q2, hs, th, codes, eqs, coefs, blk)
-            # the stages' sensitivities at the stages' own states (the same expressions as the step's)
-            _sens_stage(v, r, e, a0, q0, th, codes, eqs, coefs, blk, kid, tab, sv, sr, d1v, d1r)
-            _stage_sens(t2v, t2r, sv, sr, 0.5 * hs, d1v, d1r)
-            _sens_stage(v + 0.5 * hs * k1v, r + 0.5 * hs * k1r, e + 0.5 * hs * k1e, a1, q1, th, codes, eqs,
-                        coefs, blk, kid, tab, t2v, t2r, d2v, d2r)
-            _stage_sens(t3v, t3r, sv, sr, 0.5 * hs, d2v, d2r)
-            _sens_stage(v + 0.5 * hs * k2v, r + 0.5 * hs * k2r, e + 0.5 * hs * k2e, a1, q1, th, codes, eqs,
-                        coefs, blk, kid, tab, t3v, t3r, d3v, d3r)
-            _stage_sens(t4v, t4r, sv, sr, hs, d3v, d3r)
-            _sens_stage(v + hs * k3v, r + hs * k3r, e + hs * k3e, a2, q2, th, codes, eqs, coefs, blk, kid,
-                        tab, t4v, t4r, d4v, d4r)
-            c6 = hs / 6.0
-            for j in range(nc):     # dpsi/dt = r: the heading's stages are the rate's stage states
-                if not clip_psi:
-                    sp[j] = sp[j] + c6 * (sr[j] + 2.0 * t2r[j] + 2.0 * t3r[j] + t4r[j])
-                sv[j] = sv[j] + c6 * (d1v[j] + 2.0 * d2v[j] + 2.0 * d3v[j] + d4v[j])
-                sr[j] = sr[j] + c6 * (d1r[j] + 2.0 * d2r[j] + 2.0 * d3r[j] + d4r[j])
-            if not (abs(vn) < _CLIP_V):     # clipped (_rk4_step): derivative 0
-                sv[:] = 0.0
-            if not (abs(rn) < _CLIP_R):
-                sr[:] = 0.0
+             clip_psi) = _rk4_step(v, r, psi, e, a0, a1, a2, q0, q1, q2, hs, th, codes, eqs, coefs, blk, tab,
+                                   amat, True)   # with the stages' partial derivatives at their own states
+            zero_v = not (abs(vn) < _CLIP_V)     # clipped (_rk4_step): derivative 0
+            zero_r = not (abs(rn) < _CLIP_R)
+            for j in range(nc):
+                b = kid[j]
+                x, y = sv[j], sr[j]
+                # d_i = A_i t_i + B_i; t_1 = S, t_2 = S + hs/2 d_1, t_3 = S + hs/2 d_2, t_4 = S + hs d_3
+                d1v = amat[0, 0] * x + amat[0, 1] * y + tab[0, 0, b]
+                d1r = amat[0, 2] * x + amat[0, 3] * y + tab[0, 1, b]
+                t2v, t2r = x + half * d1v, y + half * d1r
+                d2v = amat[1, 0] * t2v + amat[1, 1] * t2r + tab[1, 0, b]
+                d2r = amat[1, 2] * t2v + amat[1, 3] * t2r + tab[1, 1, b]
+                t3v, t3r = x + half * d2v, y + half * d2r
+                d3v = amat[2, 0] * t3v + amat[2, 1] * t3r + tab[2, 0, b]
+                d3r = amat[2, 2] * t3v + amat[2, 3] * t3r + tab[2, 1, b]
+                t4v, t4r = x + hs * d3v, y + hs * d3r
+                d4v = amat[3, 0] * t4v + amat[3, 1] * t4r + tab[3, 0, b]
+                d4r = amat[3, 2] * t4v + amat[3, 3] * t4r + tab[3, 1, b]
+                if not clip_psi:     # dpsi/dt = r: the heading's stages are the rate's stage states
+                    sp[j] = sp[j] + c6 * (y + 2.0 * t2r + 2.0 * t3r + t4r)
+                sv[j] = 0.0 if zero_v else x + c6 * (d1v + 2.0 * d2v + 2.0 * d3v + d4v)
+                sr[j] = 0.0 if zero_r else y + c6 * (d1r + 2.0 * d2r + 2.0 * d3r + d4r)
             v, r, e = vn, rn, en
 
 
@@ -629,7 +631,7 @@ def _oe_jac(res, jac, th, coefs, blk, lags, ms, codes, eqs, a_buf, a_off, s_buf,
     (-1: none)."""
     nf = coefs.shape[0]
     pm = ids.shape[0]
-    zero = 6 + nf + S_VBIAS + 1          # the zero slot of _sens_stage's table
+    zero = 6 + nf + S_VBIAS + 1          # the zero slot of _deriv_at's table
     kid = np.empty(pm + 3, dtype=np.int64)
     for j in range(pm):
         kid[j] = ids[j] if ids[j] != 6 + nf + S_VBIAS else zero
