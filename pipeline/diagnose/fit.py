@@ -978,9 +978,9 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
     made: dict = {}
 
     def fun(x):
-        f, jx = _finite_jacobian(fj, x, lo, hi)
+        f, jx, ok = _finite_jacobian(fj, x, lo, hi)
         made.clear()
-        if not (_representable(f) and _representable(jx, f)):
+        if not ok:
             return np.full(x.size + 1, np.nan)      # a trial point SciPy rejects (shrinks its region)
         # in LAPACK's (Fortran) layout the QR reads the Jacobian in place instead of copying it (the
         # same numbers, so the same bits); it is not used again
@@ -997,24 +997,27 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
 
     res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
                         tr_solver=_TR, **_TOL)
-    res.fun, jx = _finite_jacobian(fj, res.x, lo, hi)
+    res.fun, jx, _ = _finite_jacobian(fj, res.x, lo, hi)
     res.jac = np.ascontiguousarray(jx)     # the covariance's products in the row layout, as before
     return res
 
 
 def _finite_jacobian(fj, x: np.ndarray, lo: np.ndarray, hi: np.ndarray):
-    """``fj(x)`` -> (residuals, Jacobian), the Jacobian by forward differences (the step SciPy would
-    take, :func:`_fd_step`) where the residuals are finite but their sensitivities overflowed (a free
-    run that nearly diverges): such a point is judged by its cost, as with SciPy's own differences,
-    and its covariance is not made from infinities."""
+    """``fj(x)`` -> (residuals, Jacobian, whether both are :func:`_representable`), the Jacobian by
+    forward differences (the step SciPy would take, :func:`_fd_step`) where the residuals are finite
+    but their sensitivities overflowed (a free run that nearly diverges): such a point is judged by its
+    cost, as with SciPy's own differences, and its covariance is not made from infinities."""
     f, jx = fj(x)
-    if _representable(f) and not _representable(jx, f):
-        jx = np.empty((f.size, x.size))
-        for i in range(x.size):
-            q = x.copy()
-            q[i] = x[i] + _fd_step(float(x[i]), float(lo[i]), float(hi[i]))
-            jx[:, i] = (fj(q)[0] - f) / (q[i] - x[i])
-    return f, jx
+    if not _representable(f):
+        return f, jx, False
+    if _representable(jx, f):
+        return f, jx, True
+    jx = np.empty((f.size, x.size))
+    for i in range(x.size):
+        q = x.copy()
+        q[i] = x[i] + _fd_step(float(x[i]), float(lo[i]), float(hi[i]))
+        jx[:, i] = (fj(q)[0] - f) / (q[i] - x[i])
+    return f, jx, _representable(jx, f)
 
 
 def _representable(a: np.ndarray, f: np.ndarray | None = None) -> bool:

@@ -313,15 +313,16 @@ class Search:
             raise err
         return min(fits, key=lambda f: f.cost)
 
-    def least_cost(self, k: int, structure, starts, **form) -> FitResult:
+    def least_cost(self, k: int, structure, starts, *, sound: bool = False, **form) -> FitResult:
         """Fold ``k``'s fit of ``structure`` in the form ``form`` (keywords of :func:`fit_structure`)
-        from each of ``starts``, the one of least TRAINING cost (the first of equal ones).  Raises the
-        last ModelError where none fits."""
+        from each of ``starts`` (each made sound first with ``sound``, :meth:`sound`), the one of least
+        TRAINING cost (the first of equal ones).  Raises the last ModelError where none fits."""
         fits, err = [], None
         for st in starts:
             try:
-                fits.append(fit_structure(self.folds[k].train, structure, self.ctx, start=st, **form,
-                                          **self.fit_options()))
+                fit = fit_structure(self.folds[k].train, structure, self.ctx, start=st, **form,
+                                    **self.fit_options())
+                fits.append(self.sound(k, structure, fit) if sound else fit)
             except ModelError as e:
                 err = e
         if not fits:
@@ -570,16 +571,8 @@ class Search:
         key = (k, structure_of(*structure))
         if key in self._fits or not key[1]:
             return self.fit(k, key[1], start=start)
-        fits, err = [], None
-        for st in ((start, None) if start is not None else (None,)):
-            try:
-                fit = fit_structure(self.folds[k].train, key[1], self.ctx, start=st, **self.fit_options())
-                fits.append(self.sound(k, key[1], fit))
-            except ModelError as e:
-                err = e
-        if not fits:
-            raise err
-        self._fits[key] = min(fits, key=lambda f: f.cost)
+        self._fits[key] = self.least_cost(k, key[1], (start, None) if start is not None else (None,),
+                                          sound=True)
         return self._fits[key]
 
     def refine(self, k: int, structure, richer) -> bool:
