@@ -116,6 +116,8 @@ def _deriv_at(v, r, e, a_in, s, th, codes, eqs, coefs, blk, tab, amat, i, sens):
     if sens:
         asym, cubic = blk[B_ASYM], blk[B_CUBIC]
         a3 = ang * ang * ang
+        # g as the sensitivities have always had it: cubic * (ang^3), not (cubic * ang) * ang * ang as
+        # in dv above; the two differ in the last bit, and the Jacobian keeps its own bits
         gs = ang * (1.0 + asym * sg) + cubic * a3
         tab[i, 0, 0], tab[i, 0, 1], tab[i, 1, 2], tab[i, 1, 3] = s * v, s * r, s * v, s * r
         tab[i, 0, 4], tab[i, 1, 5] = s * s * gs, s * s * gs
@@ -565,9 +567,9 @@ def _run_sens(out, jac, rows, fac, jcol, jsc, n, x0, e0, s0, a_half, s_half, h, 
     A clipped state (a diverging trial model) has derivative 0.
 
     The four stages' partial derivatives are made once per step, beside the stages themselves from the
-    same feature values (:func:`_deriv_at`); each column's
-    RK4 sensitivity step then runs on its own in registers (a column depends on no other), the same
-    operations in the same order as the stage-by-stage form, so the same bits."""
+    same feature values (:func:`_deriv_at`); each column's RK4 sensitivity step then runs on its own in
+    registers (a column depends on no other), the same operations in the same order as the
+    stage-by-stage form, so the same bits."""
     nc = s0.shape[0]
     tab = np.zeros((4, 2, 6 + codes.shape[0] + S_VBIAS + 2))    # the last slot: zero (a start, the bias)
     amat = np.empty((4, 4))
