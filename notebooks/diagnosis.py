@@ -128,6 +128,8 @@ if bp:
         nb.note(sign_bound_text(held))
 if dt.baseline_choice_text(dg):
     nb.note(dt.baseline_choice_text(dg))
+if dt.unphysical_signs_text(dg):
+    nb.note(dt.unphysical_signs_text(dg))
 if dt.adequacy_text(dg):
     nb.note(dt.adequacy_text(dg))
 

@@ -54,3 +54,20 @@ def test_baseline_choice_sentence_reads_the_json():
     assert "holds a21 at its bound 0" in text
     assert "cuts the heading error by 40 % (95 % interval [30 %, 50 %])" in text and "58 %" in text
     assert dt.baseline_choice_text({"baseline": {}}) == ""
+
+
+def test_an_unconstrained_baseline_with_a_ships_wrong_sign_is_said_to_be_a_predictor():
+    """The virtual KCS's unconstrained baseline (a21 = +32.3, a22 = +1.13, course-stable by its poles):
+    the sentence names both values and the poles; a bounded baseline, or an unconstrained one with a
+    ship's signs, gets none."""
+    base = {"sign_bounds": False, "course_stable": True,
+            "parameters": {"a11": -1.289, "a12": -0.046, "a21": 32.326, "a22": 1.128, "b11": -0.0013,
+                           "b21": 0.036}}
+    text = dt.unphysical_signs_text({"baseline": base})
+    assert "a21 = +32.3 and a22 = +1.13 have not a ship's sign" in text
+    assert "a11 =" not in text and "b21" not in text
+    assert "Its course stability (stable) is that of the poles" in text
+    assert dt.unphysical_signs_text({"baseline": {**base, "sign_bounds": True}}) == ""
+    ship = {**base["parameters"], "a21": -0.5, "a22": -0.2}
+    assert dt.unphysical_signs_text({"baseline": {**base, "parameters": ship}}) == ""
+    assert dt.unphysical_signs_text({"baseline": {}}) == ""

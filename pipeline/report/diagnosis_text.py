@@ -471,6 +471,37 @@ def baseline_choice_text(dg: dict) -> str:
     return text
 
 
+#: the linear parameters every displacement ship has at or below 0 (the ship-sign bounds,
+#: :func:`pipeline.diagnose.fit.sign_bound_text`)
+SHIP_SIGNED = ("a11", "a12", "a21", "a22")
+
+
+def unphysical_signs_text(dg: dict) -> str:
+    """Where the baseline is the linear fit without sign bounds (diagnosis.json ``baseline.sign_bounds``
+    false) and some of a11, a12, a21, a22 came out above 0 (``baseline.parameters``): one sentence
+    naming them with their values, saying that the fit is the best linear predictor of these runs, not
+    a physical model of the hull, and that its course stability is read from the poles of its whole
+    matrix (``baseline.course_stable``); "" otherwise."""
+    base = dg.get("baseline") or {}
+    p = base.get("parameters") or {}
+    if base.get("sign_bounds") is not False:
+        return ""
+    off = [(k, p[k]) for k in SHIP_SIGNED
+           if isinstance(p.get(k), (int, float)) and not isinstance(p.get(k), bool) and p[k] > 0]
+    if not off:
+        return ""
+    vals = " and ".join(f"{k} = +{num(v)}" for k, v in off)
+    verb = "has" if len(off) == 1 else "have"
+    stable = base.get("course_stable")
+    poles = ("" if not isinstance(stable, bool) else
+             f" Its course stability ({'stable' if stable else 'unstable'}) is that of the poles of its "
+             "whole state matrix, not of any one coefficient's sign.")
+    return (f"The unconstrained baseline's {vals} {verb} not a ship's sign (every displacement ship has "
+            "a11, a12, a21, a22 <= 0): it is the linear model that best predicts these runs, its "
+            "coefficients standing in for what the linear form lacks, not a physical model of the hull."
+            + poles)
+
+
 def pooled_baseline_mae(dg: dict) -> float | None:
     """The baseline's held-out MAE psi (deg), the mean over the folds of each fold's validation runs'
     MAE: the ladder's first rung, the number the selection judges by."""
