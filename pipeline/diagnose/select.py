@@ -1058,9 +1058,8 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
     training cost is kept; fitting a triple from one start only saves no measurable CPU time on the
     bench case, ``python -m pipeline bench``).  A group is fitted fold by fold and left at the first
     fold where it already fails a gate every fold must pass (:meth:`Search.fold_may_pass`): the same
-    groups pass, with about a fifth fewer fits on the virtual KCS (its main selection 262 -> 214 fits,
-    the same report to the bit).  Returns (first member, structure, step) of the best passing group by
-    pooled gain, or None."""
+    groups pass, with fewer fits (docs/performance.md).  Returns (first member, structure, step) of
+    the best passing group by pooled gain, or None."""
     best = None
     forms = {e: dict(st)[e] for e, (st, _) in pool}
     for group in itertools.combinations([e for e, _ in pool], size):
