@@ -27,6 +27,9 @@ class _Search:
     def fit(self, k, structure, start=None):
         return None
 
+    def fitted(self, k, structure):
+        return False
+
     def refine(self, k, smaller, richer):
         return False
 

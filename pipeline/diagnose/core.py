@@ -714,7 +714,7 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
             key = structure_of(*st)
             if key in fits:
                 continue
-            start = search.fit(0, key) if (0, key) in search._fits else None
+            start = search.fit(0, key) if search.fitted(0, key) else None
             try:
                 # never chosen on the test runs (Search.measured_fit)
                 fits[key] = allrun.measured_fit(0, key, start)
@@ -922,7 +922,7 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
     # the fit whose estimate is reported: the final model if chosen, else the structure last judged
     st = ext_struct if chosen else (step.structure if step is not None else ())
     key = (0, structure_of(*st)) if st else None
-    if step is None or key not in search._fits:
+    if step is None or key is None or not search.fitted(*key):
         return _unjudged(eff, "Fit failed in some fold: not judged.")
     f = search._fits[key]
     form = f.form(effect)
@@ -945,7 +945,7 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
             )
     fold_rows = []
     for k in range(len(search.folds)):
-        fk = search._fits.get((k, structure_of(*st)))
+        fk = search._fits.get((k, structure_of(*st))) if search.fitted(k, st) else None
         if fk is not None:
             fold_rows.append(
                 {

@@ -94,6 +94,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 from scipy import stats
@@ -252,6 +253,9 @@ class Search:
         self.folds, self.ctx, self.cfg = folds, ctx, cfg
         self.memo = memo
         self._fits: dict = {}
+        #: (fold, structure) -> the start fits a group search left unfitted in that fold
+        #: (:func:`_best_group`): made as that search would have made them when first asked for
+        self._deferred: dict = {}
         self._evals: dict = {}
         self._short: dict = {}
         self.block_s = cfg.block_T * ctx.t_ship
@@ -272,6 +276,8 @@ class Search:
         ship-sign bounds, or (``DiagnoseConfig.family_follows_baseline``, where the reported baseline is
         the unconstrained fit) without them, the empty structure then being that baseline."""
         key = (k, structure_of(*structure))
+        if key not in self._fits and key in self._deferred:
+            self._fit_deferred(key)
         if key not in self._fits:
             if not key[1] and not self.family_bounds:
                 free = self.unconstrained(k)
@@ -281,6 +287,68 @@ class Search:
             else:
                 self._fits[key] = self.sound(k, key[1], self._best_start(k, key[1], start))
         return self._fits[key]
+
+    def group_fit(self, k: int, structure, starts) -> FitResult:
+        """Fold ``k``'s fit of a group ``structure`` made anew from each of ``starts`` (fits of smaller
+        structures, or :class:`_Deferred` ones), the one of least TRAINING cost kept (cached).  Raises
+        ModelError where a start fails; nothing is then cached for ``structure``."""
+        key = (k, structure_of(*structure))
+        self._deferred.pop(key, None)
+        self._fits.pop(key, None)
+        self._evals.pop(key, None)
+        self._short.pop(key, None)
+        self._fits[key] = self._made(_Deferred(k, key[1], tuple(starts)))
+        return self._fits[key]
+
+    def defer_group_fit(self, k: int, structure, starts) -> None:
+        """Leave fold ``k``'s :meth:`group_fit` of ``structure`` from ``starts`` to the first time the
+        fit is asked for (:meth:`fit`, :meth:`fitted`): a group refused before its fold was reached is
+        then the fit it would have been, so every later step sees the fits it would have seen had the
+        group been fitted in every fold.  A start that is itself deferred stays so."""
+        key = (k, structure_of(*structure))
+        self._fits.pop(key, None)
+        self._evals.pop(key, None)
+        self._short.pop(key, None)
+        self._deferred[key] = _Deferred(k, key[1], tuple(starts))
+
+    def start_of(self, k: int, structure):
+        """Fold ``k``'s fit of ``structure`` as a start for a group fit: its deferred form where it is
+        deferred (made only if the group's fit is), else :meth:`fit`."""
+        key = (k, structure_of(*structure))
+        if key not in self._fits and key in self._deferred:
+            return self._deferred[key]
+        return self.fit(k, key[1])
+
+    def _made(self, d: _Deferred) -> FitResult:
+        """The group fit ``d`` describes, made now from each of its starts (the least training cost),
+        not cached.  Raises ModelError where a start fails."""
+        cand = [self.sound(d.k, d.structure, self._best_start(d.k, d.structure, self._as_start(s0)))
+                for s0 in d.starts]
+        return min(cand, key=lambda f: f.cost)
+
+    def _as_start(self, s0) -> FitResult:
+        """A group fit's start as a fit: a deferred one made (:meth:`_made`); where that fails, the
+        structure's own fit (:meth:`fit`), as a group search that found no fit there made it."""
+        if not isinstance(s0, _Deferred):
+            return s0
+        try:
+            return self._made(s0)
+        except ModelError:
+            return self.fit(s0.k, s0.structure)
+
+    def _fit_deferred(self, key) -> None:
+        d = self._deferred.pop(key)
+        try:
+            self._fits[key] = self._made(d)
+        except ModelError:
+            pass
+
+    def fitted(self, k: int, structure) -> bool:
+        """Whether fold ``k`` holds a fit of ``structure`` (a deferred group fit is made first)."""
+        key = (k, structure_of(*structure))
+        if key not in self._fits and key in self._deferred:
+            self._fit_deferred(key)
+        return key in self._fits
 
     @staticmethod
     def _hull(structure) -> bool:
@@ -569,7 +637,7 @@ class Search:
         reported gain is measured on (DiagnoseConfig.cold_start).  Raises the last ModelError where no
         start fits."""
         key = (k, structure_of(*structure))
-        if key in self._fits or not key[1]:
+        if self.fitted(k, key[1]) or not key[1]:
             return self.fit(k, key[1], start=start)
         self._fits[key] = self.least_cost(k, key[1], (start, None) if start is not None else (None,),
                                           sound=True)
@@ -584,7 +652,7 @@ class Search:
         (its cached held-out evaluation is then dropped)."""
         key = (k, structure_of(*structure))
         rkey = (k, structure_of(*richer))
-        if key == rkey or rkey not in self._fits or not set(key[1]) <= set(rkey[1]):
+        if key == rkey or not self.fitted(k, rkey[1]) or not set(key[1]) <= set(rkey[1]):
             return False
         old = self.fit(k, structure)
         try:
@@ -1043,6 +1111,15 @@ def _pair_pool(search: Search, ks, cur, ranked, n: int) -> list:
     return sorted(ranked, key=cut, reverse=True)[:n]
 
 
+class _Deferred(NamedTuple):
+    """A group fit left for later (:meth:`Search.defer_group_fit`): fold ``k``, ``structure``, and its
+    ``starts`` (fits, or deferred group fits of smaller structures)."""
+
+    k: int
+    structure: tuple
+    starts: tuple
+
+
 class _FoldFails(Exception):
     """A group fails a per-fold gate in one fold (:meth:`Search.fold_may_pass`): no need to fit it in
     the others."""
@@ -1056,9 +1133,10 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
     physical floor, and each member is needed: the step from (cur + the group without it) to the group
     passes too.  The group is fitted from each of those smaller structures' fits (the result of least
     training cost is kept; fitting a triple from one start only saves no measurable CPU time on the
-    bench case, ``python -m pipeline bench``).  A group is fitted fold by fold and left at the first
-    fold where it already fails a gate every fold must pass (:meth:`Search.fold_may_pass`): the same
-    groups pass, with fewer fits (docs/performance.md).  Returns (first member, structure, step) of
+    bench case, ``python -m pipeline bench``).  A group is fitted fold by fold; at the first fold where
+    it already fails a gate every fold must pass (:meth:`Search.fold_may_pass`) its fits in the later
+    folds are deferred (:meth:`Search.defer_group_fit`): the same decisions, with fewer fits
+    (docs/performance.md).  Returns (first member, structure, step) of
     the best passing group by pooled gain, or None."""
     best = None
     forms = {e: dict(st)[e] for e, (st, _) in pool}
@@ -1066,17 +1144,12 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
         full = structure_of(*cur, *[(e, forms[e]) for e in group])
         subs = [structure_of(*cur, *[(e, forms[e]) for e in group if e != m]) for m in group]
         try:
-            for k in ks:
+            for i, k in enumerate(ks):
                 # in member order of what each start holds (a pair: from cur + a, then cur + b)
-                starts = [search.fit(k, sub) for sub in reversed(subs)]
-                cand = []
-                for st0 in starts:
-                    search._fits.pop((k, full), None)
-                    search._evals.pop((k, full), None)
-                    search._short.pop((k, full), None)
-                    cand.append(search.fit(k, full, start=st0))
-                search._fits[(k, full)] = min(cand, key=lambda f: f.cost)
+                search.group_fit(k, full, [search.start_of(k, sub) for sub in reversed(subs)])
                 if not search.fold_may_pass(k, cur, full, group):
+                    for k2 in ks[i + 1:]:
+                        search.defer_group_fit(k2, full, [search.start_of(k2, sub) for sub in reversed(subs)])
                     raise _FoldFails
         except (ModelError, _FoldFails):
             continue
@@ -1141,7 +1214,7 @@ _MAX_REJUDGE = 2
 def _nested_fit(search: Search, ks, smaller, richer) -> None:
     """Fit ``smaller`` in folds ``ks``: warm-started from ``richer`` when new, else refined from it."""
     for k in ks:
-        if (k, structure_of(*smaller)) in search._fits:
+        if search.fitted(k, smaller):
             search.refine(k, smaller, richer)
         else:
             search.fit(k, smaller, start=search.fit(k, richer))
