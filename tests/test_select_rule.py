@@ -62,6 +62,22 @@ class FakeSearch:
         self._fits[(k, structure_of(*structure))] = f
         return f
 
+    def fitted(self, k, structure):
+        return (k, structure_of(*structure)) in self._fits
+
+    def start_of(self, k, structure):
+        return self.fit(k, structure)
+
+    def group_fit(self, k, structure, starts):
+        return self.fit(k, structure)
+
+    def defer_group_fit(self, k, structure, starts):
+        """Never asked: every group passes the per-fold screen here (fold_may_pass)."""
+
+    def fold_may_pass(self, k, before, after, effects):
+        """The table has no per-fold figures: the steps alone judge."""
+        return True
+
     def refine(self, k, structure, richer):
         return False
 

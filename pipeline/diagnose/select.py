@@ -734,6 +734,7 @@ class Search:
     def eval(self, k: int, structure):
         key = (k, structure_of(*structure))
         if key not in self._evals:
+            self.fitted(k, key[1])  # a deferred group fit is made first (defer_group_fit)
             self._evals[key] = evaluate(self._fits[key], self.folds[k].val)
         return self._evals[key]
 
