@@ -253,8 +253,9 @@ class Search:
         self.folds, self.ctx, self.cfg = folds, ctx, cfg
         self.memo = memo
         self._fits: dict = {}
-        #: (fold, structure) -> the start fits a group search left unfitted in that fold
-        #: (:func:`_best_group`): made as that search would have made them when first asked for
+        #: (fold, structure) -> the group fit a group search left for later in that fold
+        #: (:class:`_Deferred`, :meth:`defer_group_fit`): made as that search would have made it, when
+        #: first asked for
         self._deferred: dict = {}
         self._evals: dict = {}
         self._short: dict = {}
@@ -884,8 +885,8 @@ class Search:
         (:class:`~.gates.NoRunaway`) or has a member below its physical floor there
         (:class:`~.gates.PhysicalFloor`).  Each of those gates asks it of every fold, read as
         :meth:`step` reads it, so a False here is a failed step whatever the other folds show: a group
-        search stops fitting a group at its first such fold (:func:`_best_group`).  Needs ``before``
-        fitted in fold ``k`` and fits ``after`` there."""
+        search defers a group's fits in the folds after its first such fold (:func:`_best_group`).
+        Needs ``before`` fitted in fold ``k`` and fits ``after`` there."""
         (mb, pb), (ma, pa) = self.eval(k, before), self.eval(k, after)
         if not _gain(mb["mae_psi_deg"], ma["mae_psi_deg"]) > 0:
             return False
@@ -1122,8 +1123,8 @@ class _Deferred(NamedTuple):
 
 
 class _FoldFails(Exception):
-    """A group fails a per-fold gate in one fold (:meth:`Search.fold_may_pass`): no need to fit it in
-    the others."""
+    """A group fails a per-fold gate in one fold (:meth:`Search.fold_may_pass`): its fits in the
+    later folds are deferred."""
 
 
 def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
@@ -1137,8 +1138,8 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
     bench case, ``python -m pipeline bench``).  A group is fitted fold by fold; at the first fold where
     it already fails a gate every fold must pass (:meth:`Search.fold_may_pass`) its fits in the later
     folds are deferred (:meth:`Search.defer_group_fit`): the same decisions, with fewer fits
-    (docs/performance.md).  Returns (first member, structure, step) of
-    the best passing group by pooled gain, or None."""
+    (docs/performance.md).  Returns (first member, structure, step) of the best passing group by
+    pooled gain, or None."""
     best = None
     forms = {e: dict(st)[e] for e, (st, _) in pool}
     for group in itertools.combinations([e for e, _ in pool], size):
