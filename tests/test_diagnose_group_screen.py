@@ -1,7 +1,8 @@
 """The group search's per-fold screen (:meth:`pipeline.diagnose.select.Search.fold_may_pass`): a group is
-fitted fold by fold and left at the first fold where a gate that every fold must pass already fails, so
-the screen must say False exactly where the group's steps fail one of those gates, and never change
-which group is chosen."""
+fitted fold by fold, and after the first fold where a gate that every fold must pass already fails its
+fits in the later folds are deferred (made, as they would have been, only when asked for).  So the
+screen must say False exactly where the group's steps fail one of those gates, a deferred fit must be
+the eager one, and which group is chosen never changes."""
 
 from __future__ import annotations
 
