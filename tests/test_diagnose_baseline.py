@@ -4,22 +4,14 @@ baseline"): fitted with and without the ship-sign bounds, the one of lower held-
 from __future__ import annotations
 
 import pytest
+from tank_search import tank_search  # the virtual tank's runs as a two-fold search
 
 from pipeline import tank
-from pipeline.config import DiagnoseConfig, TankConfig
-from pipeline.diagnose.core import _adequacy, _context, residual_structure
+from pipeline.config import DiagnoseConfig
+from pipeline.diagnose.core import _adequacy, residual_structure
 from pipeline.diagnose.effects import Context
-from pipeline.diagnose.fit import evaluate, series_from_run, with_initial_states
-from pipeline.diagnose.select import Fold, Search, heading_noise_deg
-
-
-def _search(train, validate, **cfg_kw) -> Search:
-    tr = [series_from_run(tank.simulate(m, TankConfig())) for m in train]
-    va = [series_from_run(tank.simulate(m, TankConfig())) for m in validate]
-    ctx, cfg = _context(tr + va), DiagnoseConfig(**cfg_kw)
-    tr, va = (with_initial_states(x, cfg.x0_window_T * ctx.t_ship, cfg.x0_model_window_T * ctx.t_ship,
-                                  cfg.x0_box_sigma) for x in (tr, va))
-    return Search([Fold(tr, va), Fold(va, tr)], ctx, cfg)
+from pipeline.diagnose.fit import evaluate
+from pipeline.diagnose.select import Search, heading_noise_deg
 
 
 @pytest.mark.slow
@@ -34,11 +26,11 @@ def test_the_baseline_is_the_unconstrained_fit_where_the_bound_cripples_it():
     legs = ([tank.zigzag(20, 20, "starboard", duration=80.0), tank.zigzag(10, 10, "port", duration=80.0)],
             [tank.zigzag(20, 20, "port", duration=80.0), tank.zigzag(10, 10, "starboard", duration=80.0)])
     # switched off, the bounded fit is the reported baseline, the better one beside it
-    d = _search(*legs, best_linear_baseline=False)
+    d = tank_search(*legs, best_linear_baseline=False)
     d.choose_baseline([0, 1])
     assert d.baseline_bounded is True and d.best_bounded is False
     assert d.linear(0) is d.fit(0, ()) and not d.other_linear(0).sign_bounds
-    s = _search(*legs)
+    s = tank_search(*legs)
     s.choose_baseline([0, 1])
     assert s.baseline_bounded is False and s.best_bounded is False and s.family_bounds is True
     for k in (0, 1):
@@ -52,7 +44,7 @@ def test_the_baseline_is_the_unconstrained_fit_where_the_bound_cripples_it():
         assert mo == pytest.approx(evaluate(other, s.folds[k].val)[0]["mae_psi_deg"])
         assert mb < 0.7 * mo, (mb, mo)
     # the family following the baseline: its linear rung is the unconstrained fit, the bounded beside it
-    f = _search(*legs, family_follows_baseline=True)
+    f = tank_search(*legs, family_follows_baseline=True)
     f.choose_baseline([0, 1])
     assert f.family_bounds is False
     for k in (0, 1):

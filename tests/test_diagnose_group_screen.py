@@ -10,13 +10,11 @@ import itertools
 
 import numpy as np
 import pytest
+from tank_search import tank_search  # the virtual tank's runs as a two-fold search
 
 from pipeline import tank
-from pipeline.config import DiagnoseConfig, TankConfig
-from pipeline.diagnose.core import _context
 from pipeline.diagnose.effects import BY_NAME
-from pipeline.diagnose.fit import series_from_run, with_initial_states
-from pipeline.diagnose.select import Fold, Search, _best_group, structure_of
+from pipeline.diagnose.select import Search, _best_group, structure_of
 
 #: the gates every fold must pass on its own (EveryFold, NoRunaway, PhysicalFloor)
 PER_FOLD = {"every_fold", "no_runaway", "physical_floor"}
@@ -25,13 +23,9 @@ PER_FOLD = {"every_fold", "no_runaway", "physical_floor"}
 def _kcs_search() -> Search:
     """The virtual KCS's zigzags (its hull nonlinear in v and r; 60 s each), mirror runs held out: two
     folds, no fit memo (every fit made)."""
-    legs = ([tank.zigzag(20, 20, "starboard", duration=60.0), tank.zigzag(10, 10, "port", duration=60.0)],
-            [tank.zigzag(20, 20, "port", duration=60.0), tank.zigzag(10, 10, "starboard", duration=60.0)])
-    tr, va = ([series_from_run(tank.simulate(m, TankConfig())) for m in leg] for leg in legs)
-    ctx, cfg = _context(tr + va), DiagnoseConfig()
-    tr, va = (with_initial_states(x, cfg.x0_window_T * ctx.t_ship, cfg.x0_model_window_T * ctx.t_ship,
-                                  cfg.x0_box_sigma) for x in (tr, va))
-    return Search([Fold(tr, va), Fold(va, tr)], ctx, cfg)
+    zz = tank.zigzag
+    return tank_search([zz(20, 20, "starboard", duration=60.0), zz(10, 10, "port", duration=60.0)],
+                       [zz(20, 20, "port", duration=60.0), zz(10, 10, "starboard", duration=60.0)])
 
 
 @pytest.mark.slow
