@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from test_diagnose_baseline import _search
+from tank_search import tank_search  # the virtual tank's runs as a two-fold search
 
 from pipeline import tank
 from pipeline.config import DiagnoseConfig
@@ -39,7 +39,7 @@ def test_reference_fit_on_the_virtual_tank_is_the_known_answer():
     deg, the reference 0.45 / 0.82 deg, -87 % pooled)."""
     legs = ([tank.zigzag(20, 20, "starboard", duration=80.0), tank.zigzag(10, 10, "port", duration=80.0)],
             [tank.zigzag(20, 20, "port", duration=80.0), tank.zigzag(10, 10, "starboard", duration=80.0)])
-    s = _search(*legs, best_linear_baseline=True)
+    s = tank_search(*legs, best_linear_baseline=True)
     s.choose_baseline([0, 1])
     ref = reference_fit(_design(s), s, [0, 1], adequate=False)
     assert ref.computed and ref.reason is None
