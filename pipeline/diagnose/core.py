@@ -945,7 +945,7 @@ def _finding(effect, sel: Selection, search: Search, ctx: Context, cfg, chosen: 
             )
     fold_rows = []
     for k in range(len(search.folds)):
-        fk = search._fits.get((k, structure_of(*st))) if search.fitted(k, st) else None
+        fk = search.fit(k, st) if search.fitted(k, st) else None
         if fk is not None:
             fold_rows.append(
                 {

@@ -277,9 +277,7 @@ class Search:
         ship-sign bounds, or (``DiagnoseConfig.family_follows_baseline``, where the reported baseline is
         the unconstrained fit) without them, the empty structure then being that baseline."""
         key = (k, structure_of(*structure))
-        if key not in self._fits and key in self._deferred:
-            self._fit_deferred(key)
-        if key not in self._fits:
+        if not self.fitted(*key):
             if not key[1] and not self.family_bounds:
                 free = self.unconstrained(k)
                 if free is None:
@@ -295,9 +293,7 @@ class Search:
         ModelError where a start fails; nothing is then cached for ``structure``."""
         key = (k, structure_of(*structure))
         self._deferred.pop(key, None)
-        self._fits.pop(key, None)
-        self._evals.pop(key, None)
-        self._short.pop(key, None)
+        self._forget(key)
         self._fits[key] = self._made(_Deferred(k, key[1], tuple(starts)))
         return self._fits[key]
 
@@ -307,10 +303,14 @@ class Search:
         then the fit it would have been, so every later step sees the fits it would have seen had the
         group been fitted in every fold.  A start that is itself deferred stays so."""
         key = (k, structure_of(*structure))
+        self._forget(key)
+        self._deferred[key] = _Deferred(k, key[1], tuple(starts))
+
+    def _forget(self, key) -> None:
+        """Drop the fit of ``key`` (fold, structure) and what was computed from it."""
         self._fits.pop(key, None)
         self._evals.pop(key, None)
         self._short.pop(key, None)
-        self._deferred[key] = _Deferred(k, key[1], tuple(starts))
 
     def start_of(self, k: int, structure):
         """Fold ``k``'s fit of ``structure`` as a start for a group fit: its deferred form where it is
@@ -1145,13 +1145,16 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
     for group in itertools.combinations([e for e, _ in pool], size):
         full = structure_of(*cur, *[(e, forms[e]) for e in group])
         subs = [structure_of(*cur, *[(e, forms[e]) for e in group if e != m]) for m in group]
+        # in member order of what each start holds (a pair: from cur + a, then cur + b)
+        def starts(k, subs=subs):
+            return [search.start_of(k, sub) for sub in reversed(subs)]
+
         try:
             for i, k in enumerate(ks):
-                # in member order of what each start holds (a pair: from cur + a, then cur + b)
-                search.group_fit(k, full, [search.start_of(k, sub) for sub in reversed(subs)])
+                search.group_fit(k, full, starts(k))
                 if not search.fold_may_pass(k, cur, full, group):
                     for k2 in ks[i + 1:]:
-                        search.defer_group_fit(k2, full, [search.start_of(k2, sub) for sub in reversed(subs)])
+                        search.defer_group_fit(k2, full, starts(k2))
                     raise _FoldFails
         except (ModelError, _FoldFails):
             continue
