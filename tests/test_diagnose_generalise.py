@@ -1076,8 +1076,6 @@ TK_DIST_KNOWN_WRONG = {
     ("full", 700, 1): "2026-11-29: offset + hull terms + a rudder asymmetry of -0.023 +- 0.014 named (the "
                       "reference structure, its speed loss carried below its floor), the asymmetry a kind "
                       "the tanker does not have; held-out 11.12 -> 2.61 deg (77 %)",
-    ("full", 700, 2): "2026-11-29: offset + hull terms + a rudder asymmetry of +0.022 +- 0.030 named, the "
-                      "speed loss carried; held-out 6.49 -> 2.93 deg (55 %)",
     ("full", 3000, 1): "2026-11-29: yaw damping + cross terms named, without the offset that the "
                        "propeller's constants make (named in the undisturbed runs of this seed); held-out "
                        "7.63 -> 2.37 deg (69 %)",
