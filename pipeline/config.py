@@ -614,8 +614,8 @@ class DiagnoseConfig:
     #: of its cost, where 27 of the virtual KCS's main selection's polishes were still falling at 200.
     #: Measured 2026-11-29 against 200: the decisions do not hang on those fits
     #: (continued, none moved), the virtual KCS's and HSVA's verdicts and honest gains are the same,
-    #: make generalise loses nothing and one strict xfail passes, the main selection takes about a
-    #: third less CPU (docs/performance.md, "Fits that stop at their evaluation cap")
+    #: make generalise loses nothing and one strict xfail passes, the main selection takes a quarter to
+    #: a third less CPU (docs/performance.md, "Fits that stop at their evaluation cap")
     max_nfev: int = 60
     structured_r2: float = 0.2           # residuals "stay structured" when signatures explain this share
     two_fold: bool = True  # also the reverse fold (train on the validation runs) when exchangeable
