@@ -1134,10 +1134,9 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
     :func:`_pair_pool`.  The group passes when the step cur -> cur + group passes with EACH member's
     physical floor, and each member is needed: the step from (cur + the group without it) to the group
     passes too.  The group is fitted from each of those smaller structures' fits (the result of least
-    training cost is kept; fitting a triple from one start only saves no measurable CPU time on the
-    bench case, ``python -m pipeline bench``).  A group is fitted fold by fold; at the first fold where
-    it already fails a gate every fold must pass (:meth:`Search.fold_may_pass`) its fits in the later
-    folds are deferred (:meth:`Search.defer_group_fit`): the same decisions, with fewer fits
+    training cost is kept: a later start can reach a better optimum, docs/performance.md).  A group
+    is fitted fold by fold; at the first fold where it already fails a gate every fold must pass
+    (:meth:`Search.fold_may_pass`) its fits in the later folds are deferred (:meth:`Search.defer_group_fit`): the same decisions, with fewer fits
     (docs/performance.md).  Returns (first member, structure, step) of the best passing group by
     pooled gain, or None."""
     best = None
