@@ -1136,9 +1136,9 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
     passes too.  The group is fitted from each of those smaller structures' fits (the result of least
     training cost is kept: a later start can reach a better optimum, docs/performance.md).  A group
     is fitted fold by fold; at the first fold where it already fails a gate every fold must pass
-    (:meth:`Search.fold_may_pass`) its fits in the later folds are deferred (:meth:`Search.defer_group_fit`): the same decisions, with fewer fits
-    (docs/performance.md).  Returns (first member, structure, step) of the best passing group by
-    pooled gain, or None."""
+    (:meth:`Search.fold_may_pass`) its fits in the later folds are deferred
+    (:meth:`Search.defer_group_fit`): the same decisions, with fewer fits (docs/performance.md).
+    Returns (first member, structure, step) of the best passing group by pooled gain, or None."""
     best = None
     forms = {e: dict(st)[e] for e, (st, _) in pool}
     for group in itertools.combinations([e for e, _ in pool], size):
