@@ -1744,14 +1744,14 @@ def _oracle_leave_one_out(series: list, oracle: tuple):
 
 
 def _kcs_oracle_leave_one_out():
-    """The virtual tank's six default runs, leave-one-run-out (:func:`_oracle_leave_one_out`), the
+    """The virtual tank's six selection runs, leave-one-run-out (:func:`_oracle_leave_one_out`), the
     structure KCS_ORACLE."""
     from pipeline import tank
     from pipeline.config import TankConfig
     from pipeline.diagnose.fit import series_from_run
-    from pipeline.tank.manoeuvres import default_set
+    from pipeline.tank.manoeuvres import selection_set
 
-    return _oracle_leave_one_out([series_from_run(tank.simulate(m, TankConfig())) for m in default_set()],
+    return _oracle_leave_one_out([series_from_run(tank.simulate(m, TankConfig())) for m in selection_set()],
                                  KCS_ORACLE)
 
 
@@ -1763,7 +1763,7 @@ def kcs_oracle():
 @pytest.mark.skipif(not FULL, reason="24 fits of the six 90-150 s tank runs (about 2 min on 2 shared "
                     "cores): make generalise (TANKTEST_GENERALISE=full)")
 def test_kcs_oracle_is_the_known_answer(kcs_oracle):
-    """The virtual tank's six default runs (20/20 and 10/10 zigzags, 35 deg turning circles, both sides),
+    """The virtual tank's six selection runs (20/20 and 10/10 zigzags, 35 deg turning circles, both sides),
     leave-one-run-out: the oracle structure fitted on five runs holds the sixth out better than the
     linear model with the ship-sign bounds on every run, at under a quarter of its error on average.
     The truth is the tank's MMG model, not written in these terms.  Measured (held-out MAE psi deg,

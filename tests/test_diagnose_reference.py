@@ -156,7 +156,7 @@ _DROP = {"reference": REFERENCE, "without hull terms": (_OFFSET, _SPEED),
 @pytest.mark.slow
 @pytest.mark.long
 def test_what_brings_the_turning_circles_down_in_the_reference():
-    """The virtual tank's six default runs in the design's two folds (three training, three held-out
+    """The virtual tank's six selection runs in the design's two folds (three training, three held-out
     runs each, a 35 deg turning circle on each side): refitted without its hull terms, the reference
     predicts each held-out circle worse than with them (measured 2026-11-28, the mixed hull form: port
     11.38 against 2.58 deg, starboard 19.58 against 3.51), and with the hull terms but without the sway
@@ -175,10 +175,10 @@ def test_what_brings_the_turning_circles_down_in_the_reference():
         structure_of,
         with_initial_states,
     )
-    from pipeline.tank.manoeuvres import default_set
+    from pipeline.tank.manoeuvres import selection_set
 
     runs = {}
-    for m in default_set():
+    for m in selection_set():
         r = tank.simulate(m, TankConfig())
         runs[r.meta["run_id"]] = r
     keys = ("kind", "rudder_deg", "heading_deg", "first_side")

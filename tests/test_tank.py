@@ -396,7 +396,8 @@ def test_cli_writes_pull_outs_and_refuses_one_outside_the_record(tmp_path, capsy
     assert main(["tank", "--out", str(out), "--no-noise", "--pull-out", "45"]) == 0
     names = sorted(p.name for p in out.iterdir())
     assert "kcs_turning_35_S_pullout45.csv" in names and "kcs_turning_35_P_pullout45.csv" in names
-    assert "kcs_zigzag_20_20_S.csv" in names and len(names) == 6
+    assert "kcs_turning_25_S_pullout45.csv" in names
+    assert "kcs_zigzag_20_20_S.csv" in names and len(names) == 9
     text = (out / "kcs_turning_35_S_pullout45.csv").read_text()
     assert "# test: turning circle 35 starboard with pull-out" in text
     delta = np.loadtxt([ln for ln in text.splitlines() if ln and ln[0].isdigit()], delimiter=",")[:, 7]
@@ -415,7 +416,8 @@ def test_cli_writes_the_default_set(tmp_path, capsys):
     assert main(["tank", "--out", str(out), "--no-noise", "--seed", "5"]) == 0
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted(["kcs_zigzag_20_20_S.csv", "kcs_zigzag_20_20_P.csv", "kcs_zigzag_10_10_S.csv",
-                            "kcs_zigzag_10_10_P.csv", "kcs_turning_35_S.csv", "kcs_turning_35_P.csv"])
+                            "kcs_zigzag_10_10_P.csv", "kcs_turning_35_S.csv", "kcs_turning_35_P.csv",
+                            "kcs_zigzag_15_15_S.csv", "kcs_zigzag_15_15_P.csv", "kcs_turning_25_S.csv"])
     text = (out / "kcs_turning_35_P.csv").read_text()
     assert "# test: turning circle 35 port" in text and "# seed: 5" in text and "noise-free" in text
 

@@ -7,7 +7,7 @@ Public API::
 
     zigzag(rudder_deg, heading_deg, first_side="starboard", duration=None) -> Manoeuvre
     turning_circle(rudder_deg=35.0, side="starboard", duration=None) -> Manoeuvre
-    default_set() -> list[Manoeuvre]
+    default_set() -> list[Manoeuvre]    # selection_set() + held_out_set()
     straight(duration=60.0) -> Manoeuvre  # rudder amidships, for checks
     simulate(manoeuvre, cfg=TankConfig()) -> pipeline.io.Run
     write_csv(path, run)
@@ -19,10 +19,18 @@ docs/virtual-tank.md.
 """
 
 from pipeline.tank.kcs import KCSCoefficients, KCSShip, linearise, trim_rps
-from pipeline.tank.manoeuvres import Manoeuvre, default_set, straight, turning_circle, zigzag
+from pipeline.tank.manoeuvres import (
+    Manoeuvre,
+    default_set,
+    held_out_set,
+    selection_set,
+    straight,
+    turning_circle,
+    zigzag,
+)
 from pipeline.tank.simulate import noise_seed, simulate, write_csv
 
 __all__ = [
-    "KCSCoefficients", "KCSShip", "Manoeuvre", "default_set", "linearise", "noise_seed",
-    "simulate", "straight", "trim_rps", "turning_circle", "write_csv", "zigzag",
+    "KCSCoefficients", "KCSShip", "Manoeuvre", "default_set", "held_out_set", "linearise", "noise_seed",
+    "selection_set", "simulate", "straight", "trim_rps", "turning_circle", "write_csv", "zigzag",
 ]

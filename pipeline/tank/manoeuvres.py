@@ -157,8 +157,9 @@ def straight(duration: float = 60.0) -> Manoeuvre:
     return Manoeuvre("straight", 0.0, None, "starboard", float(duration))
 
 
-def default_set() -> list[Manoeuvre]:
-    """The built-in tank's default runs.
+def selection_set() -> list[Manoeuvre]:
+    """The built-in tank's runs that the diagnosis chooses on: twins, one of each trains and one
+    validates (pipeline.diagnose.design).
 
     Returns
     -------
@@ -170,3 +171,28 @@ def default_set() -> list[Manoeuvre]:
         zigzag(10, 10, "starboard"), zigzag(10, 10, "port"),
         turning_circle(35, "starboard"), turning_circle(35, "port"),
     ]
+
+
+def held_out_set() -> list[Manoeuvre]:
+    """The built-in tank's runs that no choice of the diagnosis sees: its test runs, on which the
+    honest gain is measured (pipeline.diagnose.design makes them test runs: a pair between the
+    selection's zigzag amplitudes, a turning circle without a twin).
+
+    Returns
+    -------
+    list of Manoeuvre
+        Zigzags 15/15 to both sides, a 25 deg turning circle to starboard.
+    """
+    return [zigzag(15, 15, "starboard"), zigzag(15, 15, "port"), turning_circle(25, "starboard")]
+
+
+def default_set() -> list[Manoeuvre]:
+    """The built-in tank's default runs: :func:`selection_set` then :func:`held_out_set`.
+
+    Returns
+    -------
+    list of Manoeuvre
+        Zigzags 20/20 and 10/10 to both sides, 35 deg turning circles to both sides; zigzags 15/15
+        to both sides and a 25 deg turning circle to starboard.
+    """
+    return selection_set() + held_out_set()
