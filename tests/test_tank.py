@@ -422,6 +422,25 @@ def test_cli_writes_the_default_set(tmp_path, capsys):
     assert "# test: turning circle 35 port" in text and "# seed: 5" in text and "noise-free" in text
 
 
+def test_the_default_set_is_six_selection_runs_and_three_test_runs():
+    """The diagnosis's design rule (pipeline.diagnose.design) on the tank's default runs: the 20/20 and
+    10/10 zigzags and the 35 deg circles are crossed twins (one of each trains, one validates), the
+    15/15 zigzags and the 25 deg circle are test runs, and the circle alone is named extrapolated (no
+    selection circle at 25 deg)."""
+    from pipeline.diagnose.design import extrapolated, pick_catalog_runs
+
+    entries = [{"run_id": m.file_stem, "kind": m.kind, "rudder_deg": m.rudder_deg,
+                "heading_deg": m.heading_deg, "first_side": m.side} for m in tank.default_set()]
+    train, val, test = pick_catalog_runs(entries)
+    assert sorted(train + val) == sorted(m.file_stem for m in tank.selection_set())
+    assert sorted(test) == sorted(m.file_stem for m in tank.held_out_set())
+    assert sorted(test) == ["kcs_turning_25_S", "kcs_zigzag_15_15_P", "kcs_zigzag_15_15_S"]
+    for a, b in (("kcs_zigzag_20_20_S", "kcs_zigzag_20_20_P"), ("kcs_zigzag_10_10_S", "kcs_zigzag_10_10_P"),
+                 ("kcs_turning_35_S", "kcs_turning_35_P")):
+        assert (a in train) != (b in train) and (a in val) != (b in val)
+    assert extrapolated(entries, train + val, test) == ["kcs_turning_25_S"]
+
+
 # ---------------------------------------------------------------- sizing injected effects
 
 
