@@ -395,8 +395,8 @@ if res_b:
 # ## Measured against baseline and extended model, free-run, run by run
 
 # %%
-for rid in runs_drawn:
-    s = series[series.run_id == rid]
+def draw_run(s, title):
+    """Heading, yaw rate and logged rudder of one run: the measurement and the two models' free runs."""
     fig, axes = plt.subplots(3 if has_r else 2, 1, figsize=(10, 7.0 if has_r else 5.0), sharex=True)
     ax = axes[0]
     ax.plot(s.time, s.psi, color="0.2", lw=1.4, label=data.source_label)
@@ -405,7 +405,7 @@ for rid in runs_drawn:
         ax.plot(s.time, s.psi_extended, color="tab:red", lw=1.0, label="extended model")
     ax.set_ylabel(nb.label("psi"))
     nb.legend_outside(ax)
-    ax.set_title(data.run_label(rid))
+    ax.set_title(title)
     if has_r:
         axes[1].plot(s.time, s.r, color="0.2", lw=1.4)
         axes[1].plot(s.time, s.r_baseline, color="tab:blue", lw=1.0, ls="--")
@@ -417,6 +417,11 @@ for rid in runs_drawn:
         axd.plot(s.time, s.delta, color="0.4", lw=1.0)
         axd.set_ylabel(nb.label("delta"))
     axd.set_xlabel(nb.label("time"))
+    return fig
+
+
+for rid in runs_drawn:
+    fig = draw_run(series[series.run_id == rid], data.run_label(rid))
     pb = next((p for p in base.get("per_run") or [] if p.get("run_id") == rid), {})
     pe = next((p for p in ext.get("per_run") or [] if p.get("run_id") == rid), {})
     page.show(fig, f"Validation run {data.run_label(rid)}: heading, yaw rate and logged rudder; the "
@@ -430,6 +435,31 @@ for rid in runs_drawn:
             + (f" (each model from its best start within {settings['x0_box_sigma']:g} standard deviations of "
                "that estimate)" if settings.get("x0_box_sigma") else "")
             + ". This run chose the effects; the honest gain is measured on the runs listed above.")
+
+# %% [markdown]
+# ## On the test runs
+# The runs no choice has seen, where the honest gain is measured (with test runs only): both models
+# refitted on all training and validation runs, free-run on each.
+
+# %%
+test_series = (data.frame("diagnose/test_series.parquet", ("run_id", "time", "psi"))
+               if mode == "test runs" and data.exists("diagnose/test_series.parquet") else None)
+if test_series is None:
+    nb.note({"test runs": "The diagnosis stage wrote no test-run series: run it again to draw them.",
+             "nested leave-one-run-out": "No test runs were given: the honest gain is the nested "
+             "leave-one-run-out, its held-out runs' figures in the honest gain's table above."}.get(
+                 mode, "No test runs were given."))
+else:
+    per_test = {p.get("run_id"): p for p in gain_block.get("per_run") or []}
+    for rid in list(dict.fromkeys(test_series.run_id))[:max_runs_plotted]:
+        fig = draw_run(test_series[test_series.run_id == rid], data.run_label(rid))
+        p = per_test.get(rid, {})
+        page.show(fig, f"Test run {data.run_label(rid)}: heading, yaw rate and logged rudder; the "
+                "measurement (dark), the linear baseline refitted on all training and validation runs "
+                f"(blue dashed, MAE psi on this run {dt.num(p.get('baseline_mae_psi_deg'), 3)} deg)"
+                + (" and the extended model refitted on them (red, MAE psi on this run "
+                   f"{dt.num(p.get('extended_mae_psi_deg'), 3)} deg)" if named else "")
+                + ". No choice saw this run; the honest gain above is the mean over these runs.")
 
 # %% [markdown]
 # ## Every effect tried, and why it was kept or rejected

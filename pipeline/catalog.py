@@ -40,7 +40,9 @@ Every stage directory is written as one set (pipeline.io.atomic_dir); its manife
                            statistics over wave seeds (mean, std, worst), with the paper's figures.
 ``control/timeseries.parquet``     plant, design, seed, time, psi_ref, psi, r, delta_cmd, delta, wave, wind.
 ``diagnose/diagnosis.json``        docs/diagnosis.md; ``diagnose/series.parquet`` measured/baseline/extended
-                           free-run series per validation run; PNG plots beside them.
+                           free-run series per validation run; ``diagnose/test_series.parquet`` the same
+                           per test run (models refitted on all selection runs; only with test runs);
+                           PNG plots beside them.
 """
 
 from __future__ import annotations

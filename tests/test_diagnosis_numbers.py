@@ -30,13 +30,15 @@ NUM = r"(-?\d+(?:\.\d+)?(?:e[+-]?\d+)?)"
 
 @pytest.fixture(scope="module")
 def cases(tmp_path_factory):
-    """{mode: (diagnosis.json, rendered page)} for the test-run and the nested case."""
+    """{mode: (diagnosis.json, rendered page, the stage's test_series.parquet or None)} for the test-run
+    and the nested case."""
     import pipeline.diagnose as diag
     import pipeline.diagnose.core as core
     import pipeline.diagnose.effects as effects
     import pipeline.diagnose.select as select
     from pipeline.diagnose import TruthConfig, diagnose, zigzag_truth
     from pipeline.diagnose.output import write_outputs
+    from pipeline.io import read_frame
 
     mp = pytest.MonkeyPatch()
     cut = (effects.BY_NAME["rudder_offset"], effects.BY_NAME["nonlinear_yaw_damping"])
@@ -56,7 +58,9 @@ def cases(tmp_path_factory):
             assert main(["report", "--datasets", "tiny", "--root", str(root), "--out", str(html),
                          "--notebooks", "diagnosis"]) == 0
             doc = json.loads((cat.diagnose_dir / "diagnosis.json").read_text())
-            out[mode] = (doc, (html / "diagnosis-tiny.html").read_text(encoding="utf-8"))
+            ts = cat.diagnose_dir / "test_series.parquet"
+            out[mode] = (doc, (html / "diagnosis-tiny.html").read_text(encoding="utf-8"),
+                         read_frame(ts)[0] if ts.exists() else None)
     finally:
         mp.undo()
     return out
@@ -96,7 +100,7 @@ def _leaves(doc, path=""):
 @pytest.mark.slow
 @pytest.mark.parametrize("mode", ["test runs", "nested leave-one-run-out"])
 def test_every_figure_of_the_diagnosis_page_is_its_key(cases, mode):
-    doc, page = cases[mode]
+    doc, page, _ = cases[mode]
     v, text = _visible(page)
     g = doc["gain"]
     other_mode = "nested leave-one-run-out" if mode == "test runs" else "test runs"
@@ -150,6 +154,17 @@ def test_every_figure_of_the_diagnosis_page_is_its_key(cases, mode):
     for run, b, e, trained in caps:
         assert _said(b, base_runs[run]["mae_psi_deg"]) and _said(e, ext_runs[run]["mae_psi_deg"])
         assert trained == ", ".join(doc["training_runs"])
+    # ... and with test runs each test run's from gain.per_run, both models refitted on all selection runs
+    test_caption = re.compile(rf"Test run (\S+): .*?linear baseline refitted on all training and validation "
+                              rf"runs \(blue dashed, MAE psi on this run {NUM} deg\) and the extended model "
+                              rf"refitted on them \(red, MAE psi on this run {NUM} deg\)\. "
+                              r"No choice saw this run")
+    test_caps = test_caption.findall(text)
+    assert len(test_caps) == (len(doc["test_runs"]) if mode == "test runs" else 0), text
+    for run, b, e in test_caps:
+        assert _said(b, per[run]["baseline_mae_psi_deg"]) and _said(e, per[run]["extended_mae_psi_deg"])
+    if mode != "test runs":
+        assert "No test runs were given: the honest gain is the nested leave-one-run-out" in text
     # the selection's pooled baseline MAE (the ladder's first rung), said as such
     pooled = re.findall(rf"held-out heading error is {NUM} deg on the validation runs \(the mean over the "
                         r"folds", text)
@@ -226,3 +241,20 @@ def test_the_gain_interval_holds_its_point_on_runs_of_unequal_length():
     g, (lo, hi), bm, em = _pair_gain([(series, pb, pe)], DiagnoseConfig(), block_s=5.0)
     assert g == pytest.approx(1.0 - em / bm) and g == pytest.approx(1.0 - 4.55 / 5.5, abs=0.02)
     assert lo <= g <= hi
+
+
+@pytest.mark.slow
+def test_the_test_runs_drawn_are_the_free_runs_the_honest_gain_is_measured_on(cases):
+    """test_series.parquet holds every test run and only them, and each model's MAE psi over its series
+    is gain.per_run's figure for that run (the traces drawn are the ones measured); the nested case
+    writes none."""
+    import numpy as np
+
+    doc, _, ts = cases["test runs"]
+    assert ts is not None and sorted(set(ts.run_id)) == sorted(doc["test_runs"])
+    for p in doc["gain"]["per_run"]:
+        g = ts[ts.run_id == p["run_id"]]
+        assert np.mean(np.abs(g.psi_baseline - g.psi)) == pytest.approx(p["baseline_mae_psi_deg"], rel=1e-12)
+        assert np.mean(np.abs(g.psi_extended - g.psi)) == pytest.approx(p["extended_mae_psi_deg"], rel=1e-12)
+        assert np.all(np.diff(g.time) > 0)
+    assert cases["nested leave-one-run-out"][2] is None

@@ -209,8 +209,9 @@ def test_stage_commands_take_dataset_names_as_values_only(tmp_path):
 
 
 def test_diagnosis_plots_take_dollar_names_as_text(tmp_path):
-    """A run called ``$\\macro$ zz`` (mathtext to matplotlib, a ValueError at the plot title) and a
-    provenance with ``$``: both diagnosis plots are rendered, titles as written."""
+    """A run called ``$\\macro$ zz`` (mathtext to matplotlib, a ValueError at the plot title), a test
+    run called ``$t$ test`` and a provenance with ``$``: both diagnosis plots of each are rendered,
+    titles as written."""
     from types import SimpleNamespace
 
     import numpy as np
@@ -222,10 +223,11 @@ def test_diagnosis_plots_take_dollar_names_as_text(tmp_path):
     cols = {c: np.sin(0.3 * t + k) for k, c in enumerate(
         ("psi", "psi_baseline", "psi_extended", "r", "r_baseline", "r_extended", "delta"))}
     series = pd.DataFrame({"run_id": "$\\macro$ zz", "time": t, **cols})
-    diag = SimpleNamespace(series=series, report={"extended": {"effects": ["rudder_offset"]},
-                                                  "provenance": "tank $5$ %"})
+    diag = SimpleNamespace(series=series, test_series=series.assign(run_id="$t$ test"),
+                           report={"extended": {"effects": ["rudder_offset"]}, "provenance": "tank $5$ %"})
     paths = plot_series(diag, tmp_path)
-    assert [p.name for p in paths] == ["freerun___macro__zz.png", "residuals___macro__zz.png"]
+    assert [p.name for p in paths] == ["freerun___macro__zz.png", "residuals___macro__zz.png",
+                                       "freerun__t__test.png", "residuals__t__test.png"]
     assert all(p.stat().st_size > 1000 for p in paths)
 
 

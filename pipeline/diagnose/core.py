@@ -137,11 +137,14 @@ class Diagnosis:
     """Result of :func:`diagnose`: ``result`` is diagnosis.json as a typed object
     (:class:`~pipeline.diagnose.result.DiagnosisReport`, docs/diagnosis.md) and ``report`` its JSON form
     (``result.to_json()``, what the readers and :func:`~pipeline.diagnose.output.write_outputs` use);
-    ``series`` the measured / baseline / extended free-run series per validation run (long format)."""
+    ``series`` the measured / baseline / extended free-run series per validation run (long format: the
+    first fold's fits); ``test_series`` the same per test run, both models refitted on all training and
+    validation runs (the free runs the honest gain is measured on; None without test runs)."""
 
     report: dict
     result: DiagnosisReport
     series: pd.DataFrame
+    test_series: pd.DataFrame | None
     baseline: FitResult
     extended: FitResult
     #: every fit the search made, keyed "<fold>:<effect>/<form>,..." ("0:" the linear baseline of fold 0)
@@ -484,8 +487,8 @@ def _select_and_report(design: _Design, runs: list[Run], rates: dict, *, progres
         for _ in concurrent.futures.as_completed(futures):
             bar.update(1)
         nested = [f.result() for f in futures]
-    honest, test_ladder, ref_nested = _honest_gain(design, search, sel, nested_results=nested,
-                                                   tick=lambda: bar.update(1))
+    honest, test_ladder, ref_nested, traces = _honest_gain(design, search, sel, nested_results=nested,
+                                                           tick=lambda: bar.update(1))
     # stability: each fold alone (with --test runs; otherwise the leave-one-run-out selections are the folds)
     per_fold = [select(search, [k], noise) for k in ks] if te and len(folds) > 1 else []
     bar.close()
@@ -495,6 +498,7 @@ def _select_and_report(design: _Design, runs: list[Run], rates: dict, *, progres
         report=result.to_json(),
         result=result,
         series=series,
+        test_series=pd.concat([_series_frame(*t) for t in traces], ignore_index=True) if traces else None,
         baseline=base,
         extended=ext,
         fits={f"{k}:{','.join(f'{e}/{form}' for e, form in st)}": f for (k, st), f in search._fits.items()},
@@ -695,12 +699,14 @@ def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
 
 
 def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_results=None,
-                 tick=None) -> tuple[Gain, dict, dict | None]:
+                 tick=None) -> tuple[Gain, dict, dict | None, list]:
     """The gain on runs no choice has seen, with its 95 % interval (its ``flag`` and validation cut
     are the report's, :func:`_report`); with test runs, each rung of the ladder there ({structure:
-    {"mae": deg, "gain": relative, "interval": 95 % interval}}; empty without); and in the nested mode
+    {"mae": deg, "gain": relative, "interval": 95 % interval}}; empty without); in the nested mode
     the reference structure's figures on the same held-out runs against the same baselines
-    (``Reference.nested_*`` keys without the prefix; None where not made on every held-out run).
+    (``Reference.nested_*`` keys without the prefix; None where not made on every held-out run); and
+    with test runs the free runs the gain was measured on, (test series, baseline evaluations,
+    extended model's evaluations) with their ``"sim"`` (empty without).
     ``nested_results``: :func:`_nested_one` of every training and validation run, when already made (in
     worker processes); otherwise they are made here."""
     folds, te, ctx, cfg, noise = design.folds, design.te, design.ctx, design.cfg, design.noise
@@ -751,13 +757,13 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
             per_run=_per_run(te, b[1], e[1]),
             nested=[],
             against_other_linear=_against_other([(te, po, e[1])] if po is not None else [], cfg, block_s),
-        ), ladder_test, None
+        ), ladder_test, None, [(te, b[1], e[1])]
     # nested leave-one-run-out: every run of the selection is held out in turn; the whole selection is
     # repeated on the others, the chosen structure refitted on all of them, and measured on the held-out
     # run alone.  Inner folds: :func:`_inner_folds` (the outer design repeated on the remaining runs).
     if not cfg.nested_gain:
         return _no_honest_gain("not measured: the nested leave-one-run-out is switched off "
-                               "(DiagnoseConfig.nested_gain), and no --test runs were given"), {}, None
+                               "(DiagnoseConfig.nested_gain), and no --test runs were given"), {}, None, []
     pairs, nested, measured = [], [], []
     runs = folds[0].train + folds[0].val
     if nested_results is None:  # in this process, sharing the fits already made (the memo)
@@ -778,7 +784,7 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
         nested.append(entry)
     if not pairs:
         return _no_honest_gain("none: fewer than three runs, so no run can be held out of a selection, and "
-                               "no --test runs were given"), {}, None
+                               "no --test runs were given"), {}, None, []
     g, iv, bm, em = _pair_gain(pairs, cfg, block_s)
     return Gain(
         mae_psi_relative_reduction=g,
@@ -793,7 +799,7 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
         nested=nested,
         against_other_linear=_against_other(others if all(o is not None for o in others) else [],
                                             cfg, block_s),
-    ), {}, _reference_nested(refs, cfg, block_s)
+    ), {}, _reference_nested(refs, cfg, block_s), []
 
 
 def _reference_nested(refs, cfg, block_s) -> dict | None:
@@ -1306,8 +1312,15 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
             x0_box_sigma=cfg.x0_box_sigma,
         ),
     )
+    return report, base, ext, _series_frame(folds[0].val, base_per, ext_per)
+
+
+def _series_frame(series: list[Series], base_per: list[dict], ext_per: list[dict]) -> pd.DataFrame:
+    """Long table of the measured and the two models' free-run series of each run of ``series``
+    (time s, delta and psi deg, r deg/s, v and u m/s; v NaN where not measured), from their
+    evaluations' ``"sim"`` (v, r, psi)."""
     frames = []
-    for s, pb, pe in zip(folds[0].val, base_per, ext_per, strict=True):
+    for s, pb, pe in zip(series, base_per, ext_per, strict=True):
         d = {
             "run_id": s.name,
             "time": s.t,
@@ -1325,7 +1338,7 @@ def _report(design: _Design, outcome: _Outcome, runs: list[Run], rates: dict):
         if s.u is not None:
             d["u"] = s.u
         frames.append(pd.DataFrame(d))
-    return report, base, ext, pd.concat(frames, ignore_index=True)
+    return pd.concat(frames, ignore_index=True)
 
 
 def _without_sim(per_run: list[dict]) -> list[dict]:

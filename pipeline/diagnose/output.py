@@ -1,4 +1,5 @@
-"""Writing a diagnosis: diagnosis.json, series.parquet and PNG plots, all atomically into one directory."""
+"""Writing a diagnosis: diagnosis.json, series.parquet (validation runs), test_series.parquet (test runs,
+where given) and PNG plots, all atomically into one directory."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ from pipeline.io import atomic_dir, write_frame, write_json
 
 
 def plot_series(diag: Diagnosis, out_dir: Path) -> list[Path]:
-    """Per validation run: measured vs baseline vs extended free-run psi and r; and the residuals."""
+    """Per validation run and per test run: measured vs baseline vs extended free-run psi and r; and the
+    residuals."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -22,7 +24,10 @@ def plot_series(diag: Diagnosis, out_dir: Path) -> list[Path]:
         if diag.report.get("provenance") == "virtual"
         else diag.report.get("provenance", "")
     )
-    for run_id, g in diag.series.groupby("run_id", sort=False):
+    tables = [(diag.series, "free-run on held-out data")]
+    if diag.test_series is not None:
+        tables.append((diag.test_series, "free-run on a test run, models refitted on all selection runs"))
+    for run_id, g, what in ((r, g, w) for t, w in tables for r, g in t.groupby("run_id", sort=False)):
         t = g["time"].to_numpy()
         # the layout engine set here, not by the caller's rcParams (a notebook may have set another)
         fig, ax = plt.subplots(3, 1, figsize=(9, 8), sharex=True, layout="tight")
@@ -39,7 +44,7 @@ def plot_series(diag: Diagnosis, out_dir: Path) -> list[Path]:
         ax[2].set_ylabel("delta (deg)")
         ax[2].set_xlabel("time (s)")
         # parse_math and usetex off: a run called "$x$ zz" is a name, not TeX to typeset (or refuse)
-        fig.suptitle(f"{run_id}: free-run on held-out data  {banner}", fontsize=10, parse_math=False,
+        fig.suptitle(f"{run_id}: {what}  {banner}", fontsize=10, parse_math=False,
                      usetex=False)
         p = out_dir / f"freerun_{_safe(run_id)}.png"
         fig.savefig(p, dpi=90)
@@ -71,19 +76,20 @@ def _safe(name: str) -> str:
 
 
 def write_outputs(diag: Diagnosis, out_dir: str | Path, plots: bool = True) -> Path:
-    """Write DIR/diagnosis.json, DIR/series.parquet and the plots; nothing is left half-written."""
+    """Write DIR/diagnosis.json, DIR/series.parquet, DIR/test_series.parquet (only with test runs) and
+    the plots; nothing is left half-written."""
     out_dir = Path(out_dir)
     with atomic_dir(out_dir) as tmp:
         write_json(tmp / "diagnosis.json", diag.report)
-        frame = diag.series.copy()
-        for c in frame.columns:
-            if c != "run_id":
-                frame[c] = frame[c].astype(float)
-        write_frame(
-            tmp / "series.parquet",
-            frame,
-            {"provenance": diag.report.get("provenance"), "effects": diag.report["extended"]["effects"]},
-        )
+        meta = {"provenance": diag.report.get("provenance"), "effects": diag.report["extended"]["effects"]}
+        for name, table in (("series.parquet", diag.series), ("test_series.parquet", diag.test_series)):
+            if table is None:
+                continue
+            frame = table.copy()
+            for c in frame.columns:
+                if c != "run_id":
+                    frame[c] = frame[c].astype(float)
+            write_frame(tmp / name, frame, meta)
         if plots:
             plot_series(diag, tmp)
     return out_dir / "diagnosis.json"
