@@ -5,8 +5,18 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy  # noqa: F401  (loads numpy's OpenBLAS before it is limited below)
 import pytest
+import scipy.linalg  # noqa: F401  (loads SciPy's own OpenBLAS before it is limited below)
 from hypothesis import settings
+from threadpoolctl import threadpool_limits
+
+# One BLAS thread in every test process, as the diagnosis runs its fits (pipeline.diagnose.core.diagnose,
+# pipeline.control.stage): tests that call its searches and fits directly otherwise get OpenBLAS's
+# threads on the least-squares SVDs, which on the 2-core machine fight the other xdist worker, and
+# their bits are not the product's.  Measured: tests/test_diagnose_group_screen.py 18.5 s -> 6.3 s
+# alone.  Kept for the life of the process (a module-level object; subprocesses limit themselves).
+_ONE_BLAS_THREAD = threadpool_limits(limits=1, user_api="blas")
 
 # Property tests: `make test` (and CI) replays the same examples every run (derandomize: the draw is
 # seeded from the test itself), so a green clone stays green and a failure reproduces byte for byte.
