@@ -498,7 +498,7 @@ def _select_and_report(design: _Design, runs: list[Run], rates: dict, *, progres
         report=result.to_json(),
         result=result,
         series=series,
-        test_series=pd.concat([_series_frame(*t) for t in traces], ignore_index=True) if traces else None,
+        test_series=_series_frame(*traces) if traces is not None else None,
         baseline=base,
         extended=ext,
         fits={f"{k}:{','.join(f'{e}/{form}' for e, form in st)}": f for (k, st), f in search._fits.items()},
@@ -699,14 +699,14 @@ def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
 
 
 def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_results=None,
-                 tick=None) -> tuple[Gain, dict, dict | None, list]:
+                 tick=None) -> tuple[Gain, dict, dict | None, tuple | None]:
     """The gain on runs no choice has seen, with its 95 % interval (its ``flag`` and validation cut
     are the report's, :func:`_report`); with test runs, each rung of the ladder there ({structure:
     {"mae": deg, "gain": relative, "interval": 95 % interval}}; empty without); in the nested mode
     the reference structure's figures on the same held-out runs against the same baselines
     (``Reference.nested_*`` keys without the prefix; None where not made on every held-out run); and
     with test runs the free runs the gain was measured on, (test series, baseline evaluations,
-    extended model's evaluations) with their ``"sim"`` (empty without).
+    extended model's evaluations) with their ``"sim"`` (None without).
     ``nested_results``: :func:`_nested_one` of every training and validation run, when already made (in
     worker processes); otherwise they are made here."""
     folds, te, ctx, cfg, noise = design.folds, design.te, design.ctx, design.cfg, design.noise
@@ -757,13 +757,13 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
             per_run=_per_run(te, b[1], e[1]),
             nested=[],
             against_other_linear=_against_other([(te, po, e[1])] if po is not None else [], cfg, block_s),
-        ), ladder_test, None, [(te, b[1], e[1])]
+        ), ladder_test, None, (te, b[1], e[1])
     # nested leave-one-run-out: every run of the selection is held out in turn; the whole selection is
     # repeated on the others, the chosen structure refitted on all of them, and measured on the held-out
     # run alone.  Inner folds: :func:`_inner_folds` (the outer design repeated on the remaining runs).
     if not cfg.nested_gain:
         return _no_honest_gain("not measured: the nested leave-one-run-out is switched off "
-                               "(DiagnoseConfig.nested_gain), and no --test runs were given"), {}, None, []
+                               "(DiagnoseConfig.nested_gain), and no --test runs were given"), {}, None, None
     pairs, nested, measured = [], [], []
     runs = folds[0].train + folds[0].val
     if nested_results is None:  # in this process, sharing the fits already made (the memo)
@@ -784,7 +784,7 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
         nested.append(entry)
     if not pairs:
         return _no_honest_gain("none: fewer than three runs, so no run can be held out of a selection, and "
-                               "no --test runs were given"), {}, None, []
+                               "no --test runs were given"), {}, None, None
     g, iv, bm, em = _pair_gain(pairs, cfg, block_s)
     return Gain(
         mae_psi_relative_reduction=g,
@@ -799,7 +799,7 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
         nested=nested,
         against_other_linear=_against_other(others if all(o is not None for o in others) else [],
                                             cfg, block_s),
-    ), {}, _reference_nested(refs, cfg, block_s), []
+    ), {}, _reference_nested(refs, cfg, block_s), None
 
 
 def _reference_nested(refs, cfg, block_s) -> dict | None:
