@@ -7,6 +7,8 @@ Public API::
 
     zigzag(rudder_deg, heading_deg, first_side="starboard", duration=None) -> Manoeuvre
     turning_circle(rudder_deg=35.0, side="starboard", duration=None) -> Manoeuvre
+    selection_set() -> list[Manoeuvre]  # the six runs the diagnosis chooses on
+    held_out_set() -> list[Manoeuvre]   # its three test runs, which no choice sees
     default_set() -> list[Manoeuvre]    # selection_set() + held_out_set()
     straight(duration=60.0) -> Manoeuvre  # rudder amidships, for checks
     simulate(manoeuvre, cfg=TankConfig()) -> pipeline.io.Run
