@@ -715,7 +715,6 @@ class DiagnoseConfig:
     # least-squares tolerance, many times slower: the same-run baseline of ``python -m pipeline bench``
     # (docs/performance.md), never needed for a verdict
     plain_fits: bool = False
-    # speed2
     # one memo of fits shared by this process and the nested workers (pipeline.diagnose.fit.
     # SharedFitMemo): a fit another process has made or is making is not made again; False gives each
     # worker's round a memo of its own (the same report bytes: a fit is a deterministic function of
@@ -723,6 +722,13 @@ class DiagnoseConfig:
     # (the same training runs, structures and starts): off, the bench case takes 1.85 times the CPU
     # (docs/performance.md, "Measured with the shared memo"); only for that same-run comparison
     shared_memo: bool = True
+    # a helper process makes each block's independent fits ahead, last first, while this process
+    # makes them first to last (pipeline.diagnose.ahead): used where the diagnosis runs no nested
+    # workers (with --test runs, or nested_gain off), nested_workers is not 1 and a fork is safe.  The
+    # report is the same bytes with it or without (a fit is a deterministic function of its memo key);
+    # on two cores the virtual KCS's diagnosis takes about two thirds of the time it takes without
+    # (docs/performance.md, "Fits made ahead")
+    fit_ahead: bool = True
 
 
 @dataclass(frozen=True)

@@ -54,7 +54,7 @@ def test_claims_waits_and_release():
     p = multiprocessing.get_context("fork").Process(target=os._exit, args=(0,))
     p.start()
     p.join()
-    store[pickle.dumps("dead", protocol=pickle.HIGHEST_PROTOCOL)] = ("claim", p.pid, 1)
+    store[SharedFitMemo._key("dead")] = ("claim", p.pid, 1)
     assert a.get("dead") is None                   # taken over, not waited for forever
 
 

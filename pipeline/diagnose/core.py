@@ -27,6 +27,7 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import dataclasses
+import functools
 import multiprocessing
 import os
 import threading
@@ -40,6 +41,7 @@ from scipy.signal import savgol_filter
 from threadpoolctl import threadpool_limits
 
 from pipeline.config import DiagnoseConfig
+from pipeline.diagnose.ahead import fits_ahead
 from pipeline.diagnose.datacheck import approach_drift, correct_rate_bias, rate_bias
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
 from pipeline.diagnose.effects.rudder_delay import time_floor
@@ -440,9 +442,13 @@ def _diagnose_runs(train, validate, cfg, progress, test) -> Diagnosis:
     # the nested leave-one-run-out's selections do not depend on the main one: with workers, they run
     # in worker processes while this one makes the main selection (same results, any worker count)
     workers = 1 if te or not cfg.nested_gain else _nested_workers(cfg, len(tr) + len(va))
-    # one memo of fits for this process and the workers (docs/performance.md)
-    shared = workers > 1 and cfg.shared_memo
-    with fit_memo(workers if shared else 1) as memo:
+    # without nested workers, a helper process may make each block's independent fits ahead
+    # (pipeline.diagnose.ahead; the same results): it takes the cores the workers would have taken
+    ahead = (workers == 1 and cfg.fit_ahead and not cfg.plain_fits
+             and _nested_workers(cfg, len(tr) + len(va)) > 1)
+    # one memo of fits for this process and the workers or the helper (docs/performance.md)
+    shared = (workers > 1 and cfg.shared_memo) or ahead
+    with fit_memo(2 if ahead else workers if shared else 1, ahead=ahead) as memo:
         design = _Design(folds, te, ctx, cfg, noise, memo)
         with _nested_in_workers(folds, ctx, cfg, noise, workers, memo if shared else None) as futures:
             return _select_and_report(design, train + validate + test, rates, progress=progress,
@@ -490,7 +496,10 @@ def _select_and_report(design: _Design, runs: list[Run], rates: dict, *, progres
     honest, test_ladder, ref_nested, traces = _honest_gain(design, search, sel, nested_results=nested,
                                                            tick=lambda: bar.update(1))
     # stability: each fold alone (with --test runs; otherwise the leave-one-run-out selections are the folds)
-    per_fold = [select(search, [k], noise) for k in ks] if te and len(folds) > 1 else []
+    per_fold = []
+    if te and len(folds) > 1:
+        with fits_ahead(design.memo, [functools.partial(select, search, [k], noise) for k in ks]):
+            per_fold = [select(search, [k], noise) for k in ks]
     bar.close()
     outcome = _Outcome(search, sel, per_fold, honest, test_ladder, ref_nested)
     result, base, ext, series = _report(design, outcome, runs, rates)
@@ -715,21 +724,23 @@ def _honest_gain(design: _Design, search: Search, sel: Selection, *, nested_resu
     if te:
         allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
                         baseline_bounded=search.baseline_bounded, memo=design.memo)
+        keys = list(dict.fromkeys(structure_of(*st) for st in rungs + [sel.structure]))
+        starts = {key: search.fit(0, key) if search.fitted(0, key) else None for key in keys}
         fits = {}
-        for st in rungs + [sel.structure]:
-            key = structure_of(*st)
-            if key in fits:
-                continue
-            start = search.fit(0, key) if search.fitted(0, key) else None
-            try:
-                # never chosen on the test runs (Search.measured_fit)
-                fits[key] = allrun.measured_fit(0, key, start)
-            except ModelError:
-                fits[key] = None
+        with fits_ahead(design.memo, [functools.partial(allrun.measured_fit, 0, key, starts[key])
+                                      for key in keys]):
+            for key in keys:
+                try:
+                    # never chosen on the test runs (Search.measured_fit)
+                    fits[key] = allrun.measured_fit(0, key, starts[key])
+                except ModelError:
+                    fits[key] = None
         final = structure_of(*sel.structure)
         if fits.get(final) is not None:
-            for key in fits:  # every rung at its best optimum (Search.refine: no optimisation artefact)
-                if fits[key] is not None:
+            made = [key for key in keys if fits[key] is not None]
+            # every rung at its best optimum (Search.refine: no optimisation artefact)
+            with fits_ahead(design.memo, [functools.partial(allrun.refine, 0, key, final) for key in made]):
+                for key in made:
                     allrun.refine(0, key, final)
         evs = {k: (allrun.eval(0, k) if f is not None else None) for k, f in fits.items()}
         # the reported baseline is the linear fit the selection chose (Search.choose_baseline); with no

@@ -41,6 +41,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import hashlib
+import io
 import os
 import pickle
 import time
@@ -1075,36 +1076,88 @@ class FitMemo:
         """Give up making the fit under ``key`` (it failed with an error that is not a ModelError):
         nothing to do in one process."""
 
+    @property
+    def helper(self) -> bool:
+        """Whether this process is a helper that makes fits ahead (:mod:`pipeline.diagnose.ahead`)."""
+        return False
+
 
 #: s: how often a process waiting for a fit that another process is making looks again
 _WAIT_S = 0.002
 
 
+class HelperStopped(BaseException):
+    """Raised in a helper process (:mod:`pipeline.diagnose.ahead`) at its first fit request after its
+    block has ended: it stops there, holding no claim.  A BaseException, so that no ``except
+    Exception`` of the code it runs can take it for a failed fit."""
+
+
 class SharedFitMemo(FitMemo):
     """:class:`FitMemo` shared by the processes of one diagnosis (the main selection and the nested
-    leave-one-run-out's worker processes, docs/performance.md): ``store`` is a dictionary every process
-    reaches (a ``multiprocessing`` manager's), keyed by the pickled memo key.  The first process that
-    asks for a fit claims it (an atomic ``setdefault`` of a claim naming it) and makes it; another that
-    asks meanwhile waits for it instead of making it twice.  A fit is a deterministic function of its
-    key, so the result is the same bits whoever makes it, and a key pickled differently by two
-    processes only costs a second making of the same fit.  No wait can go round in a circle: a claim is
+    leave-one-run-out's worker processes or the helper of :mod:`pipeline.diagnose.ahead`,
+    docs/performance.md): ``store`` is a dictionary every process reaches (a ``multiprocessing``
+    manager's), keyed by the memo key's bytes (:meth:`_key`).  The first process that asks for a fit
+    claims it (an atomic ``setdefault`` of a claim naming it) and makes it; another that asks meanwhile
+    waits for it instead of making it twice.  A fit is a deterministic function of its key, so the
+    result is the same bits whoever makes it.  No wait can go round in a circle: a claim is
     held only while its process makes that one fit, which asks for no other; a claim whose process has
     died is taken over.  Each process keeps what it has seen in its own dictionary too."""
 
-    def __init__(self, store) -> None:
+    def __init__(self, store, *, ahead: bool = False) -> None:
         super().__init__()
         self._store = store
         self._claims = 0
+        #: whether blocks of independent fits may fork a helper that makes them ahead
+        #: (:func:`pipeline.diagnose.ahead.fits_ahead`)
+        self.ahead = ahead
+        self._helpers: list = []               # (process, its stop event), in this process
+        self._stop = None                      # in a helper: the event that ends it
 
     def __getstate__(self):
-        return {"store": self._store}            # a process's own fits stay with it
+        return {"store": self._store}            # a process's own fits and helpers stay with it
 
     def __setstate__(self, state) -> None:
         self.__init__(state["store"])
 
+    def add_helper(self, proc, stop) -> None:
+        """Own the helper process ``proc`` (told to end by ``stop.value = 1``, killed by
+        :meth:`end_helpers`)."""
+        self._helpers.append((proc, stop))
+
+    def reap_helpers(self) -> None:
+        """Forget the helpers that have ended (``is_alive`` reaps them)."""
+        self._helpers = [(p, e) for p, e in self._helpers if p.is_alive()]
+
+    def end_helpers(self) -> None:
+        """Kill every helper still alive and wait for it: a claim it held is then taken over by the
+        next process that asks (its maker has died), and none outlives the diagnosis."""
+        for p, e in self._helpers:
+            e.value = 1
+            p.kill()
+            p.join()
+        self._helpers = []
+
+    @property
+    def helper(self) -> bool:
+        return self._stop is not None
+
+    def stop_when(self, stop) -> None:
+        """In a helper: raise :class:`HelperStopped` at the first fit request after ``stop`` (a shared
+        byte, ``multiprocessing.RawValue``) is set."""
+        self._stop = stop
+
     @staticmethod
     def _key(key) -> bytes:
-        return pickle.dumps(key, protocol=pickle.HIGHEST_PROTOCOL)
+        """``key`` as bytes that depend on its values only: pickled without pickle's memo, which would
+        write a second occurrence of the same object (an effect's name in the structure and in a
+        start's) as a back-reference, so that equal keys built from shared objects in one process and
+        from unpickled copies in another (a fit another process made, used as a start) would differ
+        and their fit be made twice."""
+        buf = io.BytesIO()
+        pickler = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
+        pickler.fast = True
+        pickler.dump(key)
+        return buf.getvalue()
 
     def get(self, key):
         """The fit (or ModelError) under ``key``, made by this or another process (waiting while another
@@ -1113,6 +1166,8 @@ class SharedFitMemo(FitMemo):
         hit = self._fits.get(key)
         if hit is not None:
             return hit
+        if self._stop is not None and self._stop.value:
+            raise HelperStopped
         kb = self._key(key)
         self._claims += 1
         mine = ("claim", os.getpid(), self._claims)
@@ -1141,10 +1196,12 @@ class SharedFitMemo(FitMemo):
 
 
 @contextlib.contextmanager
-def fit_memo(processes: int):
+def fit_memo(processes: int, *, ahead: bool = False):
     """The fit memo of one diagnosis run by ``processes`` processes: a :class:`FitMemo` for one, else a
     :class:`SharedFitMemo` on a ``multiprocessing`` manager (forked, ended with this process on any
-    signal: pipeline.lifeline) that lives as long as the context."""
+    signal: pipeline.lifeline) that lives as long as the context.  ``ahead``: its blocks of
+    independent fits may fork a helper (:mod:`pipeline.diagnose.ahead`), every one of which is ended
+    with the context."""
     if processes <= 1:
         yield FitMemo()
         return
@@ -1155,9 +1212,11 @@ def fit_memo(processes: int):
 
     manager = SyncManager(ctx=multiprocessing.get_context("fork"))
     manager.start(die_with_parent, (os.getpid(),))
+    memo = SharedFitMemo(manager.dict(), ahead=ahead)
     try:
-        yield SharedFitMemo(manager.dict())
+        yield memo
     finally:
+        memo.end_helpers()
         manager.shutdown()
 
 

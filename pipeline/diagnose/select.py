@@ -92,6 +92,7 @@ A step S -> S' passes when ALL hold (:func:`step_passes`):
 
 from __future__ import annotations
 
+import functools
 import itertools
 from dataclasses import dataclass, field, replace
 from typing import NamedTuple
@@ -100,6 +101,7 @@ import numpy as np
 from scipy import stats
 
 from pipeline.config import DiagnoseConfig
+from pipeline.diagnose.ahead import fits_ahead
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, REFERENCE, Context
 from pipeline.diagnose.extended import predict_segments
 from pipeline.diagnose.fit import (
@@ -272,6 +274,19 @@ class Search:
         self._bnd_evals: dict = {}
         self._linear_evals: dict = {}
 
+    def ahead(self, fits) -> None:
+        """In a helper process (:mod:`pipeline.diagnose.ahead`): make ``fits`` (callables of no argument,
+        in the order the code that follows asks for them) last first, a failed one left to that code;
+        elsewhere nothing.  Inside one task of a block the helper then meets this process on the same
+        task from the other end, as it does on the block's tasks."""
+        if self.memo is None or not self.memo.helper:
+            return
+        for f in reversed(fits):
+            try:
+                f()
+            except ModelError:
+                continue
+
     def fit(self, k: int, structure, start: FitResult | None = None) -> FitResult:
         """Fold ``k``'s fit of ``structure`` (cached), in the family of :attr:`family_bounds`: with the
         ship-sign bounds, or (``DiagnoseConfig.family_follows_baseline``, where the reported baseline is
@@ -323,8 +338,11 @@ class Search:
     def _made(self, d: _Deferred) -> FitResult:
         """The group fit ``d`` describes, made now from each of its starts (the least training cost),
         not cached.  Raises ModelError where a start fails."""
-        cand = [self.sound(d.k, d.structure, self._best_start(d.k, d.structure, self._as_start(s0)))
-                for s0 in d.starts]
+        def one(s0):
+            return self.sound(d.k, d.structure, self._best_start(d.k, d.structure, self._as_start(s0)))
+
+        self.ahead([functools.partial(one, s0) for s0 in d.starts])
+        cand = [one(s0) for s0 in d.starts]
         return min(cand, key=lambda f: f.cost)
 
     def _as_start(self, s0) -> FitResult:
@@ -368,12 +386,13 @@ class Search:
             other = self.other_linear(k)
             if other is not None:
                 anchors.append(other)
+        # with DiagnoseConfig.anchor_rudder_gains the rudder gains b11, b21 are held too: the anchored
+        # extension is then that linear fit itself at small motion, not only in its hull's linear part
+        holds = [tuple(float(x) for x in a.theta[:6 if self.cfg.anchor_rudder_gains else 4]) for a in anchors]
+        self.ahead([functools.partial(self.least_cost, k, structure, (a, *starts), hold_linear=h)
+                    for a, h in zip(anchors, holds, strict=True)])
         fits, err = [], None
-        for anchor in anchors:
-            # with DiagnoseConfig.anchor_rudder_gains the rudder gains b11, b21 are held too: the
-            # anchored extension is then that linear fit itself at small motion, not only in its hull's
-            # linear part
-            hold = tuple(float(x) for x in anchor.theta[:6 if self.cfg.anchor_rudder_gains else 4])
+        for anchor, hold in zip(anchors, holds, strict=True):
             try:
                 fits.append(self.least_cost(k, structure, (anchor, *starts), hold_linear=hold))
             except ModelError as e:
@@ -386,12 +405,16 @@ class Search:
         """Fold ``k``'s fit of ``structure`` in the form ``form`` (keywords of :func:`fit_structure`)
         from each of ``starts`` (each made sound first with ``sound``, :meth:`sound`), the one of least
         TRAINING cost (the first of equal ones).  Raises the last ModelError where none fits."""
+        def one(st):
+            fit = fit_structure(self.folds[k].train, structure, self.ctx, start=st, **form,
+                                **self.fit_options())
+            return self.sound(k, structure, fit) if sound else fit
+
+        self.ahead([functools.partial(one, st) for st in starts])
         fits, err = [], None
         for st in starts:
             try:
-                fit = fit_structure(self.folds[k].train, structure, self.ctx, start=st, **form,
-                                    **self.fit_options())
-                fits.append(self.sound(k, structure, fit) if sound else fit)
+                fits.append(one(st))
             except ModelError as e:
                 err = e
         if not fits:
@@ -523,8 +546,9 @@ class Search:
         ``baseline_bounded`` given it is not chosen again."""
         if self.baseline_bounded is not None:
             return
-        for k in ks:
-            self.fit(k, ())
+        with fits_ahead(self.memo, [functools.partial(self._both_linear, k) for k in ks]):
+            for k in ks:
+                self._both_linear(k)
         mb = float(np.mean([self.eval(k, ())[0]["mae_psi_deg"] for k in ks]))
         free = [self.unconstrained(k) for k in ks]
         if any(f is None for f in free):
@@ -545,6 +569,11 @@ class Search:
                 self._short.pop(key, None)
                 if k in self._linear_evals:
                     self._evals[key] = self._linear_evals.pop(k)
+
+    def _both_linear(self, k: int) -> None:
+        """Fold ``k``'s linear fits with the ship-sign bounds and without them (:meth:`choose_baseline`)."""
+        self.fit(k, ())
+        self.unconstrained(k)
 
     def unconstrained(self, k: int) -> FitResult | None:
         """The linear model of fold ``k`` fitted without the sign bounds (None where it cannot be)."""
@@ -611,6 +640,8 @@ class Search:
             return fit_structure(self.folds[k].train, structure, self.ctx, start=s,
                                  **self.fit_options(sign_bounds))
 
+        cold_too = start is not None and self.cfg.cold_start and len(structure) == 1
+        self.ahead([functools.partial(one, start), functools.partial(one, None)] if cold_too else [])
         warm = one(start)
         # round one only (one effect on the baseline): there the warm start is the linear baseline,
         # whose linear part can hold the new effect in a poor optimum; later rounds start from a model
@@ -713,15 +744,12 @@ class Search:
             self._jack = (jack, index)
         jack, index = self._jack
         out = []
-        for k in ks:
-            for j, run in enumerate(self.folds[k].train):
-                i = index.get((k, j))
-                if i is None:
-                    continue
+        todo = [(k, j, run, index[(k, j)]) for k in ks for j, run in enumerate(self.folds[k].train)
+                if (k, j) in index]
+        with fits_ahead(self.memo, [functools.partial(_chain, jack, i, before, after) for *_, i in todo]):
+            for _k, _j, run, i in todo:
                 try:
-                    base = jack.fit(i, ())
-                    fb = jack.fit(i, before, start=base) if before else base
-                    jack.fit(i, after, start=fb)
+                    _chain(jack, i, before, after)
                 except ModelError:
                     out.append(f"{run.name} (no fit without it)")
                     continue
@@ -785,6 +813,9 @@ class Search:
         """Fit every form of ``effect`` added to ``base`` in folds ``ks``; the form of least summed
         TRAINING cost (returns the structure, or None if no form could be fitted)."""
         best, best_cost = None, np.inf
+        self.ahead([functools.partial(self.fit, k, structure_of(*base, (effect, form.name)),
+                                      start=self.fit(k, base))
+                    for form in BY_NAME[effect].forms for k in ks])
         for form in BY_NAME[effect].forms:
             st = structure_of(*base, (effect, form.name))
             try:
@@ -1003,6 +1034,15 @@ class Search:
         )
 
 
+def _chain(jack: Search, i: int, before, after) -> None:
+    """Fold ``i`` of the hinge check's search: the baseline, ``before`` from it and ``after`` from
+    ``before``, as the selection chains them (:meth:`Search.hinges`).  Raises ModelError where one
+    cannot be fitted."""
+    base = jack.fit(i, ())
+    fb = jack.fit(i, before, start=base) if before else base
+    jack.fit(i, after, start=fb)
+
+
 def floor_readings(floors: list[str], ks: list[int]) -> str:
     """The floor texts of a step's folds (of ``ks``) for diagnosis.json: one text when every fold reads
     the same, else each labelled with its fold (the floor is judged per fold; unlabelled, a passing
@@ -1141,28 +1181,47 @@ def _best_group(search: Search, ks, cur, pool, noise_deg, size: int):
     Returns (first member, structure, step) of the best passing group by pooled gain, or None."""
     best = None
     forms = {e: dict(st)[e] for e, (st, _) in pool}
+    groups = []
     for group in itertools.combinations([e for e, _ in pool], size):
         full = structure_of(*cur, *[(e, forms[e]) for e in group])
         subs = [structure_of(*cur, *[(e, forms[e]) for e in group if e != m]) for m in group]
-        # in member order of what each start holds (a pair: from cur + a, then cur + b)
-        def starts(k, subs=subs):
-            return [search.start_of(k, sub) for sub in reversed(subs)]
+        groups.append((group, full, subs))
+    with fits_ahead(search.memo, [functools.partial(_group_fits, search, ks, cur, *g) for g in groups]):
+        for group, full, subs in groups:
+            try:
+                _group_fits(search, ks, cur, group, full, subs)
+            except (ModelError, _FoldFails):
+                continue
+            best = _judge_group(search, ks, cur, group, full, subs, noise_deg, best)
+    return best
 
-        try:
-            for i, k in enumerate(ks):
-                search.group_fit(k, full, starts(k))
-                if not search.fold_may_pass(k, cur, full, group):
-                    for k2 in ks[i + 1:]:
-                        search.defer_group_fit(k2, full, starts(k2))
-                    raise _FoldFails
-        except (ModelError, _FoldFails):
-            continue
-        steps = [search.step(ks, cur, full, m, noise_deg) for m in group]
-        if not all(st.passes for st in steps):
-            continue
-        if all(search.step(ks, sub, full, m, noise_deg).passes for m, sub in zip(group, subs, strict=True)) \
-                and (best is None or steps[0].gain > best[2].gain):
-            best = (group[0], full, steps[0])
+
+def _group_fits(search: Search, ks, cur, group, full, subs) -> None:
+    """The fits of the group ``full`` (members ``group`` added to ``cur``) fold by fold, each from the
+    fits of the smaller structures ``subs`` (:func:`_best_group`); at the first fold where it fails a
+    gate every fold must pass, its fits in the later folds are deferred and :class:`_FoldFails` is
+    raised.  Raises ModelError where a fit fails."""
+    # in member order of what each start holds (a pair: from cur + a, then cur + b)
+    def starts(k):
+        return [search.start_of(k, sub) for sub in reversed(subs)]
+
+    for i, k in enumerate(ks):
+        search.group_fit(k, full, starts(k))
+        if not search.fold_may_pass(k, cur, full, group):
+            for k2 in ks[i + 1:]:
+                search.defer_group_fit(k2, full, starts(k2))
+            raise _FoldFails
+
+
+def _judge_group(search: Search, ks, cur, group, full, subs, noise_deg, best):
+    """``best`` (first member, structure, step) or the fitted group ``full`` in its place where it
+    passes with every member needed and a larger pooled gain (:func:`_best_group`)."""
+    steps = [search.step(ks, cur, full, m, noise_deg) for m in group]
+    if not all(st.passes for st in steps):
+        return best
+    if all(search.step(ks, sub, full, m, noise_deg).passes for m, sub in zip(group, subs, strict=True)) \
+            and (best is None or steps[0].gain > best[2].gain):
+        return group[0], full, steps[0]
     return best
 
 
@@ -1186,9 +1245,13 @@ def _reference_group(search: Search, ks, noise_deg):
     keep_small = search.cfg.reference_whole
     prev = None
     while _REFERENCE_HEAD in dict(st):
+        def one(k, st=st, prev=prev):
+            search.fit(k, st, start=None if prev is None else search.fit(k, prev))
+
         try:
-            for k in ks:
-                search.fit(k, st, start=None if prev is None else search.fit(k, prev))
+            with fits_ahead(search.memo, [functools.partial(one, k) for k in ks]):
+                for k in ks:
+                    one(k)
         except ModelError:
             return None
         steps = [search.step(ks, (), st, m, noise_deg) for m, _ in st]
@@ -1308,7 +1371,7 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
         # one's fit; when that finds a better optimum of the current structure, judge the round again
         # against it (cached candidate fits, new baseline).  Bounded: each re-judgement follows a
         # strict fall of the training cost, and at most ``_MAX_REJUDGE`` per size.
-        if rejudged < _MAX_REJUDGE and any([search.refine(k, cur, st) for k in ks]):
+        if rejudged < _MAX_REJUDGE and _refined(search, ks, cur, st):
             rejudged += 1
             continue
         rejudged = 0
@@ -1318,27 +1381,43 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
     while len(cur) >= 2:
         worst = None
         kept = _unsplit(search, cur)
-        for e, _ in cur:
-            if e in kept:
-                continue
-            without = tuple(x for x in cur if x[0] != e)
-            _nested_fit(search, ks, without, cur)
-            s = search.step(ks, without, cur, e, noise_deg)
-            # never removed when the model without it runs away on a held-out run: the no-run-away
-            # rule of a forward step, read backward.  Such a drop-one step can fail its t-test by the
-            # divergence itself, whose block differences are too heavy-tailed for t (a fresh truth
-            # draw, seed 777 case 31, offset + r^3 on the slow ship: without the offset 469.5 deg
-            # held-out against 0.23 with it, block t = 1.02, so the t-test alone drops the offset)
-            fails = (any(not r.passed for r in s.gates if r.code in WORTH) if cfg.backward_on_worth
-                     else not s.passes)
-            if fails and not s.removal_runs_away and (worst is None or s.gain < worst[1].gain):
-                worst = (e, s)
+        drops = [(e, tuple(x for x in cur if x[0] != e)) for e, _ in cur if e not in kept]
+        with fits_ahead(search.memo, [functools.partial(_nested_fit, search, ks, w, cur) for _, w in drops]):
+            worst = _worst_drop(search, ks, cur, drops, noise_deg)
         if worst is None:
             break
         cur = tuple(x for x in cur if x[0] != worst[0])
         ladder.append((cur, None))
         removed = True
     return cur, last_base, last, alone, ladder, removed
+
+
+def _refined(search: Search, ks, cur, st) -> bool:
+    """Whether refitting ``cur`` from the fit of ``st`` (:meth:`Search.refine`) found a better optimum
+    of ``cur`` in any fold of ``ks`` (every fold is refined)."""
+    with fits_ahead(search.memo, [functools.partial(search.refine, k, cur, st) for k in ks]):
+        return any([search.refine(k, cur, st) for k in ks])
+
+
+def _worst_drop(search: Search, ks, cur, drops, noise_deg):
+    """The backward pass's member to drop from ``cur``: of ``drops`` [(member, cur without it)], the one
+    whose drop-one step fails with the least gain, unless the model without it runs away on a held-out
+    run; None where none fails (:func:`_forward_backward`)."""
+    cfg = search.cfg
+    worst = None
+    for e, without in drops:
+        _nested_fit(search, ks, without, cur)
+        s = search.step(ks, without, cur, e, noise_deg)
+        # never removed when the model without it runs away on a held-out run: the no-run-away
+        # rule of a forward step, read backward.  Such a drop-one step can fail its t-test by the
+        # divergence itself, whose block differences are too heavy-tailed for t (a fresh truth
+        # draw, seed 777 case 31, offset + r^3 on the slow ship: without the offset 469.5 deg
+        # held-out against 0.23 with it, block t = 1.02, so the t-test alone drops the offset)
+        fails = (any(not r.passed for r in s.gates if r.code in WORTH) if cfg.backward_on_worth
+                 else not s.passes)
+        if fails and not s.removal_runs_away and (worst is None or s.gain < worst[1].gain):
+            worst = (e, s)
+    return worst
 
 
 def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Selection:
@@ -1359,16 +1438,16 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
         """Every effect not in ``against`` (default ``base``) added to ``base``, judged as the step
         ``against`` -> base + effect: a forward round, or (against the full structure) its swaps."""
         against = base if against is None else against
+        todo = [e for e in names if e not in dict(against)]
         out = {}
-        for e in names:
-            if e in dict(against):
-                continue
-            st = search.choose_form(ks, base, e)
-            if st is None:
-                continue
-            out[e] = (st, search.step(ks, against, st, e, noise_deg))
-            if progress:
-                progress(e)
+        with fits_ahead(search.memo, [functools.partial(search.choose_form, ks, base, e) for e in todo]):
+            for e in todo:
+                st = search.choose_form(ks, base, e)
+                if st is None:
+                    continue
+                out[e] = (st, search.step(ks, against, st, e, noise_deg))
+                if progress:
+                    progress(e)
         return out
 
     last_base = None
@@ -1389,10 +1468,11 @@ def select(search: Search, ks: list[int], noise_deg: float, progress=None) -> Se
         cur = swap[1]
         ladder.append((cur, swap[2]))
     worth = {}
-    for e, _ in cur:
-        without = tuple(x for x in cur if x[0] != e)
-        _nested_fit(search, ks, without, cur)
-        worth[e] = search.step(ks, without, cur, e, noise_deg)
+    drops = [(e, tuple(x for x in cur if x[0] != e)) for e, _ in cur]
+    with fits_ahead(search.memo, [functools.partial(_nested_fit, search, ks, w, cur) for _, w in drops]):
+        for e, without in drops:
+            _nested_fit(search, ks, without, cur)
+            worth[e] = search.step(ks, without, cur, e, noise_deg)
     if last_base != cur and len(cur) < cfg.max_effects:
         # what every effect not chosen would add to the FINAL model
         last = {e: s for e, (_, s) in round_(cur).items()}
