@@ -21,6 +21,8 @@ def _step(failed: set, gain: float) -> Step:
 class _Search:
     """Drop-one steps by member: ``steps[e]`` judges (structure without e) -> (structure)."""
 
+    memo = None  # no fit memo: no helper makes fits ahead (pipeline.diagnose.ahead)
+
     def __init__(self, cfg, steps):
         self.cfg, self.steps, self._fits = cfg, steps, {}
 
@@ -72,6 +74,8 @@ def test_soundness_failures_alone_never_remove_on_worth():
 class _RefSearch:
     """The reference step's stub: ``fail[m]`` the gates member m's step fails, looked up by structure
     (frozenset of members) so a smaller group can pass where the full one did not."""
+
+    memo = None  # no fit memo: no helper makes fits ahead (pipeline.diagnose.ahead)
 
     def __init__(self, fail):
         from pipeline.diagnose.effects import Context

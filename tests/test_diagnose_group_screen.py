@@ -83,6 +83,8 @@ class _GroupSearch:
     """``_best_group``'s stub: fits are recorded; ``bad[(k, members)]`` says fold k fails the screen;
     every step of a group that passes the screen in every fold passes, with gain ``gain[members]``."""
 
+    memo = None  # no fit memo: no helper makes fits ahead (pipeline.diagnose.ahead)
+
     def __init__(self, bad, gain):
         from pipeline.diagnose.select import Step
 

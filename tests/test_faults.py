@@ -105,11 +105,14 @@ def _gone(pids: list[int], within_s: float) -> list[int]:
         time.sleep(0.2)
 
 
+@pytest.mark.parametrize("roles", ["nested", "test runs"])
 @pytest.mark.parametrize("sig", ["SIGKILL", "SIGTERM"])
-def test_the_diagnosis_pool_dies_with_its_parent(sig, four_truth_runs, tmp_path):
+def test_the_diagnosis_pool_dies_with_its_parent(sig, roles, four_truth_runs, tmp_path):
     """A standalone ``python -m pipeline diagnose`` whose nested leave-one-run-out runs in 2 forked
-    workers, ended by SIGKILL or SIGTERM while they work: no worker outlives it (a pool's workers were
-    left blocked on a pipe, reparented to PID 1).  ``run`` calls the same code in its own process."""
+    workers, or (with --test runs) whose fits are made ahead by a forked helper beside the manager of
+    the memo the processes share, ended by SIGKILL or SIGTERM while they work: no child outlives it (a
+    pool's workers were left blocked on a pipe, reparented to PID 1).  ``run`` calls the same code in
+    its own process."""
     import signal
     import subprocess
     import sys
@@ -118,8 +121,10 @@ def test_the_diagnosis_pool_dies_with_its_parent(sig, four_truth_runs, tmp_path)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = {**os.environ, "PYTHONPATH": root}
     a, b, c, d = four_truth_runs
-    proc = subprocess.Popen([sys.executable, "-m", "pipeline", "diagnose", "--train", a, b,
-                             "--validate", c, d, "--out", str(tmp_path / "out")],
+    design = ["--train", a, b, "--validate", c, d] if roles == "nested" else \
+        ["--train", a, "--validate", c, "--test", b, d]
+    proc = subprocess.Popen([sys.executable, "-m", "pipeline", "diagnose", *design,
+                             "--out", str(tmp_path / "out")],
                             env=env, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     workers: list[int] = []
     try:

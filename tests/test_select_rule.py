@@ -44,6 +44,8 @@ class _Fit:
 class FakeSearch:
     """What select needs of pipeline.diagnose.select.Search, with held-out errors from TABLE."""
 
+    memo = None  # no fit memo: no helper makes fits ahead (pipeline.diagnose.ahead)
+
     def __init__(self, max_effects: int = 4):
         self.cfg = DiagnoseConfig(max_effects=max_effects)
         self.ctx = Context(t_ship=10.0, h=0.08, d_max=20.0, r_max=3.0, v_max=0.3, u_ref=1.0,
