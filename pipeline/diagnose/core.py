@@ -870,18 +870,26 @@ def reference_fit(design: _Design, search: Search, ks, adequate: bool,
         return not_made("the runs have no sway velocity, so no hull term can be fitted")
     per_fold = []
     test = {}
+    allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
+                    baseline_bounded=search.baseline_bounded, memo=design.memo) if te else None
+
+    def ref(s: Search, k: int) -> FitResult:
+        return s.least_cost(k, structure, (s.fit(k, ()), None))
+
     try:
-        for k in ks:
-            fit = search.least_cost(k, structure, (search.fit(k, ()), None))
+        # the folds' fits and the one on every selection run do not depend on each other
+        # (pipeline.diagnose.ahead)
+        with fits_ahead(design.memo, [functools.partial(ref, search, k) for k in ks]
+                        + ([functools.partial(ref, allrun, 0)] if te else [])):
+            fits = [ref(search, k) for k in ks]
+            every = ref(allrun, 0) if te else None
+        for k, fit in zip(ks, fits, strict=True):
             m = evaluate(fit, folds[k].val)[0]["mae_psi_deg"]
             per_fold.append(ReferenceFold(fold=folds[k].name, validation_runs=[s.name for s in folds[k].val],
                                           baseline_mae_psi_deg=search.linear_eval(k)[0]["mae_psi_deg"],
                                           reference_mae_psi_deg=m))
         if te:
-            allrun = Search([Fold(folds[0].train + folds[0].val, te)], ctx, cfg,
-                            baseline_bounded=search.baseline_bounded, memo=design.memo)
-            fit = allrun.least_cost(0, structure, (allrun.fit(0, ()), None))
-            g, iv, bm, em = _pair_gain([(te, allrun.linear_eval(0)[1], evaluate(fit, te)[1])], cfg,
+            g, iv, bm, em = _pair_gain([(te, allrun.linear_eval(0)[1], evaluate(every, te)[1])], cfg,
                                        cfg.block_T * ctx.t_ship)
             test = {"test_mae_psi_deg": em, "test_baseline_mae_psi_deg": bm,
                     "test_mae_psi_relative_reduction": g, "test_interval_95": iv}
