@@ -10,7 +10,6 @@ import multiprocessing
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -19,19 +18,19 @@ from pipeline.diagnose.ahead import fits_ahead
 from pipeline.diagnose.fit import FitMemo, SharedFitMemo, fit_memo
 
 fork = pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="no fork here")
+# one xdist group: the fresh interpreter's run (the module fixture) is made once, on one worker
+pytestmark = pytest.mark.xdist_group("diagnose_ahead")
 
-#: s: how long one stand-in "fit" of the mechanism tests takes (a dozen of them outlast a fork)
-_FIT_S = 0.1
-
-
-def _make(memo, key, seconds: float = _FIT_S):
-    """A stand-in fit through ``memo``'s claim protocol: (the process that made it, key)."""
-    hit = memo.get(key)
-    if hit is None:
-        time.sleep(seconds)
-        hit = (os.getpid(), key)
-        memo.put(key, hit)
-    return hit
+@pytest.fixture(scope="module")
+def fresh() -> dict:
+    """tests/ahead_bytes.py run in a fresh single-threaded interpreter (a pytest worker may hold a
+    thread an earlier test left, and no helper is forked where another thread runs): its JSON line."""
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run([sys.executable, str(root / "tests" / "ahead_bytes.py")], cwd=root,
+                          capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(root)},
+                          timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def test_key_bytes_depend_on_values_only():
@@ -47,51 +46,33 @@ def test_key_bytes_depend_on_values_only():
 
 
 @fork
-def test_the_helper_makes_the_last_tasks_and_each_fit_once():
-    n = 12
-    with fit_memo(2, ahead=True) as memo:
-        assert isinstance(memo, SharedFitMemo) and memo.ahead
-        with fits_ahead(memo, [lambda i=i: _make(memo, i) for i in range(n)]):
-            got = [_make(memo, i) for i in range(n)]
-        makers = [pid for pid, _ in got]
-        helper = memo._helpers[0][0]
-        # the block's process made the first ones, the helper the last ones, no fit twice
-        assert makers[0] == os.getpid() and makers[-1] == helper.pid
-        assert set(makers) == {os.getpid(), helper.pid}
-        assert [k for _, k in got] == list(range(n))
-        # told to stop when the block ended: it ends by itself at its next request to the memo
-        helper.join(timeout=30)
-        assert not helper.is_alive() and helper.exitcode == 0
-    assert not multiprocessing.active_children()
+def test_the_helper_makes_the_last_tasks_and_each_fit_once(fresh):
+    """Twelve stand-in fits of 0.1 s: the block's process made the first, the helper the last, each key
+    once; told to stop when its block ended, the helper ended by itself, and no child is left."""
+    got = fresh["block"]
+    makers = got["makers"]
+    assert makers[0] == fresh["pid"] and makers[-1] == got["helper"], got
+    assert set(makers) == {fresh["pid"], got["helper"]} and got["keys"] == list(range(12))
+    assert got["ended"] and got["exitcode"] == 0 and got["children_left"] == 0
 
 
 @fork
-def test_a_helper_inside_a_fit_when_its_block_ends_finishes_it():
-    """The block ends while the helper makes its first fit (the last task): asked for afterwards,
-    that fit is waited for and is the helper's, not made again; the helper then ends."""
-    with fit_memo(2, ahead=True) as memo:
-        with fits_ahead(memo, [lambda: _make(memo, "a"), lambda: _make(memo, "b", seconds=1.0)]):
-            # until the helper has claimed "b" (it is then inside that fit)
-            deadline = time.monotonic() + 30
-            while not isinstance(memo._store.get(SharedFitMemo._key("b")), tuple):
-                assert time.monotonic() < deadline, "the helper never claimed its first fit"
-                time.sleep(0.01)
-        helper = memo._helpers[0][0]
-        assert _make(memo, "b")[0] == helper.pid
-        helper.join(timeout=30)
-        assert not helper.is_alive()
-        assert _make(memo, "a")[0] == os.getpid()     # never reached by the stopped helper
-    assert not multiprocessing.active_children()
+def test_a_helper_inside_a_fit_when_its_block_ends_finishes_it(fresh):
+    """The block ends while the helper makes its first fit (the last task, "b"): asked for afterwards,
+    that fit is waited for and is the helper's, not made again; the first task, never reached by the
+    stopped helper, is made by the block's process; the helper then ends."""
+    got = fresh["inside"]
+    assert got["b"] == got["helper"] and got["a"] == fresh["pid"] and got["ended"], got
 
 
 def test_no_helper_without_a_shared_memo_that_allows_it():
-    """A memo of one process, a shared memo without ``ahead``, or a single task: the body alone."""
+    """A memo of one process, a shared memo without ``ahead``, or no memo: the body alone."""
     with fit_memo(1, ahead=True) as one:
         assert type(one) is FitMemo
         with fits_ahead(one, [lambda: None, lambda: None]):
             pass
     with fit_memo(2) as shared:
-        with fits_ahead(shared, [lambda: _make(shared, 0), lambda: _make(shared, 1)]):
+        with fits_ahead(shared, [lambda: shared.get(0), lambda: shared.get(1)]):
             assert not shared._helpers
     with fits_ahead(None, [lambda: None] * 2):
         pass
@@ -99,17 +80,10 @@ def test_no_helper_without_a_shared_memo_that_allows_it():
 
 
 @fork
-def test_a_diagnosis_is_the_same_bytes_with_the_helper_or_without():
+def test_a_diagnosis_is_the_same_bytes_with_the_helper_or_without(fresh):
     """With --test runs the diagnosis runs no nested workers, so a helper makes fits ahead; every byte
-    of diagnosis.json is the one made without it, and the helpers made some of the fits.  In a fresh
-    single-threaded interpreter (tests/ahead_bytes.py): a pytest worker may hold a thread an earlier
-    test left, where no helper is forked."""
-    root = Path(__file__).resolve().parents[1]
-    done = subprocess.run([sys.executable, str(root / "tests" / "ahead_bytes.py")], cwd=root,
-                          capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(root)},
-                          timeout=600)
-    assert done.returncode == 0, done.stderr[-2000:]
-    got = json.loads(done.stdout.strip().splitlines()[-1])
+    of diagnosis.json is the one made without it, and the helpers made some of the fits."""
+    got = fresh["diagnosis"]
     assert got["same"] is True, got
     # this process made fits and so did its helpers (one process per block, each a few fits)
     assert got["this"] > 0 and sum(got["others"]) > 0, got
