@@ -812,14 +812,15 @@ class Search:
     def choose_form(self, ks, base, effect: str):
         """Fit every form of ``effect`` added to ``base`` in folds ``ks``; the form of least summed
         TRAINING cost (returns the structure, or None if no form could be fitted)."""
+        def one(k, st):
+            return self.fit(k, st, start=self.fit(k, base))
+
         best, best_cost = None, np.inf
-        self.ahead([functools.partial(self.fit, k, structure_of(*base, (effect, form.name)),
-                                      start=self.fit(k, base))
-                    for form in BY_NAME[effect].forms for k in ks])
-        for form in BY_NAME[effect].forms:
-            st = structure_of(*base, (effect, form.name))
+        forms = [structure_of(*base, (effect, form.name)) for form in BY_NAME[effect].forms]
+        self.ahead([functools.partial(one, k, st) for st in forms for k in ks])
+        for st in forms:
             try:
-                cost = sum(self.fit(k, st, start=self.fit(k, base)).cost for k in ks)
+                cost = sum(one(k, st).cost for k in ks)
             except ModelError:
                 continue
             if cost < best_cost:
@@ -1379,7 +1380,6 @@ def _forward_backward(search: Search, ks, cur, round_, noise_deg, ladder, alone,
         ladder.append((cur, s))
     # backward elimination (the reference structure, while whole, is not split: reference_whole)
     while len(cur) >= 2:
-        worst = None
         kept = _unsplit(search, cur)
         drops = [(e, tuple(x for x in cur if x[0] != e)) for e, _ in cur if e not in kept]
         with fits_ahead(search.memo, [functools.partial(_nested_fit, search, ks, w, cur) for _, w in drops]):
