@@ -1110,8 +1110,8 @@ class SharedFitMemo(FitMemo):
         #: whether blocks of independent fits may fork a helper that makes them ahead
         #: (:func:`pipeline.diagnose.ahead.fits_ahead`)
         self.ahead = ahead
-        self._helpers: list = []               # (process, its stop event), in this process
-        self._stop = None                      # in a helper: the event that ends it
+        self._helpers: list = []               # (process, its stop byte), in this process
+        self._stop = None                      # in a helper: the shared byte that ends it
 
     def __getstate__(self):
         return {"store": self._store}            # a process's own fits and helpers stay with it
