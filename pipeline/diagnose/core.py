@@ -30,7 +30,6 @@ import dataclasses
 import functools
 import multiprocessing
 import os
-import threading
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -41,7 +40,7 @@ from scipy.signal import savgol_filter
 from threadpoolctl import threadpool_limits
 
 from pipeline.config import DiagnoseConfig
-from pipeline.diagnose.ahead import fits_ahead
+from pipeline.diagnose.ahead import fits_ahead, may_fork
 from pipeline.diagnose.datacheck import approach_drift, correct_rate_bias, rate_bias
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, Context
 from pipeline.diagnose.effects.rudder_delay import time_floor
@@ -691,16 +690,14 @@ def _nested_task(folds, i: int, ctx, cfg, noise, memo: FitMemo | None = None):
 def _nested_workers(cfg: DiagnoseConfig, n_runs: int) -> int:
     """Worker processes for the nested leave-one-run-out (:attr:`DiagnoseConfig.nested_workers`).
 
-    More than one only where forking is safe and useful: this process runs a single thread (a fork
-    copies only the calling thread, so a lock held by another thread, a Dask client's or a progress
-    bar's, would stay locked in the child forever) and is not a daemon (a Dask worker: daemons may
-    not have children, and its cores are the study's).  ``fork`` rather than ``spawn``: the child
-    has the compiled kernels and imported modules at once, and a user's script without a
+    More than one only where forking is safe and useful (:func:`~pipeline.diagnose.ahead.may_fork`:
+    a single thread, since a fork copies only the calling thread and a lock held by another, a Dask
+    client's or a progress bar's, would stay locked in the child forever; not a daemon, since a Dask
+    worker may not have children and its cores are the study's).  ``fork`` rather than ``spawn``: the
+    child has the compiled kernels and imported modules at once, and a user's script without a
     ``__main__`` guard is not run again."""
     w = cfg.nested_workers
-    if w == 1 or n_runs < 2 or "fork" not in multiprocessing.get_all_start_methods():
-        return 1
-    if multiprocessing.current_process().daemon or threading.active_count() > 1:
+    if w == 1 or n_runs < 2 or not may_fork():
         return 1
     if w <= 0:
         w = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
