@@ -2,7 +2,8 @@
 kernel beside the simulation: pipeline.diagnose.extended._run_sens, fit.jacobian) is the derivative of
 the output-error residuals: held here to central finite differences of the residual kernel, for every
 form of every effect of the catalogue, all effects together, a run without sway, the training runs'
-fitted starts (fit._JointStarts) and a lag both dropped and sub-stepped."""
+fitted starts (fit._JointStarts) and a lag both dropped and sub-stepped; and so is the prediction-error
+start's (extended._pe_jac: pieces of one ship time scale from the measured states)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from pipeline.diagnose.fit import (
     Layout,
     _JointStarts,
     _kernel_map,
+    _pe_residuals,
     _scales,
     jacobian,
     oe_batch,
@@ -247,3 +249,71 @@ def test_compressed_least_squares_survives_an_overflowed_jacobian_and_refuses_a_
     assert np.all(np.isfinite(huge.jac)) and np.abs(huge.jac).max() < 1e3
     with pytest.raises(ValueError, match="not finite in the initial point"):
         _compressed_lsq(lambda x: _exp_fit(x, bad_residuals=True), x0, lo, hi, 200)
+
+
+@pytest.fixture(scope="module")
+def sway_setting(setting):
+    """The setting's runs with sway measured in both (the prediction-error pieces' Jacobian is made only
+    where every run has it: fit._fit_from) and the fit's horizon, one ship time scale in samples."""
+    cfg = TruthConfig(seed=11, rudder_offset=1.0, speed_loss_k=0.2)
+    runs = [zigzag_truth(a, a, side, 30.0, dc.replace(cfg, seed=11 + j))
+            for j, (a, side) in enumerate([(20, "starboard"), (10, "port")])]
+    series = with_initial_states([series_from_run(r) for r in runs], 2.0, box_sigma=2.0)
+    ctx = _context(series)
+    horizon = max(10, int(round(ctx.t_ship / series[0].h)))
+    return series, ctx, _scales(series), reference_speed(series), horizon
+
+
+def _pe(series, sc, u_ref, layout, horizon):
+    def f(q):
+        th, tm, _ = layout.unpack(q)
+        return _pe_residuals(series, sc, th, tm, u_ref, horizon)
+    return f
+
+
+@pytest.mark.parametrize("st", STRUCTURES, ids=lambda st: "+".join(f"{e}:{f}" for e, f in st))
+def test_prediction_error_jacobian_is_the_derivative_of_its_residuals(sway_setting, st):
+    """The prediction-error start's residuals from the kernel are fit._pe_residuals's bits, and their
+    Jacobian the derivative of them (pieces from measured states: no start column)."""
+    series, ctx, sc, u_ref, horizon = sway_setting
+    layout = Layout(st, ctx)
+    lo, hi = layout.bounds()
+    batch = oe_batch(series, sc, layout, u_ref)
+    pieces = batch.pe_layout(horizon)
+    assert pieces is not None and 0 < horizon < series[0].t.size
+    f = _pe(series, sc, u_ref, layout, horizon)
+    for p in _points(layout, batch, 2):
+        res, jp = jacobian(batch, p, lo, hi, pieces=pieces)
+        assert np.array_equal(res, f(p))
+        _check(jp, _central(f, p, lo, hi), layout.names, _kernel_map(batch, p, lo, hi)[2],
+               lambda p=p: _central_fine(f, p, lo, hi))
+
+
+@pytest.mark.parametrize("lag_s", [0.03, 0.6])
+def test_prediction_error_pieces_with_a_servo_lag(sway_setting, lag_s):
+    """A lag's pieces restart from the servo's own lag state (extended._lag_history), sub-stepped below
+    h/2: the residuals are fit._pe_residuals's, the Jacobian its derivative."""
+    series, ctx, sc, u_ref, horizon = sway_setting
+    layout = Layout(structure_of("rudder_lag", "rudder_offset"), ctx)
+    lo, hi = layout.bounds()
+    batch = oe_batch(series, sc, layout, u_ref)
+    p = _points(layout, batch, 1)[0]
+    p[layout.names.index("lag_s")] = lag_s
+    f = _pe(series, sc, u_ref, layout, horizon)
+    res, jp = jacobian(batch, p, lo, hi, pieces=batch.pe_layout(horizon))
+    assert np.array_equal(res, f(p))
+    _check(jp, _central(f, p, lo, hi), layout.names)
+
+
+def test_no_prediction_error_jacobian_without_sway(setting):
+    """A run without sway starts its pieces from the model's own free-run v, which the kernel's pieces do
+    not: no layout, and the fit keeps finite differences there (fit._fit_from)."""
+    series, ctx, sc, u_ref = setting
+    layout = Layout(structure_of("rudder_offset"), ctx)
+    batch = oe_batch(series, sc, layout, u_ref)
+    assert series[1].v is None and batch.pe_layout(20) is None
+    assert oe_batch(series[:1], sc, layout, u_ref).pe_layout(20) is not None
+    with pytest.raises(ValueError, match="no x0 or starts"):
+        lo, hi = layout.bounds()
+        jacobian(oe_batch(series[:1], sc, layout, u_ref), _points(layout, batch, 1)[0], lo, hi,
+                 x0=series[0].x0[None], pieces=np.zeros((2, 3), dtype=np.int64))

@@ -684,6 +684,73 @@ def _oe_jac(res, jac, th, coefs, blk, lags, ms, codes, eqs, a_buf, a_off, s_buf,
                 jac[rows[2] + i, cols[ivb]] += fac[2] * data[3, mo + i]
 
 
+@njit(cache=True)
+def _pe_jac(res, jac, th, coefs, blk, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off, runs, data, sc,
+            scratch, seg, ids, cols, sens):  # pragma: no cover - compiled; held to fit._pe_residuals and
+    # to finite differences by tests/test_diagnose_jacobian.py
+    """Prediction-error residuals of ONE parameter vector on runs that all measure sway, in the layout
+    of :func:`pipeline.diagnose.fit._pe_residuals` (the same operations, so the same bits) and, with
+    ``sens``, their derivatives along kernel parameter ids[j] into column cols[j] of ``jac`` (zeros on
+    entry; :func:`_oe_jac`'s kernel order).  Run k's pieces: seg[k] = (length L, start step, first
+    residual); a piece starts at each measured state k0 = 0, step, ... up to n - L (the reading's bias
+    taken off its v), with the servo's own lag state there (:func:`_lag_history`), and so has no
+    derivative at its start but along the bias; the other arguments are :func:`_oe_jac`'s."""
+    nf = coefs.shape[0]
+    pm = ids.shape[0]
+    zero = 6 + nf + S_VBIAS + 1
+    kid = np.empty(pm, dtype=np.int64)
+    ivb = -1
+    for j in range(pm):
+        kid[j] = ids[j] if ids[j] != 6 + nf + S_VBIAS else zero
+        if ids[j] == 6 + nf + S_VBIAS:
+            ivb = j
+    jsc = np.ones(pm)
+    s0 = np.zeros((pm, 3))
+    x0 = np.empty(3)
+    rows = np.empty(3, dtype=np.int64)
+    fac = np.empty(3)
+    vb = blk[B_VBIAS]
+    for k in range(runs.shape[0]):
+        n, mo = runs[k, 0], runs[k, 1]
+        length, step, o = seg[k, 0], seg[k, 1], seg[k, 2]
+        n_seg = (n - length) // step + 1
+        nh = 2 * n - 1
+        a_half = a_buf[a_off[k] : a_off[k] + nh]
+        s_half = s_buf[s_off[k] : s_off[k] + nh]
+        h = data[4, mo]
+        blk[B_LAG] = lags[k]
+        e_hist = _lag_history(a_half, h, ms[k], lags[k])
+        w = 1.0 / np.sqrt(n_seg * length)
+        fac[0], fac[1], fac[2] = w / sc[0], w / sc[1], w / sc[2]
+        sim = scratch[:length]
+        for i in range(n_seg):
+            k0 = i * step
+            x0[0] = data[2, mo + k0] - vb * data[3, mo + k0] if vb != 0.0 else data[2, mo + k0]
+            x0[1] = data[1, mo + k0]
+            x0[2] = data[0, mo + k0]
+            pr = o + i * length                  # this piece's psi rows; its r and v rows follow a block on
+            rows[0], rows[1], rows[2] = pr, pr + n_seg * length, pr + 2 * n_seg * length
+            if sens:
+                s0[:, :] = 0.0
+                if ivb >= 0:
+                    s0[ivb, 0] = -data[3, mo + k0]  # the start is a reading: v0 = reading - vb q
+                _run_sens(sim, jac, rows, fac, cols, jsc, length, x0, e_hist[k0], s0, a_half[2 * k0:],
+                          s_half[2 * k0:], h, ms[k], th, codes, eqs, coefs, blk, kid)
+                if ivb >= 0:                    # the reading's bias: v read = v + vb q
+                    for j in range(length):
+                        jac[rows[2] + j, cols[ivb]] += fac[2] * data[3, mo + k0 + j]
+            else:
+                _run(sim, k0, k0 + length, x0, e_hist[k0], a_half, s_half, h, ms[k], th, codes, eqs, coefs,
+                     blk)
+            for j in range(length):
+                res[rows[0] + j] = (w * (sim[j, 2] - data[0, mo + k0 + j])) / sc[0]
+            for j in range(length):
+                res[rows[1] + j] = (w * (sim[j, 1] - data[1, mo + k0 + j])) / sc[1]
+            for j in range(length):
+                sv = sim[j, 0] + vb * data[3, mo + k0 + j] if vb != 0.0 else sim[j, 0]
+                res[rows[2] + j] = (w * (sv - data[2, mo + k0 + j])) / sc[2]
+
+
 class OEBatch:
     """Output-error residuals of many parameter vectors of one structure on fixed runs, in one kernel
     call (:func:`_oe_batch`), and of one vector with their exact derivatives (:meth:`jacobian`).
@@ -812,6 +879,40 @@ class OEBatch:
                 s_off[0], x0, self.runs, self.data, self.sc, self.scratch, np.asarray(ids, dtype=np.int64),
                 np.asarray(cols, dtype=np.int64), xcols, xscale)
         return res, jac
+
+
+    def pe_layout(self, horizon: int) -> np.ndarray | None:
+        """Per run (piece length L = min(``horizon``, n), start step max(1, L // 2), first residual) of
+        the prediction-error residuals (:meth:`pe_jacobian`), with their total count as a last row;
+        None where a run does not measure sway (its pieces start from the model's own free-run v)."""
+        if not np.all(self.runs[:, 3]):
+            return None
+        seg = np.empty((len(self.t) + 1, 3), dtype=np.int64)
+        o = 0
+        for k, n in enumerate(self.runs[:, 0]):
+            length = min(int(horizon), int(n))
+            step = max(1, length // 2)
+            seg[k] = (length, step, o)
+            o += 3 * ((int(n) - length) // step + 1) * length
+        seg[-1] = (0, 0, o)
+        return seg
+
+    def pe_jacobian(self, p, ids, cols, width: int, seg: np.ndarray, *, sens: bool = True, order: str = "C"
+                    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """(prediction-error residuals, derivatives (residuals, ``width``) or None without ``sens``) of
+        the parameter vector ``p`` over the pieces ``seg`` (:meth:`pe_layout`): the residuals are
+        :func:`pipeline.diagnose.fit._pe_residuals`'s bits; column cols[j] holds the derivative along
+        kernel parameter ids[j] (:meth:`jacobian`'s convention; a piece's start is measured, so it has
+        no column of its own)."""
+        th, terms = self.unpack(np.asarray(p, dtype=float))[:2]
+        thetas, coefs, blks, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off = self._pack([(th, terms)])
+        res = np.empty(int(seg[-1, 2]))
+        jac = np.zeros((res.size, width), order=order) if sens else np.zeros((1, 1))
+        scratch = np.empty((max(int(seg[:-1, 0].max()), 1), 3))
+        _pe_jac(res, jac, thetas[0], coefs[0], blks[0], lags[0], ms[0], codes, eqs, a_buf, a_off[0], s_buf,
+                s_off[0], self.runs, self.data, self.sc, scratch, seg[:-1], np.asarray(ids, dtype=np.int64),
+                np.asarray(cols, dtype=np.int64), sens)
+        return res, (jac if sens else None)
 
 
 def kernel_vector(theta, terms: Terms) -> tuple[np.ndarray, tuple]:

@@ -909,7 +909,7 @@ def _kernel_map(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray):
 
 
 def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=None, starts=(),
-             order: str = "C"):
+             order: str = "C", pieces: np.ndarray | None = None):
     """(residuals, Jacobian) of :class:`OEBatch` ``batch`` at the parameter vector ``p`` (bounds
     ``lo``, ``hi``) from the runs' starts ``x0`` (runs, 3; default their own): the Jacobian's columns
     are d residuals / d p, then, for each (k, i, w) of ``starts``, w d residuals / d (start state i of
@@ -923,7 +923,10 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
     themselves).  A time input (dead time, servo lag, speed exponent: the rudder's time shift, the
     sub-steps and the speed factor's power have no sensitivity in the kernel) gets SciPy's forward
     difference through the batch.  ``order``: the Jacobian's memory layout ("C" or "F", the same
-    numbers; :func:`_compressed_lsq` asks for "F", LAPACK's).  docs/performance.md, "Analytic Jacobian"."""
+    numbers; :func:`_compressed_lsq` asks for "F", LAPACK's).  With ``pieces``
+    (:meth:`~pipeline.diagnose.extended.OEBatch.pe_layout`) the residuals are the prediction-error
+    pieces' instead (:func:`_pe_residuals`; no ``x0`` or ``starts``), by the same rule.
+    docs/performance.md, "Analytic Jacobian"."""
     p = np.asarray(p, dtype=float)
     key = (p.size, lo.tobytes(), hi.tobytes())
     cached = batch.__dict__.get("_kernel_map")
@@ -944,11 +947,26 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
     # sensitivity is that parameter's column as it stands
     direct = (dk.shape[0] == 0 or (np.all(np.count_nonzero(dk, axis=1) == 1) and np.all(dk[dk != 0] == 1.0)
                                    and np.all(np.count_nonzero(dk, axis=0) <= 1)))
+    if pieces is not None:
+        if x0 is not None or starts:
+            raise ValueError("the prediction-error pieces start from the measured states: no x0 or starts")
+
+        def kernel(ids_, cols_, width_, order_="C"):
+            return batch.pe_jacobian(p, ids_, cols_, width_, pieces, order=order_)
+
+        def rows_at(qs, _xx):
+            return [batch.pe_jacobian(q, [], [], 0, pieces, sens=False)[0] for q in qs]
+    else:
+        def kernel(ids_, cols_, width_, order_="C"):
+            return batch.jacobian(p, ids_, cols_, width_, starts, x0, order=order_)
+
+        def rows_at(qs, xx):
+            return batch(np.array(qs), xx)
     if direct:
         cols = np.argmax(dk != 0, axis=1) if dk.shape[0] else np.zeros(0, dtype=np.int64)
-        res, jac = batch.jacobian(p, ids, cols, width, starts, x0, order=order)
+        res, jac = kernel(ids, cols, width, order)
     else:
-        res, jk = batch.jacobian(p, ids, np.arange(ids.size), ids.size + len(starts), starts, x0)
+        res, jk = kernel(ids, np.arange(ids.size), ids.size + len(starts))
         jac = np.zeros((res.size, width), order=order)
         jac[:, : p.size] = jk[:, : ids.size] @ dk
         jac[:, p.size:] = jk[:, ids.size:]
@@ -959,12 +977,12 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
             q = p.copy()
             q[i] = p[i] + _fd_step(float(p[i]), float(lo[i]), float(hi[i]))
             qs.append(q)
-        for i, q, row in zip(fd, qs, batch(np.array(qs), xx), strict=True):
+        for i, q, row in zip(fd, qs, rows_at(qs, xx), strict=True):
             jac[:, i] = (row - res) / (q[i] - p[i])
     return res, jac
 
 
-def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int):
+def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int, *, full: bool = True):
     """least_squares (trust-region reflective, :data:`_TR`, :data:`_TOL`, ``x_scale="jac"``) of the
     residuals f(x) whose Jacobian J(x) comes with them (``fj(x)`` -> (f, J), one kernel call), posed in
     their QR-compressed form: J = Q R, the residuals (Q^T f, |f - Q Q^T f|) and the Jacobian (R; 0).
@@ -975,7 +993,8 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
     rounding; but SciPy's SVD per iteration is of an (n + 1) x n matrix instead of the thousands of
     rows of f, which took a third of the fit's time (docs/performance.md).  Every evaluation makes
     its Jacobian (an accepted point needs it next; a rejected one pays it for nothing).  Returns
-    SciPy's result with ``fun`` and ``jac`` the full residuals and Jacobian at its ``x``."""
+    SciPy's result with ``fun`` and ``jac`` the full residuals and Jacobian at its ``x`` (with ``full``;
+    otherwise the compressed ones: a start that only its ``x`` is used of)."""
     made: dict = {}
 
     def fun(x):
@@ -998,6 +1017,8 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
 
     res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
                         tr_solver=_TR, **_TOL)
+    if not full:
+        return res
     res.fun, jx, _ = _finite_jacobian(fj, res.x, lo, hi)
     res.jac = np.ascontiguousarray(jx)     # the covariance's products in the row layout, as before
     return res
@@ -1389,13 +1410,19 @@ def _fit_from(series, layout, ctx, p0, max_nfev, block_T, u_ref, sc, bounds, new
         return batch(p)[0]
 
     if horizon:
-        def pe(p):
-            th, tm, _ = layout.unpack(p)
-            return _pe_residuals(series, sc, th, tm, u_ref, horizon)
+        pieces = None if plain else batch.pe_layout(horizon)
+        if pieces is not None:
+            # the pieces' exact Jacobian from the kernel (as the polish's; every run measures sway)
+            r = _compressed_lsq(lambda x: jacobian(batch, x, lo, hi, order="F", pieces=pieces), p0, lo, hi,
+                                max_nfev, full=False)
+        else:
+            def pe(p):
+                th, tm, _ = layout.unpack(p)
+                return _pe_residuals(series, sc, th, tm, u_ref, horizon)
 
-        r = least_squares(
-            pe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL
-        )
+            r = least_squares(
+                pe, p0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf", tr_solver=_TR, **_TOL
+            )
         if np.all(np.isfinite(r.x)):
             p0 = np.clip(r.x, lo + eps, hi - eps)
     for i in new_time:
