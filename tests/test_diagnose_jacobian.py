@@ -197,10 +197,11 @@ def test_a_wrong_partial_derivative_is_caught(setting, monkeypatch):
 
 @pytest.mark.parametrize("run", [0, 1], ids=["with sway", "without sway"])
 def test_the_held_out_start_jacobian_is_the_derivative_too(setting, run):
-    """boxed_initial_state's Jacobian (its residuals, channels interleaved, along the free start
-    states) from the kernel's sensitivities, for a fitted extended model, with and without a sway
+    """boxed_initial_state's problem (its residuals in blocks psi, r, v, along the free start states):
+    the residuals are the free run's minus the measured, times 1/spread, and the Jacobian from the
+    kernel's sensitivities their derivative, for a fitted extended model, with and without a sway
     channel."""
-    from pipeline.diagnose.fit import _start_jacobian, fit_structure, simulate_terms
+    from pipeline.diagnose.fit import _start_problem, fit_structure, simulate_terms
 
     series, ctx, *_ = setting
     fit = fit_structure(series, structure_of("rudder_offset", "nonlinear_yaw_damping"), ctx, max_nfev=20)
@@ -208,17 +209,20 @@ def test_the_held_out_start_jacobian_is_the_derivative_too(setting, run):
     x = np.array(s.x0, dtype=float)
     free = [0, 1] if s.v is not None else [1]
     w = np.array([1.0 / np.std(s.v) if s.v is not None else 0.0, 1.0 / np.std(s.r), 1.0 / np.std(s.psi)])
-    meas = np.column_stack([s.v if s.v is not None else np.zeros_like(s.r), s.r, s.psi])
     ur = None if fit.u_ref is None else s.u_smooth() / fit.u_ref
 
     def resid(z):
         q = x.copy()
         q[free] = z
-        return ((simulate_terms(fit.theta, fit.terms, q, s.t, s.delta, ur) - meas) * w).ravel()
+        sim = simulate_terms(fit.theta, fit.terms, q, s.t, s.delta, ur)
+        out = [(sim[:, 2] - s.psi) * w[2], (sim[:, 1] - s.r) * w[1]]
+        return np.concatenate(out + ([(sim[:, 0] - s.v) * w[0]] if s.v is not None else []))
 
     z = x[free] + 0.01
     big = np.full(len(free), np.inf)
-    _check(_start_jacobian(fit, s, x, free, w)(z), _central(resid, z, -big, big), [f"x{i}" for i in free])
+    res, jac = _start_problem(fit, s, x, free, w)(z)
+    assert np.allclose(res, resid(z), rtol=1e-12, atol=1e-12)
+    _check(jac, _central(resid, z, -big, big), [f"x{i}" for i in free])
 
 
 def _exp_fit(x, *, bad_jacobian=False, bad_residuals=False, huge_jacobian=False):

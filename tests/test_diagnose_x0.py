@@ -198,7 +198,7 @@ def test_a_held_out_start_of_a_runaway_model_is_silent_and_keeps_the_estimate(mo
     SciPy's trust-region step of the held-out start (pipeline.diagnose.fit.boxed_initial_state; seen in
     the tanker's nested rounds: overflow, then a division by zero and a NaN cast in its step-size root
     finder).  That arithmetic raises no warning on the user's terminal, and a start whose residuals are
-    not finite is not taken: the start is the approach's estimate."""
+    not finite (here SciPy's NaN step) is not taken: the start is the approach's estimate."""
     import warnings
     from types import SimpleNamespace
 
@@ -217,7 +217,7 @@ def test_a_held_out_start_of_a_runaway_model_is_silent_and_keeps_the_estimate(mo
         step = big * big                                  # overflow, as in the root finder
         ratio = np.float64(1.0) / np.float64(0.0)        # division by zero
         bad = np.array([ratio * 0.0]).astype(int)         # the NaN step cast
-        return SimpleNamespace(x=x0 + 0.5 * kw["x_scale"], fun=np.full(3, step * bad[0] * np.nan))
+        return SimpleNamespace(x=x0 + 0.5 * kw["x_scale"] * np.nan, fun=np.full(3, step * bad[0] * np.nan))
 
     monkeypatch.setattr(fit_mod, "least_squares", overflowing)
     with warnings.catch_warnings():

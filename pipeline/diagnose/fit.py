@@ -659,52 +659,53 @@ def boxed_initial_state(fit: FitResult, s: Series, half_width: np.ndarray) -> np
             1.0 / max(float(np.std(s.psi)), 1e-6),
         ]
     )
-    meas = np.column_stack([s.v if s.v is not None else np.zeros_like(s.r), s.r, s.psi])
-    ur = _u_ratio(s, fit.u_ref)
-
-    def resid(z):
-        q = x.copy()
-        q[free] = z
-        return ((simulate_terms(fit.theta, fit.terms, q, s.t, s.delta, ur) - meas) * w).ravel()
-
-    jac = "2-point" if fit.plain else _start_jacobian(fit, s, x, free, w)
     lo, hi = x[free] - half_width[free], x[free] + half_width[free]
     # a model that runs away on this run (a trial the gates then refuse) overflows in SciPy's
     # trust-region step (its step-size root finder, then the NaN step it casts): an expected event of
     # judging such a model, not a warning for the user's terminal; the start found is kept only where
     # its residuals are finite and smaller, so the estimate stands otherwise
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        r = least_squares(resid, x[free], jac=jac, bounds=(lo, hi), x_scale=half_width[free], max_nfev=20,
-                          method="trf", **_TOL)
-        e0, e1 = resid(x[free]), r.fun
+        if fit.plain:
+            meas = np.column_stack([s.v if s.v is not None else np.zeros_like(s.r), s.r, s.psi])
+            ur = _u_ratio(s, fit.u_ref)
+
+            def resid(z):
+                q = x.copy()
+                q[free] = z
+                return ((simulate_terms(fit.theta, fit.terms, q, s.t, s.delta, ur) - meas) * w).ravel()
+
+            r = least_squares(resid, x[free], jac="2-point", bounds=(lo, hi), x_scale=half_width[free],
+                              max_nfev=20, method="trf", **_TOL)
+            e0, e1 = resid(x[free]), r.fun
+        else:
+            fj = _start_problem(fit, s, x, free, w)
+            r = _compressed_lsq(fj, x[free], lo, hi, 20, x_scale=half_width[free], full=False)
+            e0, e1 = fj(x[free])[0], fj(r.x)[0]
         better = bool(np.all(np.isfinite(e1)) and e1 @ e1 < e0 @ e0)
     if better:
         x[free] = r.x
     return x
 
 
-def _start_jacobian(fit: FitResult, s: Series, x: np.ndarray, free: list[int], w: np.ndarray):
-    """The Jacobian, for :func:`boxed_initial_state`, of its residuals ((free run - measured) w per
-    sample, channels v, r, psi interleaved) along the start states ``free`` (the rest of the start as
-    in ``x``): the kernel's sensitivities to the start (:meth:`OEBatch.jacobian`), whose rows are
-    (1/sqrt(n)) (free run - measured) / spread in blocks psi, r, v, brought to that layout."""
+def _start_problem(fit: FitResult, s: Series, x: np.ndarray, free: list[int], w: np.ndarray):
+    """``fj(z)`` -> (residuals, Jacobian) of :func:`boxed_initial_state`'s problem at the start states
+    ``free`` = ``z`` (the rest of the start as in ``x``): the free run's (v, r, psi) - measured, times
+    ``w`` (1/spread per channel), in blocks psi, r (and v where measured), and their derivatives along
+    ``z`` from the kernel's sensitivities to the start (:meth:`OEBatch.jacobian`, one call for both)."""
     n = s.t.size
-    sc = [1.0 / w[2], 1.0 / w[1], 1.0 / w[0] if w[0] > 0 else 1.0]
-    batch = OEBatch([(s.t, s.delta, x, s.psi, s.r, s.v, _u_ratio(s, fit.u_ref), 1.0 / np.sqrt(n))], sc,
+    root = np.sqrt(n)
+    # the kernel weighs a run by 1/sqrt(n) and divides by the scales: scales/sqrt(n) leave (sim - meas) w
+    sc = [1.0 / w[2] / root, 1.0 / w[1] / root, (1.0 / w[0] if w[0] > 0 else 1.0) / root]
+    batch = OEBatch([(s.t, s.delta, x, s.psi, s.r, s.v, _u_ratio(s, fit.u_ref), 1.0 / root)], sc,
                     lambda _p: (fit.theta, fit.terms, None))
-    starts = [(0, i, float(np.sqrt(n))) for i in free]
-    blocks = (2, 1, 0) if s.v is not None else (2, 1)
+    starts = [(0, i, 1.0) for i in free]
 
-    def jac(z):
+    def fj(z):
         q = x.copy()
         q[free] = z
-        _, jb = batch.jacobian(np.zeros(0), [], [], len(free), starts, q[None])
-        out = np.zeros((3 * n, len(free)))
-        for b, ch in enumerate(blocks):
-            out[ch::3] = jb[b * n:(b + 1) * n]
-        return out
+        return batch.jacobian(np.zeros(0), [], [], len(free), starts, q[None], order="F")
 
-    return jac
+    return fj
 
 
 def _scales(series: list[Series]) -> dict[str, float]:
@@ -982,8 +983,9 @@ def jacobian(batch: OEBatch, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, x0=N
     return res, jac
 
 
-def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int, *, full: bool = True):
-    """least_squares (trust-region reflective, :data:`_TR`, :data:`_TOL`, ``x_scale="jac"``) of the
+def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int, *, full: bool = True,
+                    x_scale="jac"):
+    """least_squares (trust-region reflective, :data:`_TR`, :data:`_TOL`, ``x_scale``) of the
     residuals f(x) whose Jacobian J(x) comes with them (``fj(x)`` -> (f, J), one kernel call), posed in
     their QR-compressed form: J = Q R, the residuals (Q^T f, |f - Q Q^T f|) and the Jacobian (R; 0).
 
@@ -1015,7 +1017,7 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
         # whose residuals are not finite gets a non-finite Jacobian and SciPy's own error for it
         return made.get(x.tobytes(), np.full((x.size + 1, x.size), np.nan))
 
-    res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf",
+    res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=x_scale, max_nfev=max_nfev, method="trf",
                         tr_solver=_TR, **_TOL)
     if not full:
         return res
