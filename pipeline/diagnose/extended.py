@@ -376,6 +376,14 @@ def reading_bias(terms: Terms, n: int, u_ratio) -> np.ndarray | None:
     return None if vb == 0.0 else vb * reading_ratio(n, u_ratio)
 
 
+def piece_starts(n: int, horizon: int) -> tuple[int, np.ndarray]:
+    """The pieces a run of ``n`` samples is predicted in from its measured states: (their length
+    L = min(``horizon``, n) samples, the samples they start at: 0, L // 2, 2 (L // 2), ... up to n - L;
+    every half piece, so each sample is predicted twice)."""
+    length = min(int(horizon), int(n))
+    return length, np.arange(0, int(n) - length + 1, max(1, length // 2))
+
+
 def predict_segments(
     theta, terms: Terms, states, t, delta, starts, length: int, u_ratio=None, substeps: int = 1
 ) -> np.ndarray:
@@ -880,20 +888,18 @@ class OEBatch:
                 np.asarray(cols, dtype=np.int64), xcols, xscale)
         return res, jac
 
-
     def pe_layout(self, horizon: int) -> np.ndarray | None:
-        """Per run (piece length L = min(``horizon``, n), start step max(1, L // 2), first residual) of
-        the prediction-error residuals (:meth:`pe_jacobian`), with their total count as a last row;
-        None where a run does not measure sway (its pieces start from the model's own free-run v)."""
+        """Per run (piece length, start step, first residual) of the prediction-error residuals
+        (:meth:`pe_jacobian`; the pieces of :func:`piece_starts`), with their total count as a last
+        row; None where a run does not measure sway (its pieces start from the model's own free-run v)."""
         if not np.all(self.runs[:, 3]):
             return None
         seg = np.empty((len(self.t) + 1, 3), dtype=np.int64)
         o = 0
         for k, n in enumerate(self.runs[:, 0]):
-            length = min(int(horizon), int(n))
-            step = max(1, length // 2)
-            seg[k] = (length, step, o)
-            o += 3 * ((int(n) - length) // step + 1) * length
+            length, starts = piece_starts(int(n), horizon)
+            seg[k] = (length, max(1, length // 2), o)
+            o += 3 * starts.size * length
         seg[-1] = (0, 0, o)
         return seg
 

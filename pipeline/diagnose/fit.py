@@ -53,7 +53,7 @@ from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
 from pipeline.diagnose.effects import BY_NAME, NAMES, Context, Terms
-from pipeline.diagnose.extended import OEBatch, kernel_vector, predict_segments, simulate_terms
+from pipeline.diagnose.extended import OEBatch, kernel_vector, piece_starts, predict_segments, simulate_terms
 from pipeline.errors import InputError, ModelError
 from pipeline.io import Run
 from pipeline.model import PARAM_NAMES
@@ -732,8 +732,7 @@ def _pe_residuals(series, sc, theta, terms, u_ref, horizon: int) -> np.ndarray:
     parts = []
     for s in series:
         n = s.t.size
-        length = min(horizon, n)
-        starts = np.arange(0, n - length + 1, max(1, length // 2))
+        length, starts = piece_starts(n, horizon)
         states = s.states()
         if s.v is None:
             # no measured sway: each piece starts from the model's own free-run v there, not from v = 0

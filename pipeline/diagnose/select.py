@@ -103,7 +103,7 @@ from scipy import stats
 from pipeline.config import DiagnoseConfig
 from pipeline.diagnose.ahead import fits_ahead
 from pipeline.diagnose.effects import BY_NAME, CATALOGUE, REFERENCE, Context
-from pipeline.diagnose.extended import predict_segments
+from pipeline.diagnose.extended import piece_starts, predict_segments
 from pipeline.diagnose.fit import (
     FitMemo,
     FitResult,
@@ -778,7 +778,7 @@ class Search:
             out = []
             for s, per in zip(self.folds[k].val, self.eval(k, structure)[1], strict=True):
                 n = max(2, min(s.t.size, int(round(self.cfg.short_horizon_T * self.ctx.t_ship / s.h))))
-                starts = np.arange(0, s.t.size - n + 1, max(1, n // 2))
+                n, starts = piece_starts(s.t.size, n)
                 states = s.states()
                 if s.v is None:
                     states[:, 0] = per["sim"][:, 0]
