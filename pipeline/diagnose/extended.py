@@ -52,7 +52,10 @@ B_OFFSET, B_ASYM, B_CUBIC, B_LAG, B_VBIAS = 0, 1, 2, 3, 4
 BLOCK_SIZE = 5
 
 
-@njit(cache=True, inline="always")
+# _feature and _feature_grad are left to LLVM to inline: numba's own inlining ("always") of them into
+# the four RK4 stages of _deriv_at made _run and _run_sens take 43 s CPU to compile in a fresh tree
+# against 25 s, for the same run time and the same bits (docs/performance.md, "Compile time")
+@njit(cache=True)
 def _feature(code, v, r, s=1.0):  # pragma: no cover - compiled; held to effects.base.feature_value
     if code == 0:
         return r * r * r
@@ -507,8 +510,9 @@ def _oe_batch(res, thetas, coefs, blks, lags, ms, codes, eqs, a_buf, a_off, s_bu
             x0[1] = x0s[c, k, 1]
             x0[2] = x0s[c, k, 2]
             blk[B_LAG] = lags[c, k]
-            _run(sim, 0, n, x0, a_half[0], a_half, s_half, data[4, mo], ms[c, k], thetas[c], codes, eqs,
-                 coefs[c], blk)
+            # np.int64(0), not 0: a literal would compile _run a second time (Literal[int](0))
+            _run(sim, np.int64(0), n, x0, a_half[0], a_half, s_half, data[4, mo], ms[c, k], thetas[c], codes,
+                 eqs, coefs[c], blk)
             _residuals(res[c], sim, k, runs, data, sc, vb)
 
 
@@ -532,7 +536,7 @@ def _residuals(res, sim, k, runs, data, sc, vb):  # pragma: no cover - compiled
 # ---------------------------------------------------------------- sensitivities (the analytic Jacobian)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _feature_grad(code, v, r, s):  # pragma: no cover - compiled; held to finite differences by tests
     """(d/dv, d/dr) of :func:`_feature` ``code`` at (v m/s, r deg/s, speed factor s)."""
     if code == 0:
@@ -858,7 +862,7 @@ class OEBatch:
         nc, nk = P.shape[0], len(self.t)
         if X0 is None:
             X0 = np.broadcast_to(self.x0s, (nc, nk, 3))
-        X0 = np.ascontiguousarray(X0, dtype=float)
+        X0 = np.array(X0, dtype=float, order="C")   # a writable copy: one compiled signature of _oe_batch
         packed = self._pack([self.unpack(p)[:2] for p in P])
         res = np.empty((nc, self.n_res))
         _oe_batch(res, *packed, X0, self.runs, self.data, self.sc, self.scratch)
@@ -882,11 +886,11 @@ class OEBatch:
             xscale[k, i] = w
         thetas, coefs, blks, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off = self._pack([(th, terms)])
         res = np.empty(self.n_res)
-        jac = np.zeros((self.n_res, width), order=order)
+        jac = _jac_buffer(self.n_res, width)
         _oe_jac(res, jac, thetas[0], coefs[0], blks[0], lags[0], ms[0], codes, eqs, a_buf, a_off[0], s_buf,
                 s_off[0], x0, self.runs, self.data, self.sc, self.scratch, np.asarray(ids, dtype=np.int64),
                 np.asarray(cols, dtype=np.int64), xcols, xscale)
-        return res, jac
+        return res, _jac_view(jac, self.n_res, width, order)
 
     def pe_layout(self, horizon: int) -> np.ndarray | None:
         """Per run (piece length, start step, first residual) of the prediction-error residuals
@@ -913,12 +917,26 @@ class OEBatch:
         th, terms = self.unpack(np.asarray(p, dtype=float))[:2]
         thetas, coefs, blks, lags, ms, codes, eqs, a_buf, a_off, s_buf, s_off = self._pack([(th, terms)])
         res = np.empty(int(seg[-1, 2]))
-        jac = np.zeros((res.size, width), order=order) if sens else np.zeros((1, 1))
+        jac = _jac_buffer(res.size if sens else 2, width if sens else 2)
         scratch = np.empty((max(int(seg[:-1, 0].max()), 1), 3))
         _pe_jac(res, jac, thetas[0], coefs[0], blks[0], lags[0], ms[0], codes, eqs, a_buf, a_off[0], s_buf,
                 s_off[0], self.runs, self.data, self.sc, scratch, seg[:-1], np.asarray(ids, dtype=np.int64),
                 np.asarray(cols, dtype=np.int64), sens)
-        return res, (jac if sens else None)
+        return res, (_jac_view(jac, res.size, width, order) if sens else None)
+
+
+def _jac_buffer(rows: int, width: int) -> np.ndarray:
+    """A zero Jacobian buffer for the kernels, Fortran-ordered with at least two columns and rows: numba
+    types an array that is C- and F-contiguous at once (one column or row) as "C", and every layout
+    is compiled apart (about a minute each in a fresh tree), so the kernels see one layout only."""
+    return np.zeros((max(rows, 2), max(width, 2)), order="F")
+
+
+def _jac_view(jac: np.ndarray, rows: int, width: int, order: str) -> np.ndarray:
+    """The first ``rows`` x ``width`` of a :func:`_jac_buffer`, in ``order`` ("F" a view, "C" a copy:
+    the same numbers)."""
+    out = jac[:rows, :width]
+    return out if order == "F" else np.ascontiguousarray(out)
 
 
 def kernel_vector(theta, terms: Terms) -> tuple[np.ndarray, tuple]:
