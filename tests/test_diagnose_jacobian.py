@@ -8,7 +8,12 @@ start's (extended._pe_jac: pieces of one ship time scale from the measured state
 from __future__ import annotations
 
 import dataclasses as dc
+import json
+import os
+import subprocess
+import sys
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -321,3 +326,21 @@ def test_no_prediction_error_jacobian_without_sway(setting):
         lo, hi = layout.bounds()
         jacobian(oe_batch(series[:1], sc, layout, u_ref), _points(layout, batch, 1)[0], lo, hi,
                  x0=series[0].x0[None], pieces=np.zeros((2, 3), dtype=np.int64))
+
+
+def test_each_kernel_is_compiled_for_one_signature():
+    """Every way the fits call the kernels (tests/kernel_signatures.py, in a fresh interpreter: one or
+    several parameter rows, given starts, a Jacobian of one column or several in either memory order,
+    the prediction-error pieces with and without sensitivities, a short diagnosis) needs one compiled
+    signature per kernel: each further one is compiled apart (in a fresh tree, about 15-20 s CPU for
+    _run or _run_sens alone, in every process that meets it first; docs/performance.md, "Compile
+    time").  With a warm cache the kernels called from Python are the ones checked; in a fresh tree
+    (CI) those they call as well."""
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run([sys.executable, str(root / "tests" / "kernel_signatures.py")], cwd=root,
+                          capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(root)},
+                          timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    held = json.loads(done.stdout.strip().splitlines()[-1])
+    assert {"_oe_batch", "_oe_jac", "_pe_jac", "_run"} <= {k for k, v in held.items() if v}, held
+    assert all(len(v) <= 1 for v in held.values()), {k: v for k, v in held.items() if len(v) > 1}
