@@ -152,7 +152,9 @@ def _both_kernels(y, d, cfg, idx):
                 np.empty(n))
         p = (H, sq_q, fast.nonzero_columns(sq_q), sq_r, fast.nonzero_columns(sq_r), idx, w.wm, w.wc, w.gamma,
              chan >= 0, chan, fz, RULES)
-        st, k = kernel(x, S, (Y, dp), p, fast.workspace(m), outs)
+        # written_out given (True, fast.srukf_steps's value): the signature already compiled
+        extra = (True,) if kernel is fast._steps_rw else ()
+        st, k = kernel(x, S, (Y, dp), p, fast.workspace(m), outs, *extra)
         assert st == 0 and k == n
         res.append((outs, x, S))
     return res

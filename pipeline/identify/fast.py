@@ -548,7 +548,9 @@ def srukf_steps(x, S, data, p, ws, outs):
     sq_q, sq_r, meas_idx = p[1], p[3], p[5]
     if not _structured(sq_q, meas_idx) or not _diagonal(sq_r):
         return _steps_plain(x, S, data, p, ws, outs)
-    return _steps_rw(x, S, data, p, ws, outs)
+    # np.bool_(True), not the default or a literal True: the tests' written_out (a bool) then meets
+    # this compiled signature instead of compiling the filter again
+    return _steps_rw(x, S, data, p, ws, outs, np.bool_(True))
 
 
 @njit(cache=True, error_model="numpy")
@@ -627,7 +629,9 @@ def srukf_batch_kernel(x0s, S0, runs, k, finals):
     Writes the final posterior of each run into ``finals`` = (x_final (R, 9), S_final (R, 9, 9),
     status (R,)).  Serial; one workspace for all runs.
     """
-    _batch_range(0, runs[0].shape[0], (x0s, S0), runs, _with_columns(k), finals)
+    # np.int64(0), not 0: a literal would compile the whole filter a second time (Literal[int](0)
+    # beside the parallel kernel's int64)
+    _batch_range(np.int64(0), runs[0].shape[0], (x0s, S0), runs, _with_columns(k), finals)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -709,7 +713,11 @@ def run(x0: np.ndarray, S0: np.ndarray, Y: np.ndarray, delta_prev: np.ndarray,
     n, m = Y.shape
     outs = (np.empty((n, NX)), np.empty((n, NX)), np.empty((n, NX)), np.empty((n, m)), np.empty(n),
             np.empty(n))
-    status, k, x, S = srukf_kernel(np.asarray(x0, float), S0, (Y, delta_prev), settings.kernel_tuple(), outs)
+    # writable C copies of the inputs: a read-only array is another type to numba, and the whole filter
+    # would be compiled again for it
+    data = (np.array(Y, dtype=float, order="C"), np.array(delta_prev, dtype=float, order="C"))
+    status, k, x, S = srukf_kernel(np.array(x0, dtype=float, order="C"), np.array(S0, dtype=float, order="C"),
+                                   data, settings.kernel_tuple(), outs)
     return KernelRun(int(status), int(k), x, S, *outs)
 
 
@@ -724,6 +732,9 @@ def run_batch(x0s: np.ndarray, S0: np.ndarray, Ys: np.ndarray, deltas_prev: np.n
     xf = np.empty((nr, NX))
     Sf = np.empty((nr, NX, NX))
     st = np.zeros(nr, dtype=np.int64)
+    # writable C copies (:func:`run`): one compiled signature
+    x0s, S0 = np.array(x0s, dtype=float, order="C"), np.array(S0, dtype=float, order="C")
+    Ys, deltas_prev = np.array(Ys, dtype=float, order="C"), np.array(deltas_prev, dtype=float, order="C")
     if chunks is None:
         srukf_batch_kernel(x0s, S0, (Ys, deltas_prev), settings.kernel_tuple(), (xf, Sf, st))
     else:
