@@ -2,8 +2,10 @@
 or loaded are those its own calls asked for): calls the diagnosis kernels every way the fits do (one
 or several parameter rows; the runs' own starts or given ones; Jacobians in either memory order, of one
 column or several, with start columns; the prediction-error pieces with and without sensitivities; a
-free run of the extended model) and a short diagnosis in this process, then prints one JSON line:
-each numba kernel of pipeline.diagnose.extended and the signatures it holds."""
+free run of the extended model) and a short diagnosis in this process, and the identification's filter
+on writable and read-only arrays, one run and a batch, serially and on numba's threads; then prints
+one JSON line: each numba kernel of pipeline.diagnose.extended and pipeline.identify.fast and the
+signatures it holds."""
 
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ import json
 import numpy as np
 from numba.core.registry import CPUDispatcher
 
-from pipeline.config import DiagnoseConfig
+from pipeline.config import DiagnoseConfig, FilterConfig
 from pipeline.diagnose import TruthConfig, diagnose, extended, zigzag_truth
 from pipeline.diagnose.core import _context
 from pipeline.diagnose.effects import REFERENCE
@@ -27,6 +29,7 @@ from pipeline.diagnose.fit import (
     structure_of,
     with_initial_states,
 )
+from pipeline.identify import fast, identify_arrays, identify_batch, synthetic
 from pipeline.model import PAPER_TABLE4
 
 
@@ -57,7 +60,16 @@ def main() -> None:
                     batch.pe_jacobian(p, [0], [0], 1, pieces, order=order)
                     batch.pe_jacobian(p, [], [], 0, pieces, sens=False)
     diagnose(runs[:1], runs[1:], cfg=DiagnoseConfig(nested_workers=1, fit_ahead=False))
-    held = {name: [str(s) for s in obj.signatures] for name, obj in sorted(vars(extended).items())
+    t, d, _, y = synthetic.zigzag(n=120, seed=1, rudder=15)
+    for frozen in (False, True):
+        yy, dd = np.array(y), np.array(d)
+        yy.setflags(write=not frozen)
+        dd.setflags(write=not frozen)
+        identify_arrays(t, dd, yy, FilterConfig(), samples=120)
+        for parallel in (False, True):
+            identify_batch(np.stack([yy, yy]), np.stack([dd, dd]), float(t[1] - t[0]), parallel=parallel)
+    held = {f"{mod.__name__.rsplit('.', 1)[-1]}.{name}": [str(s) for s in obj.signatures]
+            for mod in (extended, fast) for name, obj in sorted(vars(mod).items())
             if isinstance(obj, CPUDispatcher)}
     print(json.dumps(held))
 

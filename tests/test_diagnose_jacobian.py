@@ -331,16 +331,19 @@ def test_no_prediction_error_jacobian_without_sway(setting):
 def test_each_kernel_is_compiled_for_one_signature():
     """Every way the fits call the kernels (tests/kernel_signatures.py, in a fresh interpreter: one or
     several parameter rows, given starts, a Jacobian of one column or several in either memory order,
-    the prediction-error pieces with and without sensitivities, a short diagnosis) needs one compiled
+    the prediction-error pieces with and without sensitivities, a short diagnosis; the identification's
+    filter on writable and read-only arrays, serially and on numba's threads) needs one compiled
     signature per kernel: each further one is compiled apart (in a fresh tree, about 15-20 s CPU for
-    _run or _run_sens alone, in every process that meets it first; docs/performance.md, "Compile
-    time").  With a warm cache the kernels called from Python are the ones checked; in a fresh tree
-    (CI) those they call as well."""
+    _run or _run_sens alone, 30 s for the filter's batch range, in every process that meets it first;
+    docs/performance.md, "Compile time").  With a warm cache the kernels called from Python are the
+    ones checked; in a fresh tree (CI) those they call as well."""
     root = Path(__file__).resolve().parents[1]
     done = subprocess.run([sys.executable, str(root / "tests" / "kernel_signatures.py")], cwd=root,
                           capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(root)},
                           timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     held = json.loads(done.stdout.strip().splitlines()[-1])
-    assert {"_oe_batch", "_oe_jac", "_pe_jac", "_run"} <= {k for k, v in held.items() if v}, held
+    used = {"extended._oe_batch", "extended._oe_jac", "extended._pe_jac", "extended._run",
+            "fast.srukf_kernel", "fast.srukf_batch_kernel", "fast.srukf_batch_kernel_parallel"}
+    assert used <= {k for k, v in held.items() if v}, held
     assert all(len(v) <= 1 for v in held.values()), {k: v for k, v in held.items() if len(v) > 1}
