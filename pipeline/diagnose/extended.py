@@ -928,7 +928,8 @@ class OEBatch:
 def _jac_buffer(rows: int, width: int) -> np.ndarray:
     """A zero Jacobian buffer for the kernels, Fortran-ordered with at least two columns and rows: numba
     types an array that is C- and F-contiguous at once (one column or row) as "C", and every layout
-    is compiled apart (about a minute each in a fresh tree), so the kernels see one layout only."""
+    is compiled apart (15-20 s CPU each for _run_sens and the kernels calling it, in a fresh tree), so
+    the kernels see one layout only."""
     return np.zeros((max(rows, 2), max(width, 2)), order="F")
 
 
