@@ -347,3 +347,22 @@ def test_each_kernel_is_compiled_for_one_signature():
             "fast.srukf_kernel", "fast.srukf_batch_kernel", "fast.srukf_batch_kernel_parallel"}
     assert used <= {k for k, v in held.items() if v}, held
     assert all(len(v) <= 1 for v in held.values()), {k: v for k, v in held.items() if len(v) > 1}
+
+
+@pytest.mark.parametrize("m,n", [(3000, 10), (2500, 16), (7, 7), (500, 1), (4, 6)])
+def test_qr_projection_is_scipys_bit_for_bit(m, n):
+    """fit._qr_project (LAPACK's geqrf and ormqr called directly, the work lengths asked once per
+    shape) gives scipy.linalg.qr_multiply(a, f, mode="right")'s numbers bit for bit, for columns of
+    very different scales, a second call of a shape (the lengths from the cache) and a wide matrix."""
+    from scipy.linalg import qr_multiply
+
+    from pipeline.diagnose.fit import _qr_project
+
+    rng = np.random.default_rng([m, n])
+    for _ in range(2):
+        a = rng.normal(size=(m, n)) * rng.uniform(0.1, 1e3, n)
+        f = rng.normal(size=m)
+        want = qr_multiply(np.asfortranarray(a), f, mode="right")
+        got = _qr_project(np.asfortranarray(a), f)
+        assert all(np.array_equal(w, g) for w, g in zip(want, got, strict=True))
+        assert got[0].shape == (min(m, n),) and got[1].shape == (min(m, n), n)

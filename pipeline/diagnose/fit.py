@@ -48,7 +48,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import qr_multiply
+from scipy.linalg import get_lapack_funcs, qr_multiply
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
@@ -1005,7 +1005,7 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
             return np.full(x.size + 1, np.nan)      # a trial point SciPy rejects (shrinks its region)
         # in LAPACK's (Fortran) layout the QR reads the Jacobian in place instead of copying it (the
         # same numbers, so the same bits); it is not used again
-        qtf, r = qr_multiply(np.asfortranarray(jx), f, mode="right", overwrite_a=True)
+        qtf, r = _qr_project(np.asfortranarray(jx), f)
         made[x.tobytes()] = np.vstack([r, np.zeros((1, x.size))])
         return np.append(qtf, np.sqrt(max(float(f @ f) - float(qtf @ qtf), 0.0)))
 
@@ -1023,6 +1023,36 @@ def _compressed_lsq(fj, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev
     res.fun, jx, _ = _finite_jacobian(fj, res.x, lo, hi)
     res.jac = np.ascontiguousarray(jx)     # the covariance's products in the row layout, as before
     return res
+
+
+#: LAPACK's Householder QR and its product with Q^T (double precision)
+_GEQRF, _ORMQR = get_lapack_funcs(("geqrf", "ormqr"), dtype=np.float64)
+#: the optimal work array lengths LAPACK reports for a shape: (M, N) -> (geqrf's, ormqr's)
+_QR_LWORK: dict[tuple[int, int], tuple[int, int]] = {}
+
+
+def _qr_project(a: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the first N entries of Q^T f, R) of the QR factorisation a = Q R of the finite, Fortran-ordered
+    M x N matrix ``a`` (overwritten): for M >= N ``scipy.linalg.qr_multiply(a, f, mode="right",
+    overwrite_a=True)``'s two LAPACK calls (geqrf, then ormqr on f as one column) with the same work
+    array lengths, so the same bits, without its per-call checks and workspace queries (the lengths
+    are asked once per shape).  Raises ValueError on an argument LAPACK calls illegal."""
+    m, n = a.shape
+    if m < n:       # never in a fit (more residuals than parameters); SciPy's general path
+        return qr_multiply(a, f, mode="right", overwrite_a=True)
+    lw = _QR_LWORK.get((m, n))
+    if lw is None:
+        qw = _GEQRF(a, lwork=-1)[-2]
+        ow = _ORMQR("L", "T", a[:, :n], np.zeros(n), f[:, None], lwork=-1)[-2]
+        lw = _QR_LWORK[(m, n)] = (int(qw[0].real), int(ow[0].real))
+    qr, tau, _, info = _GEQRF(a, lwork=lw[0], overwrite_a=1)
+    if info < 0:
+        raise ValueError(f"illegal value in argument {-info} of LAPACK's geqrf")
+    r = np.triu(qr[:n, :])
+    cq, _, info = _ORMQR("L", "T", qr[:, :n], tau, f[:, None], lwork=lw[1], overwrite_c=0)
+    if info < 0:
+        raise ValueError(f"illegal value in argument {-info} of LAPACK's ormqr")
+    return cq[:n, 0], r
 
 
 def _finite_jacobian(fj, x: np.ndarray, lo: np.ndarray, hi: np.ndarray):
