@@ -379,12 +379,18 @@ def reading_bias(terms: Terms, n: int, u_ratio) -> np.ndarray | None:
     return None if vb == 0.0 else vb * reading_ratio(n, u_ratio)
 
 
+def piece_step(length: int) -> int:
+    """Samples between the starts of two pieces of ``length`` samples (:func:`piece_starts`): half a
+    piece, at least one."""
+    return max(1, int(length) // 2)
+
+
 def piece_starts(n: int, horizon: int) -> tuple[int, np.ndarray]:
     """The pieces a run of ``n`` samples is predicted in from its measured states: (their length
-    L = min(``horizon``, n) samples, the samples they start at: 0, L // 2, 2 (L // 2), ... up to n - L;
-    every half piece, so each sample is predicted twice)."""
+    L = min(``horizon``, n) samples, the samples they start at: 0, every :func:`piece_step` (L // 2)
+    up to n - L, so each sample is predicted twice)."""
     length = min(int(horizon), int(n))
-    return length, np.arange(0, int(n) - length + 1, max(1, length // 2))
+    return length, np.arange(0, int(n) - length + 1, piece_step(length))
 
 
 def predict_segments(
@@ -902,7 +908,7 @@ class OEBatch:
         o = 0
         for k, n in enumerate(self.runs[:, 0]):
             length, starts = piece_starts(int(n), horizon)
-            seg[k] = (length, max(1, length // 2), o)
+            seg[k] = (length, piece_step(length), o)
             o += 3 * starts.size * length
         seg[-1] = (0, 0, o)
         return seg

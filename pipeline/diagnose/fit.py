@@ -1043,7 +1043,7 @@ def _qr_project(a: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lw = _QR_LWORK.get((m, n))
     if lw is None:
         qw = _GEQRF(a, lwork=-1)[-2]
-        ow = _ORMQR("L", "T", a[:, :n], np.zeros(n), f[:, None], lwork=-1)[-2]
+        ow = _ORMQR("L", "T", a, np.zeros(n), f[:, None], lwork=-1)[-2]
         lw = _QR_LWORK[(m, n)] = (int(qw[0].real), int(ow[0].real))
     qr, tau, _, info = _GEQRF(a, lwork=lw[0], overwrite_a=1)
     if info < 0:
